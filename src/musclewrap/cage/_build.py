@@ -1,0 +1,252 @@
+"""Construction and verification of the coarse envelope (cage) of a muscle."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import igl
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+from ..constants import defaults, tol
+from ..mesh import check_mesh, volume
+
+__all__ = ["Cage", "CageError", "build_cage", "cage_self_intersections", "verify_cage"]
+
+
+class CageError(RuntimeError):
+    """The cage could not be built or does not meet its guarantees."""
+
+
+@dataclass(frozen=True)
+class Cage:
+    """A verified coarse envelope of a fine mesh.
+
+    Attributes
+    ----------
+    C : (m, 3) float64 array
+        Cage vertices.
+    CF : (k, 3) int64 array
+        Cage triangles, outward oriented.
+    offset : float
+        Distance of the offset surface the cage was decimated from.
+    min_distance : float
+        Smallest distance from a fine vertex to the cage (the verified margin).
+    min_winding : float
+        Smallest generalized winding number of a fine vertex (1 = inside).
+    volume_ratio : float
+        Cage volume over fine volume.
+    min_angle_deg : float
+        Smallest triangle angle of the cage, in degrees.
+    push_rounds : int
+        Rounds of pushing vertices outward that enclosure needed.
+    """
+
+    C: FloatArray
+    CF: IntArray
+    offset: float
+    min_distance: float
+    min_winding: float
+    volume_ratio: float
+    min_angle_deg: float
+    push_rounds: int
+
+
+def _min_angle_deg(C: FloatArray, CF: IntArray) -> float:
+    a, b, c = C[CF[:, 0]], C[CF[:, 1]], C[CF[:, 2]]
+    angles = []
+    for p, q, r in ((a, b, c), (b, c, a), (c, a, b)):
+        u, v = q - p, r - p
+        cosang = np.einsum("ij,ij->i", u, v) / (np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
+        angles.append(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))))
+    return float(np.min(angles))
+
+
+def cage_self_intersections(C: FloatArray, CF: IntArray) -> int:
+    """Count pairs of non-adjacent cage triangles that intersect.
+
+    Parameters
+    ----------
+    C : (m, 3) float64 array
+        Cage vertices.
+    CF : (k, 3) int array
+        Cage triangles.
+
+    Returns
+    -------
+    int
+        Number of intersecting pairs (0 for a valid cage).
+    """
+    T = C[CF]
+    lo, hi = T.min(axis=1), T.max(axis=1)
+    overlap = np.all((lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :]), axis=2)
+    overlap = np.triu(overlap, k=1)
+    i, j = np.nonzero(overlap)
+    shares = (CF[i][:, :, None] == CF[j][:, None, :]).any(axis=(1, 2))
+    i, j = i[~shares], j[~shares]
+    hits = 0
+    for a, b in zip(i, j, strict=True):
+        hit, _, _, _ = igl.tri_tri_intersection_test_3d(
+            T[a, 0:1], T[a, 1:2], T[a, 2:3], T[b, 0:1], T[b, 1:2], T[b, 2:3]
+        )
+        hits += bool(hit)
+    return hits
+
+
+def _vertex_normals(C: FloatArray, CF: IntArray) -> FloatArray:
+    fn = np.cross(C[CF[:, 1]] - C[CF[:, 0]], C[CF[:, 2]] - C[CF[:, 0]])
+    N = np.zeros_like(C)
+    for k in range(3):
+        np.add.at(N, CF[:, k], fn)
+    return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+
+
+def _enclosure(V: FloatArray, C: FloatArray, CF: IntArray) -> tuple[FloatArray, FloatArray, IntArray]:
+    wn = igl.winding_number(C, CF, V)
+    d2, face, _ = igl.point_mesh_squared_distance(V, C, CF)
+    return wn, np.sqrt(d2), face
+
+
+def verify_cage(V: FloatArray, F: IntArray, C: FloatArray, CF: IntArray, *, margin: float) -> list[str]:
+    """List every way a cage fails its guarantees (empty list = valid).
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+        Fine vertices.
+    F : (k, 3) int array
+        Fine triangles (for the volume ratio only).
+    C, CF : arrays
+        Cage.
+    margin : float
+        Required distance from every fine vertex to the cage.
+
+    Returns
+    -------
+    list of str
+        Problems: not a closed oriented manifold, self-intersections, fine
+        vertices outside (winding number < 0.5) or closer than ``margin``.
+    """
+    problems = []
+    chk = check_mesh(C, CF)
+    if not chk.ok:
+        problems.append("cage: " + "; ".join(chk.problems()))
+    n_self = cage_self_intersections(C, CF)
+    if n_self:
+        problems.append(f"cage has {n_self} self-intersecting triangle pair(s)")
+    wn, dist, _ = _enclosure(V, C, CF)
+    outside = int(np.sum(wn < tol.winding_inside))
+    if outside:
+        problems.append(f"{outside} fine vertices lie outside the cage")
+    close = int(np.sum(dist < margin))
+    if close:
+        problems.append(f"{close} fine vertices are closer than {margin:.3g} to the cage")
+    return problems
+
+
+def build_cage(
+    V: FloatArray,
+    F: IntArray,
+    *,
+    size: int = defaults.cage_size,
+    offset: float | None = None,
+    max_push_rounds: int = 12,
+) -> Cage:
+    """Build a verified cage around a closed fine mesh.
+
+    An offset surface at distance ``offset`` is extracted from a signed
+    distance grid (marching cubes), decimated by quadric error collapses that
+    refuse to create self-intersections, and then checked: it must be a
+    closed, outward-oriented, self-intersection-free 2-manifold, enclose every
+    fine vertex (generalized winding number) and keep them at least
+    ``defaults.cage_margin * offset`` away. Vertices too close are pushed
+    outward along their normals until that holds.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+        Fine vertices of a closed, outward-oriented mesh.
+    F : (k, 3) int array
+        Fine triangles.
+    size : int, optional
+        Target number of cage vertices (at least 20).
+    offset : float, optional
+        Offset distance in mesh units. Default: ``defaults.cage_offset`` times
+        the mean thickness ``4 V / A``, at most ``defaults.cage_offset_max``
+        times the bounding-box diagonal.
+    max_push_rounds : int, optional
+        Limit of the enclosure repair loop.
+
+    Returns
+    -------
+    Cage
+
+    Raises
+    ------
+    CageError
+        If no valid cage results.
+
+    Notes
+    -----
+    Decimating first and pushing along normals afterwards fails on thin,
+    tendinous muscles (measured on the LHDL psoas: a cage of 35 times the
+    muscle's volume with flipped faces); the offset surface avoids that.
+    """
+    if size < 20:
+        raise ValueError(f"size must be at least 20 cage vertices, got {size}")
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    longest = float(np.max(V.max(0) - V.min(0)))
+    vol = volume(V, F)
+    area = float(np.sum(np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)) / 2)
+    if offset is None:
+        offset = min(defaults.cage_offset * 4.0 * vol / area, defaults.cage_offset_max * diag)
+    if not offset > 0:
+        raise ValueError(f"offset must be positive, got {offset}")
+    spacing = max(offset / 1.2, longest / 160.0)
+    offset = max(offset, 1.2 * spacing)
+    cells = int(np.ceil((longest + 4 * offset) / spacing))
+    SV, SF, _, _, _ = igl.offset_surface(V, F, offset, cells, igl.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER)
+    if len(SF) == 0:
+        raise CageError("the offset surface is empty (is the mesh closed?)")
+    target_faces = 2 * size - 4
+    SVf, SFf = np.asfortranarray(SV), np.asfortranarray(SF.astype(np.int32))
+    if len(SF) > 8 * target_faces:
+        # A first, unconstrained pass is fast; the final collapses block self-intersections.
+        SVf, SFf, _, _ = igl.qslim(SVf, SFf, 8 * target_faces, False)
+        SVf, SFf = np.asfortranarray(SVf), np.asfortranarray(SFf.astype(np.int32))
+    C, CF, _, _ = igl.qslim(SVf, SFf, target_faces, True)
+    C = np.ascontiguousarray(C, dtype=np.float64)
+    CF = np.ascontiguousarray(CF, dtype=np.int64)
+    if volume(C, CF) < 0:
+        CF = CF[:, ::-1].copy()
+    margin = defaults.cage_margin * offset
+    rounds = 0
+    for rounds in range(max_push_rounds + 1):
+        wn, dist, face = _enclosure(V, C, CF)
+        bad = (wn < tol.winding_inside) | (dist < margin)
+        if not bad.any():
+            break
+        if rounds == max_push_rounds:
+            break
+        # Push the vertices of the cage faces nearest to offending fine vertices.
+        need = np.where(wn[bad] < tol.winding_inside, dist[bad] + margin, margin - dist[bad])
+        push = np.zeros(len(C))
+        for k in range(3):
+            np.maximum.at(push, CF[face[bad], k], need)
+        C = C + _vertex_normals(C, CF) * (1.25 * push + 1e-3 * offset * (push > 0))[:, None]
+    problems = verify_cage(V, F, C, CF, margin=margin)
+    if problems:
+        raise CageError("could not build a valid cage: " + "; ".join(problems))
+    wn, dist, _ = _enclosure(V, C, CF)
+    return Cage(
+        C=C,
+        CF=CF,
+        offset=float(offset),
+        min_distance=float(dist.min()),
+        min_winding=float(wn.min()),
+        volume_ratio=float(volume(C, CF) / vol),
+        min_angle_deg=_min_angle_deg(C, CF),
+        push_rounds=rounds,
+    )

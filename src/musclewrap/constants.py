@@ -1,0 +1,91 @@
+"""Tolerances and defaults used across musclewrap, kept in one place.
+
+Every numerical threshold the package relies on lives here so that tests,
+benchmarks and the documentation quote the same numbers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Defaults", "Tolerances", "defaults", "tol"]
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Numerical tolerances (all relative unless the name says otherwise).
+
+    Attributes
+    ----------
+    volume : float
+        Relative fine-volume error accepted as converged, ``|V - V0| / V0``.
+    direction : float
+        Relative change of the volume-gradient direction between two
+        iterations below which the constrained solve is considered stationary.
+    mvc_on_vertex : float
+        Distance to a cage vertex, relative to the cage's bounding-box
+        diagonal, below which a point is treated as lying on that vertex.
+    mvc_on_face : float
+        Angular tolerance (radians) for a point lying on a cage face.
+    merge_vertices : float
+        Distance, relative to the bounding-box diagonal, under which two mesh
+        vertices are merged on load.
+    degenerate_area : float
+        Triangle area, relative to the squared bounding-box diagonal, under
+        which a face counts as degenerate.
+    winding_inside : float
+        Generalized winding number above which a point counts as enclosed.
+    """
+
+    volume: float = 1e-9
+    direction: float = 1e-7
+    mvc_on_vertex: float = 1e-12
+    mvc_on_face: float = 1e-10
+    merge_vertices: float = 1e-10
+    degenerate_area: float = 1e-14
+    winding_inside: float = 0.5
+
+
+@dataclass(frozen=True)
+class Defaults:
+    """Default settings of the pipeline.
+
+    Attributes
+    ----------
+    cage_size : int
+        Target number of cage vertices.
+    cage_offset : float
+        Offset of the cage from the muscle surface, as a fraction of the
+        muscle's mean thickness (``4 * volume / area``), clamped by
+        ``cage_offset_max``.
+    cage_offset_max : float
+        Upper bound of the offset as a fraction of the bounding-box diagonal.
+    cage_margin : float
+        Minimum distance from any fine vertex to the cage, as a fraction of
+        the offset, that the cage check demands.
+    proxy_size : int
+        Number of faces of the intermediate proxy mesh used for the volume
+        gradient direction.
+    skeleton_weight : float
+        Weight of the skeleton condition relative to the Laplacian condition.
+    samples_per_line : int
+        Minimum number of arc-length samples per action line.
+    max_iterations : int
+        Iteration limit of the default solver.
+    paper_max_iterations : int
+        Iteration limit of ``method="paper"`` (the paper used 100 to 200).
+    """
+
+    cage_size: int = 300
+    cage_offset: float = 0.15
+    cage_offset_max: float = 0.015
+    cage_margin: float = 0.25
+    proxy_size: int = 3000
+    skeleton_weight: float = 1.0
+    samples_per_line: int = 33
+    max_iterations: int = 8
+    paper_max_iterations: int = 200
+
+
+tol = Tolerances()
+defaults = Defaults()

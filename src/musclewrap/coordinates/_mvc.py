@@ -1,0 +1,180 @@
+"""Mean value coordinates of points with respect to a closed triangle cage."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import numpy.typing as npt
+
+from .._typing import FloatArray, IntArray
+from .._validation import as_faces, as_points
+from ..constants import tol
+
+__all__ = ["mean_value_coordinates"]
+
+
+def mean_value_coordinates(
+    P: npt.ArrayLike,
+    C: npt.ArrayLike,
+    CF: npt.ArrayLike,
+    *,
+    chunk: int = 65536,
+) -> FloatArray:
+    """Mean value coordinates of points in a closed triangle cage (Ju et al. 2005).
+
+    Parameters
+    ----------
+    P : (n, 3) array_like
+        Query points, inside or outside the cage (the coordinates extend
+        smoothly outside a closed cage).
+    C : (m, 3) array_like
+        Cage vertices.
+    CF : (k, 3) array_like
+        Cage triangles, consistently oriented.
+    chunk : int, optional
+        Points processed per block (bounds the temporary memory).
+
+    Returns
+    -------
+    (n, m) float64 array
+        ``W`` with rows summing to 1 and ``W @ C == P`` up to rounding.
+
+    Notes
+    -----
+    Follows the pseudocode of Ju, Schaefer & Warren (2005), section 3.3, with
+    its two special cases: a point on a cage vertex gets that vertex's
+    one-hot row, a point on a cage face gets the face's barycentric row; a
+    face whose plane contains the point but which does not contain it
+    contributes nothing. ``c`` is clamped to [-1, 1] before ``sqrt(1 - c**2)``.
+
+    References
+    ----------
+    .. [1] T. Ju, S. Schaefer, J. Warren, "Mean value coordinates for closed
+       triangular meshes", ACM Trans. Graph. 24(3), 561-566, 2005.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> C = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    >>> CF = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    >>> W = mean_value_coordinates([[0.1, 0.2, 0.3]], C, CF)
+    >>> np.allclose(W @ C, [[0.1, 0.2, 0.3]]), np.isclose(W.sum(), 1.0)
+    (True, True)
+    """
+    P = as_points(P, "P")
+    C = as_points(C, "C", min_rows=4)
+    CF = as_faces(CF, len(C), "CF")
+    n, m = len(P), len(C)
+    W = np.empty((n, m))
+    for start in range(0, n, chunk):
+        W[start : start + chunk] = _mvc_block(P[start : start + chunk], C, CF)
+    return W
+
+
+@numba.njit(cache=True, inline="always")
+def _angle(U, a, b):  # pragma: no cover - compiled
+    # atan2 of |u x v| and u.v stays accurate near 0 and pi, unlike arcsin of the chord.
+    cx = U[a, 1] * U[b, 2] - U[a, 2] * U[b, 1]
+    cy = U[a, 2] * U[b, 0] - U[a, 0] * U[b, 2]
+    cz = U[a, 0] * U[b, 1] - U[a, 1] * U[b, 0]
+    dot = U[a, 0] * U[b, 0] + U[a, 1] * U[b, 1] + U[a, 2] * U[b, 2]
+    return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), dot)
+
+
+@numba.njit(parallel=True, cache=True, fastmath=False)
+def _mvc_kernel(P, C, CF, eps_vertex, eps_face, W):  # pragma: no cover - compiled
+    n = P.shape[0]
+    m = C.shape[0]
+    k = CF.shape[0]
+    for r in numba.prange(n):
+        px, py, pz = P[r, 0], P[r, 1], P[r, 2]
+        d = np.empty(m)
+        U = np.empty((m, 3))
+        hit_vertex = -1
+        for j in range(m):
+            dx, dy, dz = C[j, 0] - px, C[j, 1] - py, C[j, 2] - pz
+            dj = np.sqrt(dx * dx + dy * dy + dz * dz)
+            d[j] = dj
+            if dj < eps_vertex:
+                hit_vertex = j
+                break
+            U[j, 0], U[j, 1], U[j, 2] = dx / dj, dy / dj, dz / dj
+        for j in range(m):
+            W[r, j] = 0.0
+        if hit_vertex >= 0:
+            W[r, hit_vertex] = 1.0
+            continue
+        hit_face = -1
+        total = 0.0
+        for f in range(k):
+            i0, i1, i2 = CF[f, 0], CF[f, 1], CF[f, 2]
+            th0 = _angle(U, i1, i2)
+            th1 = _angle(U, i2, i0)
+            th2 = _angle(U, i0, i1)
+            h = 0.5 * (th0 + th1 + th2)
+            if np.pi - h < eps_face:
+                hit_face = f
+                break
+            sh = np.sin(h)
+            s0, s1, s2 = np.sin(th0), np.sin(th1), np.sin(th2)
+            c0 = 2.0 * sh * np.sin(h - th0) / (s1 * s2) - 1.0
+            c1 = 2.0 * sh * np.sin(h - th1) / (s2 * s0) - 1.0
+            c2 = 2.0 * sh * np.sin(h - th2) / (s0 * s1) - 1.0
+            det = (
+                U[i0, 0] * (U[i1, 1] * U[i2, 2] - U[i1, 2] * U[i2, 1])
+                - U[i0, 1] * (U[i1, 0] * U[i2, 2] - U[i1, 2] * U[i2, 0])
+                + U[i0, 2] * (U[i1, 0] * U[i2, 1] - U[i1, 1] * U[i2, 0])
+            )
+            sgn = 1.0 if det >= 0.0 else -1.0
+            q0 = sgn * np.sqrt(max(0.0, 1.0 - min(max(c0, -1.0), 1.0) ** 2))
+            q1 = sgn * np.sqrt(max(0.0, 1.0 - min(max(c1, -1.0), 1.0) ** 2))
+            q2 = sgn * np.sqrt(max(0.0, 1.0 - min(max(c2, -1.0), 1.0) ** 2))
+            if abs(q0) <= eps_face or abs(q1) <= eps_face or abs(q2) <= eps_face:
+                continue  # the point lies on this face's plane, outside the face
+            w0 = (th0 - c1 * th2 - c2 * th1) / (d[i0] * s1 * q2)
+            w1 = (th1 - c2 * th0 - c0 * th2) / (d[i1] * s2 * q0)
+            w2 = (th2 - c0 * th1 - c1 * th0) / (d[i2] * s0 * q1)
+            W[r, i0] += w0
+            W[r, i1] += w1
+            W[r, i2] += w2
+            total += w0 + w1 + w2
+        if hit_face >= 0:
+            for j in range(m):
+                W[r, j] = 0.0
+            i0, i1, i2 = CF[hit_face, 0], CF[hit_face, 1], CF[hit_face, 2]
+            # barycentric coordinates in the face's plane
+            ax, ay, az = C[i0, 0], C[i0, 1], C[i0, 2]
+            bx, by, bz = C[i1, 0] - ax, C[i1, 1] - ay, C[i1, 2] - az
+            cx, cy, cz = C[i2, 0] - ax, C[i2, 1] - ay, C[i2, 2] - az
+            qx, qy, qz = px - ax, py - ay, pz - az
+            d00 = bx * bx + by * by + bz * bz
+            d01 = bx * cx + by * cy + bz * cz
+            d11 = cx * cx + cy * cy + cz * cz
+            d20 = qx * bx + qy * by + qz * bz
+            d21 = qx * cx + qy * cy + qz * cz
+            den = d00 * d11 - d01 * d01
+            wb = (d11 * d20 - d01 * d21) / den
+            wc = (d00 * d21 - d01 * d20) / den
+            W[r, i0] = 1.0 - wb - wc
+            W[r, i1] = wb
+            W[r, i2] = wc
+        else:
+            for j in range(m):
+                W[r, j] /= total
+
+
+def _mvc_block(P: FloatArray, C: FloatArray, CF: IntArray) -> FloatArray:
+    diag = float(np.linalg.norm(C.max(0) - C.min(0)))
+    W = np.empty((len(P), len(C)))
+    _mvc_kernel(P, C, CF, tol.mvc_on_vertex * diag, tol.mvc_on_face, W)
+    return W
+
+
+def _barycentric(p: FloatArray, T: FloatArray) -> FloatArray:
+    """Barycentric coordinates of ``p`` (on the plane of) triangle ``T``."""
+    a, b, c = T
+    n = np.cross(b - a, c - a)
+    nn = n @ n
+    wa = np.cross(c - b, p - b) @ n / nn
+    wb = np.cross(a - c, p - c) @ n / nn
+    return np.array([wa, wb, 1.0 - wa - wb])

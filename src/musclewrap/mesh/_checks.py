@@ -1,0 +1,219 @@
+"""Topology checks of triangle meshes: closedness, manifoldness, orientation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .._typing import FloatArray, IntArray
+from ..constants import tol
+from ._volume import volume
+
+__all__ = ["MeshCheck", "MeshError", "check_mesh", "clean_mesh", "merge_duplicate_vertices"]
+
+
+class MeshError(ValueError):
+    """A mesh that musclewrap cannot use, with the problem and a suggested fix."""
+
+
+@dataclass(frozen=True)
+class MeshCheck:
+    """What `check_mesh` found.
+
+    Attributes
+    ----------
+    n_vertices, n_faces : int
+        Sizes.
+    boundary_edges : int
+        Edges used by one face only (holes).
+    nonmanifold_edges : int
+        Edges used by more than two faces.
+    inconsistent_edges : int
+        Interior edges traversed in the same direction by both faces.
+    degenerate_faces : int
+        Faces with (near) zero area or repeated vertex indices.
+    components : int
+        Connected components (by shared vertices).
+    volume : float
+        Signed volume (meaningful only when closed and consistently oriented).
+    """
+
+    n_vertices: int
+    n_faces: int
+    boundary_edges: int
+    nonmanifold_edges: int
+    inconsistent_edges: int
+    degenerate_faces: int
+    components: int
+    volume: float
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def closed(self) -> bool:
+        """True when every edge is shared by exactly two faces."""
+        return self.boundary_edges == 0 and self.nonmanifold_edges == 0
+
+    @property
+    def consistently_oriented(self) -> bool:
+        """True when neighbouring faces agree on orientation."""
+        return self.inconsistent_edges == 0
+
+    @property
+    def ok(self) -> bool:
+        """True for a closed, consistently oriented, single-component mesh."""
+        return (
+            self.closed
+            and self.consistently_oriented
+            and self.components == 1
+            and self.degenerate_faces == 0
+            and self.volume > 0
+        )
+
+    def problems(self) -> list[str]:
+        """Human-readable list of what is wrong (empty when `ok`)."""
+        out = []
+        if self.boundary_edges:
+            out.append(f"open: {self.boundary_edges} boundary edge(s) (holes)")
+        if self.nonmanifold_edges:
+            out.append(f"{self.nonmanifold_edges} non-manifold edge(s) (shared by >2 faces)")
+        if self.inconsistent_edges:
+            out.append(f"{self.inconsistent_edges} edge(s) with inconsistent face orientation")
+        if self.degenerate_faces:
+            out.append(f"{self.degenerate_faces} degenerate (zero-area) face(s)")
+        if self.components != 1:
+            out.append(f"{self.components} connected components")
+        if self.closed and self.consistently_oriented and self.volume <= 0:
+            out.append("faces point inward (negative volume)")
+        return out
+
+
+def _edges(F: IntArray) -> tuple[IntArray, IntArray]:
+    """Directed half-edges (m*3, 2) and their undirected sorted keys."""
+    he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    und = np.sort(he, axis=1)
+    return he, und
+
+
+def check_mesh(V: FloatArray, F: IntArray) -> MeshCheck:
+    """Check a triangle mesh for the properties the deformation needs.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+        Vertex positions.
+    F : (m, 3) int array
+        Triangles.
+
+    Returns
+    -------
+    MeshCheck
+        Counts of boundary, non-manifold and inconsistently oriented edges,
+        degenerate faces, components and the signed volume.
+    """
+    he, und = _edges(F)
+    keys, inverse, counts = np.unique(und, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    boundary = int(np.sum(counts == 1))
+    nonmanifold = int(np.sum(counts > 2))
+    # For edges shared by exactly two faces, a consistent orientation means the
+    # two half-edges run in opposite directions.
+    forward = he[:, 0] < he[:, 1]
+    fwd_count = np.bincount(inverse, forward.astype(np.int64), minlength=len(keys))
+    inconsistent = int(np.sum((counts == 2) & (fwd_count != 1)))
+    diag = float(np.linalg.norm(V.max(0) - V.min(0))) or 1.0
+    area2 = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    degenerate = int(np.sum(repeated | (area2 <= 2 * tol.degenerate_area * diag**2)))
+    n = V.shape[0]
+    used = np.unique(F)
+    adj = sp.coo_matrix((np.ones(len(he)), (he[:, 0], he[:, 1])), shape=(n, n))
+    ncomp, labels = connected_components(adj, directed=False)
+    components = len(np.unique(labels[used]))
+    return MeshCheck(
+        n_vertices=n,
+        n_faces=len(F),
+        boundary_edges=boundary,
+        nonmanifold_edges=nonmanifold,
+        inconsistent_edges=inconsistent,
+        degenerate_faces=degenerate,
+        components=components,
+        volume=volume(V, F),
+    )
+
+
+def merge_duplicate_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, IntArray, int]:
+    """Merge bit-identical vertices (triangle soups such as STL) and drop unused ones.
+
+    Returns
+    -------
+    V, F : arrays
+        The indexed mesh.
+    merged : int
+        How many vertices were removed.
+    """
+    uniq, inverse = np.unique(V, axis=0, return_inverse=True)
+    F2 = inverse.ravel()[F]
+    used = np.unique(F2)
+    remap = np.full(len(uniq), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return np.ascontiguousarray(uniq[used]), remap[F2], len(V) - len(used)
+
+
+def clean_mesh(V: FloatArray, F: IntArray, *, source: str = "mesh") -> tuple[FloatArray, IntArray, list[str]]:
+    """Make a mesh usable or refuse it with a message naming the problem.
+
+    Merges duplicate vertices, drops faces with repeated indices, flips a
+    consistently inward-oriented mesh, and refuses anything that is not a
+    closed, consistently oriented, single-component 2-manifold.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+        Vertex positions.
+    F : (m, 3) int array
+        Triangles.
+    source : str, optional
+        File name or label quoted in messages.
+
+    Returns
+    -------
+    V, F : arrays
+        The cleaned mesh, outward oriented.
+    notes : list of str
+        What was changed.
+
+    Raises
+    ------
+    MeshError
+        If the mesh is open, non-manifold, inconsistently oriented, has several
+        components, or encloses no volume.
+    """
+    notes: list[str] = []
+    V, F, merged = merge_duplicate_vertices(V, F)
+    if merged:
+        notes.append(f"merged {merged} duplicate vertices")
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    if rep.any():
+        F = F[~rep]
+        notes.append(f"removed {int(rep.sum())} faces with repeated vertices")
+    chk = check_mesh(V, F)
+    problems = [
+        p for p in chk.problems() if not p.startswith(("faces point inward", f"{chk.degenerate_faces} degenerate"))
+    ]
+    if chk.degenerate_faces:
+        notes.append(f"kept {chk.degenerate_faces} zero-area face(s) (they add no volume)")
+    if problems:
+        hint = (
+            "repair it first (e.g. PyMeshFix, or MeshLab's 'remove non-manifold edges' and "
+            "'close holes'), or keep only the main component"
+        )
+        raise MeshError(f"{source}: not a closed 2-manifold muscle surface: {'; '.join(problems)}; {hint}")
+    if chk.volume < 0:
+        F = F[:, ::-1].copy()
+        notes.append("faces were oriented inward: flipped to outward")
+    elif chk.volume == 0:
+        raise MeshError(f"{source}: the mesh encloses no volume")
+    return V, np.ascontiguousarray(F), notes

@@ -1,0 +1,278 @@
+"""Reading and writing triangle meshes (STL, OBJ, PLY, OFF, legacy VTK, VTK XML PolyData).
+
+Every writer goes through a temporary file in the destination folder and an
+atomic rename, so an interrupted run never leaves a partly written file.
+Coordinates are written as float64 wherever the format allows it (VTP, VTK,
+PLY, OBJ as 17 significant digits); STL stores float32 only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray, PathLike
+from ._checks import MeshError
+
+__all__ = ["FORMATS", "atomic_path", "read_mesh", "write_mesh"]
+
+FORMATS = (".stl", ".obj", ".ply", ".off", ".vtk", ".vtp")
+
+
+@contextlib.contextmanager
+def atomic_path(path: PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` and rename it onto ``path`` on success.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Final destination.
+
+    Yields
+    ------
+    pathlib.Path
+        Where to write. Removed if the block raises.
+    """
+    dest = Path(path)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".part" + dest.suffix, dir=dest.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, dest)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp_path.unlink()
+        raise
+
+
+class _VTKErrors:
+    """Collects VTK error messages instead of letting them go to stderr."""
+
+    def __init__(self) -> None:
+        self.messages: list[str] = []
+
+    def __call__(self, obj: object, event: str) -> None:  # pragma: no cover - VTK callback
+        self.messages.append(event)
+
+
+def _vtk_read(path: Path) -> tuple[FloatArray, IntArray]:
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonCore import vtkCommand, vtkOutputWindow
+    from vtkmodules.vtkFiltersCore import vtkTriangleFilter
+    from vtkmodules.vtkIOLegacy import vtkPolyDataReader
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    vtkOutputWindow.GetInstance().SetDisplayMode(0)  # never print to the user's terminal
+    errors = _VTKErrors()
+    if path.suffix.lower() == ".vtp":
+        reader = vtkXMLPolyDataReader()
+    else:
+        reader = vtkPolyDataReader()
+        reader.ReadAllScalarsOn()
+    reader.AddObserver(vtkCommand.ErrorEvent, errors)
+    reader.SetFileName(str(path))
+    reader.Update()
+    if path.suffix.lower() == ".vtk" and not reader.IsFilePolyData():
+        raise MeshError(f"{path}: not a legacy VTK POLYDATA file (or unreadable)")
+    poly = reader.GetOutput()
+    if errors.messages or poly is None or poly.GetNumberOfPoints() == 0:
+        raise MeshError(f"{path}: VTK could not read a polygon mesh from this file (empty or corrupted)")
+    tri = vtkTriangleFilter()
+    tri.PassLinesOff()
+    tri.PassVertsOff()
+    tri.SetInputData(poly)
+    tri.Update()
+    out = tri.GetOutput()
+    V = vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64)
+    polys = out.GetPolys()
+    if polys.GetNumberOfCells() == 0:
+        raise MeshError(f"{path}: the file holds points but no polygons")
+    conn = vtk_to_numpy(polys.GetConnectivityArray()).astype(np.int64)
+    offs = vtk_to_numpy(polys.GetOffsetsArray()).astype(np.int64)
+    if not np.all(np.diff(offs) == 3):
+        raise MeshError(f"{path}: polygons could not be triangulated")
+    return V, conn.reshape(-1, 3)
+
+
+def _trimesh_read(path: Path) -> tuple[FloatArray, IntArray]:
+    import trimesh
+
+    try:
+        mesh = trimesh.load_mesh(str(path), process=False, force="mesh")
+    except Exception as exc:  # noqa: BLE001 - any parser failure becomes one clear message
+        raise MeshError(f"{path}: could not be parsed as {path.suffix.upper()[1:]}: {exc}") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise MeshError(f"{path}: no triangles found (empty or not a surface mesh)")
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def read_mesh(path: PathLike) -> tuple[FloatArray, IntArray]:
+    """Read a triangle surface mesh; polygons are triangulated.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.stl``, ``.obj``, ``.ply``, ``.off``, ``.vtk`` (legacy POLYDATA) or
+        ``.vtp`` file.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+
+    Raises
+    ------
+    MeshError
+        If the file is missing, of an unknown format, unreadable, empty, or
+        holds non-finite coordinates.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise MeshError(f"{p}: no such mesh file")
+    ext = p.suffix.lower()
+    if ext not in FORMATS:
+        raise MeshError(f"{p}: unknown mesh format '{ext}'; use one of {', '.join(FORMATS)}")
+    if p.stat().st_size == 0:
+        raise MeshError(f"{p}: the file is empty")
+    V, F = _vtk_read(p) if ext in (".vtk", ".vtp") else _trimesh_read(p)
+    if len(F) == 0:
+        raise MeshError(f"{p}: no triangles found")
+    if not np.isfinite(V).all():
+        bad = int((~np.isfinite(V).all(axis=1)).sum())
+        raise MeshError(f"{p}: {bad} vertex coordinate row(s) are NaN or infinite")
+    if F.min() < 0 or F.max() >= len(V):
+        raise MeshError(f"{p}: face indices refer to vertices that do not exist")
+    return V, F
+
+
+def _write_vtk(path: Path, V: FloatArray, F: IntArray, point_data: Mapping[str, np.ndarray], lines: IntArray | None) -> None:
+    from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+    from vtkmodules.vtkIOLegacy import vtkPolyDataWriter
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
+
+    poly = vtkPolyData()
+    pts = vtkPoints()
+    pts.SetData(numpy_to_vtk(np.ascontiguousarray(V, dtype=np.float64), deep=True))
+    poly.SetPoints(pts)
+
+    def cells(conn: IntArray, k: int) -> vtkCellArray:
+        ca = vtkCellArray()
+        offsets = np.arange(0, conn.size + 1, k, dtype=np.int64)
+        ca.SetData(
+            numpy_to_vtkIdTypeArray(offsets, deep=True),
+            numpy_to_vtkIdTypeArray(np.ascontiguousarray(conn.ravel(), dtype=np.int64), deep=True),
+        )
+        return ca
+
+    if len(F):
+        poly.SetPolys(cells(F, 3))
+    if lines is not None and len(lines):
+        poly.SetLines(cells(lines, 2))
+    for name, values in point_data.items():
+        arr = numpy_to_vtk(np.ascontiguousarray(values), deep=True)
+        arr.SetName(name)
+        poly.GetPointData().AddArray(arr)
+    if path.suffix.lower() == ".vtp":
+        w = vtkXMLPolyDataWriter()
+        w.SetDataModeToBinary()
+    else:
+        w = vtkPolyDataWriter()
+        w.SetFileTypeToBinary()
+    w.SetInputData(poly)
+    w.SetFileName(str(path))
+    if w.Write() != 1:
+        raise OSError(f"{path}: VTK failed to write the file")
+
+
+def _write_ply(path: Path, V: FloatArray, F: IntArray) -> None:
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment musclewrap float64 coordinates\n"
+        f"element vertex {len(V)}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    faces = np.empty(len(F), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+    faces["n"] = 3
+    faces["idx"] = F
+    with open(path, "wb") as fh:
+        fh.write(header.encode("ascii"))
+        fh.write(np.ascontiguousarray(V, dtype="<f8").tobytes())
+        fh.write(faces.tobytes())
+
+
+def _write_obj(path: Path, V: FloatArray, F: IntArray) -> None:
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write("# musclewrap\n")
+        np.savetxt(fh, V, fmt="v %.17g %.17g %.17g")
+        np.savetxt(fh, F + 1, fmt="f %d %d %d")
+
+
+def _write_trimesh(path: Path, V: FloatArray, F: IntArray, file_type: str) -> None:
+    import trimesh
+
+    data = trimesh.Trimesh(V, F, process=False).export(file_type=file_type)
+    with open(path, "wb") as fh:
+        fh.write(data if isinstance(data, bytes) else data.encode("ascii"))
+
+
+def write_mesh(
+    path: PathLike,
+    V: FloatArray,
+    F: IntArray,
+    *,
+    point_data: Mapping[str, np.ndarray] | None = None,
+    lines: IntArray | None = None,
+) -> Path:
+    """Write a triangle mesh atomically, format chosen by the extension.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination ending in ``.vtp``, ``.vtk``, ``.ply``, ``.obj``, ``.off``
+        or ``.stl``.
+    V : (n, 3) float64 array
+        Vertex positions (written as float64 except in STL, which holds
+        float32 only).
+    F : (m, 3) int array
+        Triangles (may be empty when only ``lines`` are written to VTK).
+    point_data : mapping of str to array, optional
+        Per-vertex arrays (VTK formats only).
+    lines : (k, 2) int array, optional
+        Line segments (VTK formats only), e.g. action lines.
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+
+    Raises
+    ------
+    ValueError
+        If the extension is unknown or the coordinates are not finite.
+    """
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext not in FORMATS:
+        raise ValueError(f"{p}: unknown output format '{ext}'; use one of {', '.join(FORMATS)}")
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    if not np.isfinite(V).all():
+        raise ValueError(f"{p}: refusing to write non-finite coordinates")
+    with atomic_path(p) as tmp:
+        if ext in (".vtk", ".vtp"):
+            _write_vtk(tmp, V, F, point_data or {}, lines)
+        elif ext == ".ply":
+            _write_ply(tmp, V, F)
+        elif ext == ".obj":
+            _write_obj(tmp, V, F)
+        else:
+            _write_trimesh(tmp, V, F, ext[1:])
+    return p
