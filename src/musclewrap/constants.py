@@ -38,7 +38,7 @@ class Tolerances:
     """
 
     volume: float = 1e-9
-    direction: float = 1e-7
+    direction: float = 1e-4
     mvc_on_vertex: float = 1e-12
     mvc_on_face: float = 1e-10
     merge_vertices: float = 1e-10
@@ -80,7 +80,7 @@ class Defaults:
     cage_offset: float = 0.15
     cage_offset_max: float = 0.015
     cage_margin: float = 0.25
-    proxy_size: int = 3000
+    proxy_size: int = 1000
     skeleton_weight: float = 1.0
     samples_per_line: int = 33
     max_iterations: int = 8

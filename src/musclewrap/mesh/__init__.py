@@ -2,19 +2,21 @@
 
 from ._checks import MeshCheck, MeshError, check_mesh, clean_mesh, merge_duplicate_vertices
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
-from ._volume import volume, volume_cubic, volume_gradient
+from ._volume import combine_pair, volume, volume_cubic, volume_cubic_pair, volume_gradient
 
 __all__ = [
     "FORMATS",
     "MeshCheck",
     "MeshError",
     "atomic_path",
+    "combine_pair",
     "check_mesh",
     "clean_mesh",
     "merge_duplicate_vertices",
     "read_mesh",
     "volume",
     "volume_cubic",
+    "volume_cubic_pair",
     "volume_gradient",
     "write_mesh",
 ]

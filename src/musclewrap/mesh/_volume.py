@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
 
-__all__ = ["volume", "volume_cubic", "volume_gradient"]
+__all__ = ["combine_pair", "volume", "volume_cubic", "volume_cubic_pair", "volume_gradient"]
 
 
 def volume(V: FloatArray, F: IntArray, *, center: FloatArray | None = None) -> float:
@@ -36,10 +37,8 @@ def volume(V: FloatArray, F: IntArray, *, center: FloatArray | None = None) -> f
     >>> round(volume(V, F), 12)
     0.166666666667
     """
-    c = V.mean(axis=0) if center is None else center
-    P = V - c
-    a, b, cc = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
-    return float(np.einsum("ij,ij->", a, np.cross(b, cc)) / 6.0)
+    c = V.mean(axis=0) if center is None else np.asarray(center, dtype=np.float64)
+    return float(_volume_kernel(np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64), c))
 
 
 def volume_gradient(V: FloatArray, F: IntArray) -> FloatArray:
@@ -58,21 +57,8 @@ def volume_gradient(V: FloatArray, F: IntArray) -> FloatArray:
         ``dV/dv_i = 1/6 * sum over faces (i, j, k) of v_j x v_k`` (eq. 13 of
         Kohout et al. 2012); translation invariant for a closed mesh.
     """
-    c = V.mean(axis=0)
-    P = V - c
-    a, b, cc = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
-    n = V.shape[0]
-    G = np.empty((n, 3))
-    ga = np.cross(b, cc)
-    gb = np.cross(cc, a)
-    gc = np.cross(a, b)
-    for k in range(3):
-        G[:, k] = (
-            np.bincount(F[:, 0], ga[:, k], minlength=n)
-            + np.bincount(F[:, 1], gb[:, k], minlength=n)
-            + np.bincount(F[:, 2], gc[:, k], minlength=n)
-        )
-    return G / 6.0
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    return _gradient_kernel(V, np.ascontiguousarray(F, dtype=np.int64), V.mean(axis=0))
 
 
 def volume_cubic(A: FloatArray, B: FloatArray, F: IntArray) -> FloatArray:
@@ -96,13 +82,137 @@ def volume_cubic(A: FloatArray, B: FloatArray, F: IntArray) -> FloatArray:
     line search on the volume needs one evaluation of this cubic instead of
     repeated volume evaluations; its root is the exact volume correction.
     """
-    Aa, Ab, Ac = A[F[:, 0]], A[F[:, 1]], A[F[:, 2]]
-    Ba, Bb, Bc = B[F[:, 0]], B[F[:, 1]], B[F[:, 2]]
-    cAA = np.cross(Ab, Ac)
-    cBB = np.cross(Bb, Bc)
-    cmix = np.cross(Ab, Bc) + np.cross(Bb, Ac)
-    c0 = np.einsum("ij,ij->", Aa, cAA)
-    c1 = np.einsum("ij,ij->", Ba, cAA) + np.einsum("ij,ij->", Aa, cmix)
-    c2 = np.einsum("ij,ij->", Aa, cBB) + np.einsum("ij,ij->", Ba, cmix)
-    c3 = np.einsum("ij,ij->", Ba, cBB)
-    return np.array([c0, c1, c2, c3]) / 6.0
+    return _cubic_kernel(
+        np.ascontiguousarray(A, dtype=np.float64),
+        np.ascontiguousarray(B, dtype=np.float64),
+        np.ascontiguousarray(F, dtype=np.int64),
+    )
+
+
+@numba.njit(cache=True)
+def _det(ax, ay, az, bx, by, bz, cx, cy, cz):  # pragma: no cover - compiled
+    return ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+
+
+@numba.njit(cache=True)
+def _volume_kernel(V, F, c):  # pragma: no cover - compiled
+    s = 0.0
+    for f in range(F.shape[0]):
+        a, b, d = F[f, 0], F[f, 1], F[f, 2]
+        s += _det(
+            V[a, 0] - c[0], V[a, 1] - c[1], V[a, 2] - c[2],
+            V[b, 0] - c[0], V[b, 1] - c[1], V[b, 2] - c[2],
+            V[d, 0] - c[0], V[d, 1] - c[1], V[d, 2] - c[2],
+        )
+    return s / 6.0
+
+
+@numba.njit(cache=True)
+def _gradient_kernel(V, F, c):  # pragma: no cover - compiled
+    G = np.zeros((V.shape[0], 3))
+    for f in range(F.shape[0]):
+        i = F[f]
+        p = np.empty((3, 3))
+        for k in range(3):
+            for j in range(3):
+                p[k, j] = V[i[k], j] - c[j]
+        for k in range(3):
+            u = p[(k + 1) % 3]
+            w = p[(k + 2) % 3]
+            G[i[k], 0] += (u[1] * w[2] - u[2] * w[1]) / 6.0
+            G[i[k], 1] += (u[2] * w[0] - u[0] * w[2]) / 6.0
+            G[i[k], 2] += (u[0] * w[1] - u[1] * w[0]) / 6.0
+    return G
+
+
+@numba.njit(cache=True)
+def _cubic_kernel(A, B, F):  # pragma: no cover - compiled
+    c0 = 0.0
+    c1 = 0.0
+    c2 = 0.0
+    c3 = 0.0
+    for f in range(F.shape[0]):
+        a, b, d = F[f, 0], F[f, 1], F[f, 2]
+        # crosses of the second and third vertex, A-A, mixed and B-B
+        aax = A[b, 1] * A[d, 2] - A[b, 2] * A[d, 1]
+        aay = A[b, 2] * A[d, 0] - A[b, 0] * A[d, 2]
+        aaz = A[b, 0] * A[d, 1] - A[b, 1] * A[d, 0]
+        bbx = B[b, 1] * B[d, 2] - B[b, 2] * B[d, 1]
+        bby = B[b, 2] * B[d, 0] - B[b, 0] * B[d, 2]
+        bbz = B[b, 0] * B[d, 1] - B[b, 1] * B[d, 0]
+        mx = A[b, 1] * B[d, 2] - A[b, 2] * B[d, 1] + B[b, 1] * A[d, 2] - B[b, 2] * A[d, 1]
+        my = A[b, 2] * B[d, 0] - A[b, 0] * B[d, 2] + B[b, 2] * A[d, 0] - B[b, 0] * A[d, 2]
+        mz = A[b, 0] * B[d, 1] - A[b, 1] * B[d, 0] + B[b, 0] * A[d, 1] - B[b, 1] * A[d, 0]
+        c0 += A[a, 0] * aax + A[a, 1] * aay + A[a, 2] * aaz
+        c1 += B[a, 0] * aax + B[a, 1] * aay + B[a, 2] * aaz + A[a, 0] * mx + A[a, 1] * my + A[a, 2] * mz
+        c2 += A[a, 0] * bbx + A[a, 1] * bby + A[a, 2] * bbz + B[a, 0] * mx + B[a, 1] * my + B[a, 2] * mz
+        c3 += B[a, 0] * bbx + B[a, 1] * bby + B[a, 2] * bbz
+    out = np.empty(4)
+    out[0], out[1], out[2], out[3] = c0 / 6.0, c1 / 6.0, c2 / 6.0, c3 / 6.0
+    return out
+
+
+@numba.njit(cache=True)
+def _cubic_pair_kernel(XU, F):  # pragma: no cover - compiled
+    # volume of XU[:, :3] - t * XU[:, 3:] as a cubic in t, read in place
+    c0 = 0.0
+    c1 = 0.0
+    c2 = 0.0
+    c3 = 0.0
+    for f in range(F.shape[0]):
+        a, b, d = F[f, 0], F[f, 1], F[f, 2]
+        ab0, ab1, ab2 = XU[b, 0], XU[b, 1], XU[b, 2]
+        ad0, ad1, ad2 = XU[d, 0], XU[d, 1], XU[d, 2]
+        bb0, bb1, bb2 = -XU[b, 3], -XU[b, 4], -XU[b, 5]
+        bd0, bd1, bd2 = -XU[d, 3], -XU[d, 4], -XU[d, 5]
+        aax = ab1 * ad2 - ab2 * ad1
+        aay = ab2 * ad0 - ab0 * ad2
+        aaz = ab0 * ad1 - ab1 * ad0
+        bbx = bb1 * bd2 - bb2 * bd1
+        bby = bb2 * bd0 - bb0 * bd2
+        bbz = bb0 * bd1 - bb1 * bd0
+        mx = ab1 * bd2 - ab2 * bd1 + bb1 * ad2 - bb2 * ad1
+        my = ab2 * bd0 - ab0 * bd2 + bb2 * ad0 - bb0 * ad2
+        mz = ab0 * bd1 - ab1 * bd0 + bb0 * ad1 - bb1 * ad0
+        a0, a1, a2 = XU[a, 0], XU[a, 1], XU[a, 2]
+        b0, b1, b2 = -XU[a, 3], -XU[a, 4], -XU[a, 5]
+        c0 += a0 * aax + a1 * aay + a2 * aaz
+        c1 += b0 * aax + b1 * aay + b2 * aaz + a0 * mx + a1 * my + a2 * mz
+        c2 += a0 * bbx + a1 * bby + a2 * bbz + b0 * mx + b1 * my + b2 * mz
+        c3 += b0 * bbx + b1 * bby + b2 * bbz
+    out = np.empty(4)
+    out[0], out[1], out[2], out[3] = c0 / 6.0, c1 / 6.0, c2 / 6.0, c3 / 6.0
+    return out
+
+
+@numba.njit(cache=True)
+def _combine_kernel(XU, t, c):  # pragma: no cover - compiled
+    n = XU.shape[0]
+    V = np.empty((n, 3))
+    for i in range(n):
+        for k in range(3):
+            V[i, k] = XU[i, k] - t * XU[i, 3 + k] + c[k]
+    return V
+
+
+def volume_cubic_pair(XU: FloatArray, F: IntArray) -> FloatArray:
+    """`volume_cubic` of ``XU[:, :3] - t * XU[:, 3:]`` without copying the halves.
+
+    Parameters
+    ----------
+    XU : (n, 6) float64 array, C-contiguous
+        Base positions and direction side by side (one product ``W @ [x, u]``).
+    F : (m, 3) int array
+        Triangles.
+
+    Returns
+    -------
+    (4,) float64 array
+        Cubic coefficients in ``t``.
+    """
+    return _cubic_pair_kernel(np.ascontiguousarray(XU), np.ascontiguousarray(F, dtype=np.int64))
+
+
+def combine_pair(XU: FloatArray, t: float, c: FloatArray) -> FloatArray:
+    """Positions ``XU[:, :3] - t * XU[:, 3:] + c`` as a new contiguous (n, 3) array."""
+    return _combine_kernel(np.ascontiguousarray(XU), float(t), np.asarray(c, dtype=np.float64))

@@ -1,0 +1,29 @@
+"""musclewrap: volume-exact deformation of muscle surface meshes driven by action lines.
+
+The method follows Kohout, Kellnhofer & Martelli, "Fast deformation for
+modelling of musculoskeletal system" (GRAPP 2012): a cage, mean value
+coordinates, Laplacian and skeleton conditions and a hard volume constraint
+on the fine mesh.
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+from .conditions import read_lines_csv
+from .mesh import read_mesh, write_mesh
+from .solver import DeformationResult, Deformer, Muscle, deform
+
+try:
+    __version__ = version("musclewrap")
+except PackageNotFoundError:  # pragma: no cover - running from a source tree
+    __version__ = "0.0.0"
+
+__all__ = [
+    "DeformationResult",
+    "Deformer",
+    "Muscle",
+    "__version__",
+    "deform",
+    "read_lines_csv",
+    "read_mesh",
+    "write_mesh",
+]

@@ -1,0 +1,26 @@
+"""Soft conditions of the deformation: shape (Laplacian) and skeleton (action lines)."""
+
+from ._laplacian import cotangent_laplacian
+from ._lines import LineError, LineSampling, check_lines, polyline_at, read_lines_csv, sample_lines
+from ._rotation import (
+    RotationField,
+    kabsch,
+    matrix_to_quaternion,
+    quaternion_to_matrix,
+    sample_rotations,
+)
+
+__all__ = [
+    "LineError",
+    "LineSampling",
+    "RotationField",
+    "check_lines",
+    "cotangent_laplacian",
+    "kabsch",
+    "matrix_to_quaternion",
+    "polyline_at",
+    "quaternion_to_matrix",
+    "read_lines_csv",
+    "sample_lines",
+    "sample_rotations",
+]

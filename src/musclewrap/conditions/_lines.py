@@ -1,0 +1,226 @@
+"""Action lines: validation, arc-length sampling and matching."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from .._typing import FloatArray, PathLike
+from .._validation import as_points
+
+__all__ = [
+    "LineError",
+    "LineSampling",
+    "check_lines",
+    "polyline_at",
+    "read_lines_csv",
+    "sample_lines",
+]
+
+
+class LineError(ValueError):
+    """Action lines that cannot drive a deformation."""
+
+
+def check_lines(lines: Mapping[str, npt.ArrayLike], name: str = "lines") -> dict[str, FloatArray]:
+    """Validate action lines and drop repeated consecutive points.
+
+    Parameters
+    ----------
+    lines : mapping of str to (k, 3) array_like
+        Poly-lines by name, points in order.
+    name : str, optional
+        Label quoted in error messages (e.g. a file name).
+
+    Returns
+    -------
+    dict of str to (k, 3) float64 array
+
+    Raises
+    ------
+    LineError
+        If there are no lines, a line has fewer than two distinct points, or a
+        coordinate is not finite.
+    """
+    if not lines:
+        raise LineError(f"{name}: no action lines given")
+    out = {}
+    for key, pts in lines.items():
+        try:
+            P = as_points(pts, f"{name}: line '{key}'")
+        except ValueError as exc:
+            raise LineError(str(exc)) from None
+        keep = np.ones(len(P), dtype=bool)
+        keep[1:] = np.linalg.norm(np.diff(P, axis=0), axis=1) > 0
+        P = P[keep]
+        if len(P) < 2:
+            raise LineError(
+                f"{name}: line '{key}' needs at least two distinct points, got {len(P)}"
+            )
+        out[str(key)] = P
+    return out
+
+
+def _arclength(P: FloatArray) -> FloatArray:
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+    return s / s[-1]
+
+
+def polyline_at(P: FloatArray, t: FloatArray) -> FloatArray:
+    """Points of a poly-line at normalized arc-length parameters.
+
+    Parameters
+    ----------
+    P : (k, 3) float64 array
+        Poly-line points (consecutive points distinct).
+    t : (s,) float64 array
+        Parameters in [0, 1].
+
+    Returns
+    -------
+    (s, 3) float64 array
+    """
+    s = _arclength(P)
+    return np.column_stack([np.interp(t, s, P[:, k]) for k in range(3)])
+
+
+@dataclass(frozen=True)
+class LineSampling:
+    """Fixed arc-length samples of a set of action lines.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Line names, in sample order.
+    params : tuple of (s,) float64 arrays
+        Normalized arc-length parameters of each line's samples.
+    """
+
+    names: tuple[str, ...]
+    params: tuple[FloatArray, ...]
+
+    @property
+    def count(self) -> int:
+        """Total number of samples."""
+        return int(sum(len(p) for p in self.params))
+
+    def line_index(self) -> FloatArray:
+        """(count,) index of the line each sample belongs to."""
+        return np.concatenate([np.full(len(p), i) for i, p in enumerate(self.params)])
+
+    def evaluate(self, lines: Mapping[str, FloatArray], label: str = "lines") -> FloatArray:
+        """Sample points of ``lines`` at the fixed parameters.
+
+        Parameters
+        ----------
+        lines : mapping of str to (k, 3) float64 array
+            Validated lines (see `check_lines`) with the same names.
+        label : str, optional
+            Quoted in the error message.
+
+        Returns
+        -------
+        (count, 3) float64 array
+
+        Raises
+        ------
+        LineError
+            If the names differ from the sampled ones.
+        """
+        if set(lines) != set(self.names):
+            missing = sorted(set(self.names) - set(lines))
+            extra = sorted(set(lines) - set(self.names))
+            raise LineError(
+                f"{label}: action lines must be the rest lines {sorted(self.names)}; "
+                f"missing {missing}, unexpected {extra}"
+            )
+        return np.vstack([polyline_at(lines[n], t) for n, t in zip(self.names, self.params, strict=True)])
+
+
+def sample_lines(
+    rest: Mapping[str, FloatArray], *, spacing: float, min_samples: int = 17
+) -> LineSampling:
+    """Choose arc-length samples for each rest line.
+
+    Parameters
+    ----------
+    rest : mapping of str to (k, 3) float64 array
+        Validated rest lines.
+    spacing : float
+        Target distance between samples (mesh units).
+    min_samples : int, optional
+        Minimum number of samples per line.
+
+    Returns
+    -------
+    LineSampling
+        Uniform samples in normalized arc length, merged with the rest
+        line's own vertices. The same parameters are evaluated on any current
+        line, whatever its number of points: arc-length matching with a
+        sampling fixed per muscle, so the normal matrix is factorised once.
+    """
+    names = tuple(sorted(rest))
+    params = []
+    for n in names:
+        P = rest[n]
+        length = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
+        k = max(min_samples, int(np.ceil(length / spacing)) + 1)
+        t = np.union1d(np.linspace(0.0, 1.0, k), _arclength(P))
+        # merge parameters closer than a tenth of the uniform step
+        keep = np.concatenate([[True], np.diff(t) > 0.1 / (k - 1)])
+        t = t[keep]
+        t[-1] = 1.0
+        params.append(t)
+    return LineSampling(names=names, params=tuple(params))
+
+
+def read_lines_csv(path: PathLike) -> dict[str, FloatArray]:
+    """Read action lines from a CSV file with header ``line,x,y,z``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        One row per point; the points of each line in order; ``line`` is a
+        name or an index. Several lines per file are allowed.
+
+    Returns
+    -------
+    dict of str to (k, 3) float64 array
+        Validated lines (see `check_lines`).
+
+    Raises
+    ------
+    LineError
+        If the file is missing, the header is wrong, a value is not a number,
+        or a line is invalid.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise LineError(f"{p}: no such action-line file")
+    pts: dict[str, list[list[float]]] = {}
+    try:
+        with open(p, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh)
+            header = [h.strip().lower() for h in next(reader, [])]
+            if header != ["line", "x", "y", "z"]:
+                raise LineError(f"{p}: header must be 'line,x,y,z', got '{','.join(header)}'")
+            for row_no, row in enumerate(reader, start=2):
+                if not row or all(not c.strip() for c in row):
+                    continue
+                if len(row) != 4:
+                    raise LineError(f"{p}: row {row_no} has {len(row)} fields, expected 4")
+                try:
+                    xyz = [float(c) for c in row[1:]]
+                except ValueError:
+                    raise LineError(f"{p}: row {row_no} has a non-numeric coordinate: {row}") from None
+                pts.setdefault(row[0].strip(), []).append(xyz)
+    except UnicodeDecodeError:
+        raise LineError(f"{p}: not a text CSV file") from None
+    if not pts:
+        raise LineError(f"{p}: no action-line points found")
+    return check_lines(pts, name=str(p))

@@ -1,0 +1,58 @@
+"""Real root of a cubic nearest to a guess, polished by Newton steps."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._typing import FloatArray
+
+__all__ = ["cubic_root_near"]
+
+
+def cubic_root_near(c: FloatArray, target: float, guess: float) -> float:
+    """Solve ``c0 + c1 t + c2 t^2 + c3 t^3 = target`` for the real root nearest ``guess``.
+
+    Parameters
+    ----------
+    c : (4,) float64 array
+        Coefficients in increasing degree.
+    target : float
+        Right-hand side.
+    guess : float
+        The root closest to this is returned.
+
+    Returns
+    -------
+    float
+        The root (``nan`` when the polynomial is constant).
+    """
+    p = np.array([c[0] - target, c[1], c[2], c[3]])
+    scale = np.max(np.abs(p[1:]))
+    if scale == 0:
+        return float("nan")
+    # Newton from the guess: the volume correction is a small, simple root
+    t = float(guess)
+    for _ in range(30):
+        f = p[0] + t * (p[1] + t * (p[2] + t * p[3]))
+        df = p[1] + t * (2 * p[2] + 3 * t * p[3])
+        if df == 0 or not np.isfinite(df):
+            break
+        step = f / df
+        t -= step
+        if abs(step) <= 1e-15 * max(1.0, abs(t)):
+            return t
+    roots = np.roots(p[::-1])
+    real = roots[np.abs(roots.imag) <= 1e-9 * np.maximum(1.0, np.abs(roots))].real
+    if len(real) == 0:
+        real = roots.real
+    t = float(real[np.argmin(np.abs(real - guess))])
+    for _ in range(3):  # Newton polish to full precision
+        f = p[0] + t * (p[1] + t * (p[2] + t * p[3]))
+        df = p[1] + t * (2 * p[2] + 3 * t * p[3])
+        if df == 0:
+            break
+        step = f / df
+        t -= step
+        if abs(step) <= 1e-16 * max(1.0, abs(t)):
+            break
+    return t

@@ -1,0 +1,596 @@
+"""The per-muscle preparation and the per-pose solve."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import igl
+import numpy as np
+import numpy.typing as npt
+from scipy.linalg import cho_factor, cho_solve
+
+from .._typing import FloatArray, IntArray, PathLike
+from .._validation import as_faces, as_points, as_vertices
+from ..cage import Cage, build_cage
+from ..conditions import (
+    RotationField,
+    check_lines,
+    cotangent_laplacian,
+    sample_lines,
+    sample_rotations,
+)
+from ..constants import defaults, tol
+from ..coordinates import mean_value_coordinates
+from ..mesh import (
+    atomic_path,
+    check_mesh,
+    clean_mesh,
+    combine_pair,
+    volume,
+    volume_cubic,
+    volume_cubic_pair,
+    volume_gradient,
+)
+from ._cubic import cubic_root_near
+from ._result import DeformationResult
+
+__all__ = ["METHODS", "Deformer", "Muscle", "deform"]
+
+METHODS = ("sqp", "exact", "paper")
+_FORMAT = 1
+
+
+def _point_polyline_distance(Q: FloatArray, P: FloatArray) -> FloatArray:
+    A, B = P[:-1], P[1:]
+    AB = B - A
+    t = np.einsum("qsk,sk->qs", Q[:, None, :] - A[None], AB) / np.einsum("sk,sk->s", AB, AB)
+    t = np.clip(t, 0.0, 1.0)
+    closest = A[None] + t[:, :, None] * AB[None]
+    return np.min(np.linalg.norm(Q[:, None, :] - closest, axis=2), axis=1)
+
+
+@dataclass(eq=False)
+class Muscle:
+    """Everything computed once per muscle: cage, coordinates, Laplacian, proxy.
+
+    Build with `Muscle.from_mesh` or `Muscle.from_file`, save with `save`,
+    restore with `load`, then `bind` the rest action lines to get a `Deformer`.
+
+    Attributes
+    ----------
+    V : (n, 3) float64 array
+        Fine rest vertices (cleaned, outward oriented).
+    F : (k, 3) int64 array
+        Fine triangles.
+    cage : Cage
+        The verified cage.
+    W : (n, m) float64 array
+        Mean value coordinates of the fine vertices in the rest cage.
+    L : (m, m) float64 array
+        Row-normalized cotangent Laplacian of the rest cage.
+    proxy_F : (p, 3) int64 array
+        Triangles of the proxy mesh (a decimation of the fine mesh).
+    proxy_W : (q, m) float64 array
+        Mean value coordinates of the proxy's vertices.
+    volume_rest : float
+        Fine rest volume.
+    notes : tuple of str
+        What was changed on load (merged vertices, flipped orientation).
+    seconds_prepare : float
+        Wall time of the preparation.
+    """
+
+    V: FloatArray
+    F: IntArray
+    cage: Cage
+    W: FloatArray
+    L: FloatArray
+    proxy_F: IntArray
+    proxy_W: FloatArray
+    volume_rest: float
+    notes: tuple[str, ...] = ()
+    seconds_prepare: float = 0.0
+    source: str = "mesh"
+    proxy_volume_rest: float = field(init=False)
+    proxy_W_T: FloatArray = field(init=False, repr=False)
+    delta_rest: FloatArray = field(init=False)
+
+    def __post_init__(self) -> None:
+        C = self.cage.C
+        self.delta_rest = self.L @ C
+        self._center = C.mean(axis=0)
+        self.proxy_W_T = np.ascontiguousarray(self.proxy_W.T)
+        self.proxy_volume_rest = volume(self.proxy_W @ (C - self._center), self.proxy_F, center=np.zeros(3))
+
+    @property
+    def W_T(self) -> FloatArray:
+        """Contiguous transpose of `W` (built on first use; reference solvers only)."""
+        if getattr(self, "_W_T", None) is None:
+            self._W_T = np.ascontiguousarray(self.W.T)
+        return self._W_T
+
+    # ------------------------------------------------------------------ build
+    @classmethod
+    def from_mesh(
+        cls,
+        V: npt.ArrayLike,
+        F: npt.ArrayLike,
+        *,
+        cage_size: int = defaults.cage_size,
+        cage_offset: float | None = None,
+        source: str = "mesh",
+    ) -> Muscle:
+        """Prepare a muscle from its rest-pose surface.
+
+        Parameters
+        ----------
+        V : (n, 3) array_like
+            Vertices of a closed triangle mesh.
+        F : (k, 3) array_like
+            Triangles.
+        cage_size : int, optional
+            Target number of cage vertices.
+        cage_offset : float, optional
+            Cage offset in mesh units (see `musclewrap.cage.build_cage`).
+        source : str, optional
+            Name quoted in messages (e.g. the file name).
+
+        Returns
+        -------
+        Muscle
+
+        Raises
+        ------
+        musclewrap.mesh.MeshError
+            If the mesh is not a closed, consistently oriented 2-manifold.
+        musclewrap.cage.CageError
+            If no valid cage could be built.
+        """
+        t0 = time.perf_counter()
+        V = as_vertices(V, "V")
+        F = as_faces(F, len(V), "F")
+        V, F, notes = clean_mesh(V, F, source=source)
+        cage = build_cage(V, F, size=cage_size, offset=cage_offset)
+        W = mean_value_coordinates(V, cage.C, cage.CF)
+        L = cotangent_laplacian(cage.C, cage.CF)
+        if len(F) > 2 * defaults.proxy_size:
+            PV, PF, _, _ = igl.decimate(
+                np.asfortranarray(V), np.asfortranarray(F.astype(np.int32)), defaults.proxy_size, False
+            )
+            PV = np.ascontiguousarray(PV)
+            PF = np.ascontiguousarray(PF, dtype=np.int64)
+            if not check_mesh(PV, PF).closed:
+                PV, PF = V, F
+            PW = W if PV is V else mean_value_coordinates(PV, cage.C, cage.CF)
+        else:
+            PF, PW = F, W
+        return cls(
+            V=V,
+            F=F,
+            cage=cage,
+            W=W,
+            L=L,
+            proxy_F=PF,
+            proxy_W=PW,
+            volume_rest=volume(V, F),
+            notes=tuple(notes),
+            seconds_prepare=time.perf_counter() - t0,
+            source=source,
+        )
+
+    @classmethod
+    def from_file(cls, path: PathLike, **kwargs: object) -> Muscle:
+        """Read a mesh file (see `musclewrap.mesh.read_mesh`) and prepare it."""
+        from ..mesh import read_mesh
+
+        V, F = read_mesh(path)
+        return cls.from_mesh(V, F, source=str(path), **kwargs)  # type: ignore[arg-type]
+
+    # ------------------------------------------------------------- save/load
+    def mesh_hash(self) -> str:
+        """SHA-256 of the rest mesh (vertices and faces)."""
+        h = hashlib.sha256()
+        h.update(np.ascontiguousarray(self.V).tobytes())
+        h.update(np.ascontiguousarray(self.F).tobytes())
+        return h.hexdigest()
+
+    def save(self, path: PathLike) -> Path:
+        """Save the preparation to an ``.npz`` file (written atomically)."""
+        c = self.cage
+        meta = {
+            "format": _FORMAT,
+            "notes": list(self.notes),
+            "source": self.source,
+            "seconds_prepare": self.seconds_prepare,
+            "mesh_sha256": self.mesh_hash(),
+            "cage": {
+                k: getattr(c, k)
+                for k in ("offset", "min_distance", "min_winding", "volume_ratio", "min_angle_deg", "push_rounds")
+            },
+        }
+        p = Path(path)
+        with atomic_path(p) as tmp, open(tmp, "wb") as fh:
+            np.savez(
+                fh,
+                V=self.V,
+                F=self.F,
+                C=c.C,
+                CF=c.CF,
+                W=self.W,
+                L=self.L,
+                proxy_F=self.proxy_F,
+                proxy_W=self.proxy_W,
+                meta=np.array(json.dumps(meta)),
+            )
+        return p
+
+    @classmethod
+    def load(cls, path: PathLike) -> Muscle:
+        """Load a preparation saved by `save`, verifying its integrity.
+
+        Raises
+        ------
+        ValueError
+            If the file is missing, not a musclewrap preparation, of another
+            format version, or its content does not match its stored hash.
+        """
+        p = Path(path)
+        if not p.is_file():
+            raise ValueError(f"{p}: no such prepared-muscle file")
+        try:
+            with np.load(p, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+            meta = json.loads(str(data["meta"]))
+        except Exception as exc:  # noqa: BLE001 - any damage is reported the same way
+            raise ValueError(f"{p}: not a readable musclewrap preparation ({exc})") from None
+        if meta.get("format") != _FORMAT:
+            raise ValueError(f"{p}: preparation format {meta.get('format')} is not {_FORMAT}; run prepare again")
+        cage = Cage(C=data["C"], CF=data["CF"], **meta["cage"])
+        m = cls(
+            V=data["V"],
+            F=data["F"],
+            cage=cage,
+            W=data["W"],
+            L=data["L"],
+            proxy_F=data["proxy_F"],
+            proxy_W=data["proxy_W"],
+            volume_rest=volume(data["V"], data["F"]),
+            notes=tuple(meta["notes"]),
+            seconds_prepare=float(meta["seconds_prepare"]),
+            source=meta["source"],
+        )
+        if m.mesh_hash() != meta["mesh_sha256"]:
+            raise ValueError(f"{p}: content does not match its stored hash (corrupted); run prepare again")
+        return m
+
+    # ------------------------------------------------------------------ bind
+    def bind(
+        self,
+        rest_lines: Mapping[str, npt.ArrayLike],
+        *,
+        reference_point: npt.ArrayLike | None = None,
+        skeleton_weight: float = defaults.skeleton_weight,
+    ) -> Deformer:
+        """Attach the rest-pose action lines; returns the per-pose solver.
+
+        Parameters
+        ----------
+        rest_lines : mapping of str to (k, 3) array_like
+            Action lines in the rest pose, by name.
+        reference_point : (3,) array_like, optional
+            Rest position of the reference point (e.g. the centroid of the
+            bone the muscle runs along); pass its current position to every
+            `Deformer.deform` call.
+        skeleton_weight : float, optional
+            Weight of the skeleton condition relative to the Laplacian.
+
+        Returns
+        -------
+        Deformer
+        """
+        return Deformer(self, rest_lines, reference_point=reference_point, skeleton_weight=skeleton_weight)
+
+
+class Deformer:
+    """Per-pose solver for one muscle bound to its rest action lines.
+
+    Holds the skeleton matrix ``S`` and the Cholesky factor of
+    ``A^T A = L^T L + w^2 S^T S``, both fixed per muscle and rest pose.
+
+    Parameters
+    ----------
+    muscle : Muscle
+        The preparation.
+    rest_lines : mapping of str to (k, 3) array_like
+        Rest action lines.
+    reference_point : (3,) array_like, optional
+        Rest reference point.
+    skeleton_weight : float, optional
+        Weight of the skeleton condition.
+    """
+
+    def __init__(
+        self,
+        muscle: Muscle,
+        rest_lines: Mapping[str, npt.ArrayLike],
+        *,
+        reference_point: npt.ArrayLike | None = None,
+        skeleton_weight: float = defaults.skeleton_weight,
+    ) -> None:
+        if not skeleton_weight > 0:
+            raise ValueError(f"skeleton_weight must be positive, got {skeleton_weight}")
+        self.muscle = muscle
+        C, CF = muscle.cage.C, muscle.cage.CF
+        rest = check_lines(rest_lines, "rest lines")
+        self.rest_lines = rest
+        edges = np.concatenate([CF[:, [0, 1]], CF[:, [1, 2]], CF[:, [2, 0]]])
+        self.spacing = float(np.mean(np.linalg.norm(C[edges[:, 0]] - C[edges[:, 1]], axis=1))) / 2
+        self.sampling = sample_lines(rest, spacing=self.spacing, min_samples=defaults.samples_per_line)
+        self.rest_samples = self.sampling.evaluate(rest, "rest lines")
+        self.sample_line = self.sampling.line_index()
+        self.S = mean_value_coordinates(self.rest_samples, C, CF)
+        m, k = len(C), len(self.rest_samples)
+        self.weight = skeleton_weight * np.sqrt(m / k)
+        L = muscle.L
+        self.H = L.T @ L + self.weight**2 * (self.S.T @ self.S)
+        self._chol = cho_factor(self.H, lower=False, check_finite=False)
+        # explicit inverse for the 3-column solves of the per-pose loop (cond(H) ~ 1e5)
+        self._Hinv = cho_solve(self._chol, np.eye(m), check_finite=False)
+        ev = np.linalg.eigvalsh(self.H)
+        self.condition_number = float(ev[-1] / ev[0])
+        self.rotation_field = RotationField(C, self.rest_samples, self.sample_line, self.spacing)
+        self.reference_rest = None if reference_point is None else as_points([reference_point], "reference_point")[0]
+        self._LT = np.ascontiguousarray(L.T)
+        self._ST = np.ascontiguousarray(self.S.T)
+        self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
+
+    # ------------------------------------------------------------- helpers
+    def _solve(self, rhs: FloatArray) -> FloatArray:
+        return self._Hinv @ rhs
+
+    def _targets(
+        self, current_lines: Mapping[str, npt.ArrayLike], reference_point: npt.ArrayLike | None
+    ) -> tuple[dict[str, FloatArray], FloatArray, FloatArray, FloatArray]:
+        cur = check_lines(current_lines, "current lines")
+        s_cur = self.sampling.evaluate(cur, "current lines")
+        if (reference_point is None) != (self.reference_rest is None):
+            raise ValueError(
+                "reference point: give it both at bind (rest) and at deform (current), or neither"
+            )
+        ref_cur = None if reference_point is None else as_points([reference_point], "reference_point")[0]
+        R_s = sample_rotations(
+            self.rest_samples,
+            s_cur,
+            self.sample_line,
+            reference_rest=self.reference_rest,
+            reference_current=ref_cur,
+        )
+        R_v = self.rotation_field.rotations(R_s)
+        d_L = np.einsum("mij,mj->mi", R_v, self.muscle.delta_rest)
+        b = self._LT @ d_L + self.weight**2 * (self._ST @ s_cur)
+        return cur, s_cur, d_L, b
+
+    def energy(self, x: FloatArray, d_L: FloatArray, s_cur: FloatArray) -> float:
+        """``||L x - d_L||^2 + w^2 ||S x - s'||^2`` of cage positions ``x``."""
+        r1 = self.muscle.L @ x - d_L
+        r2 = self.S @ x - s_cur
+        return float(np.sum(r1 * r1) + self.weight**2 * np.sum(r2 * r2))
+
+    def _skeleton_fit(self, x: FloatArray, cur: Mapping[str, FloatArray]) -> tuple[float, float]:
+        Sx = self.S @ x
+        dist = np.concatenate(
+            [
+                _point_polyline_distance(Sx[self.sample_line == i], cur[name])
+                for i, name in enumerate(self.sampling.names)
+            ]
+        )
+        return float(dist.mean()), float(dist.max())
+
+    def fine_volume_gradient(self, x: FloatArray) -> FloatArray:
+        """Gradient of the fine volume w.r.t. cage vertices, ``W^T dV(W x)`` (chain rule)."""
+        mu = self.muscle
+        c = x.mean(axis=0)
+        return mu.W_T @ volume_gradient(mu.W @ (x - c), mu.F)
+
+    def stationarity(self, result: DeformationResult, current_lines: Mapping[str, npt.ArrayLike],
+                     reference_point: npt.ArrayLike | None = None) -> float:
+        """Sine of the angle between the energy gradient and the fine volume gradient.
+
+        Zero at an exact KKT point of ``min ||A x - d||^2 s.t. V(W x) = V0``
+        (the energy gradient is then parallel to the constraint gradient).
+        Returns 0 when the energy gradient itself vanishes (rigid motions).
+        """
+        _, _, _, b = self._targets(current_lines, reference_point)
+        r = self.H @ result.cage - b
+        G = self.fine_volume_gradient(result.cage)
+        rn = np.linalg.norm(r)
+        if rn <= 1e-12 * np.linalg.norm(b):
+            return 0.0
+        lam = np.sum(r * G) / np.sum(G * G)
+        return float(np.linalg.norm(r - lam * G) / rn)
+
+    # ---------------------------------------------------------------- deform
+    def deform(
+        self,
+        current_lines: Mapping[str, npt.ArrayLike],
+        *,
+        reference_point: npt.ArrayLike | None = None,
+        method: str = "sqp",
+        max_iterations: int | None = None,
+        alpha: float | None = None,
+    ) -> DeformationResult:
+        """Deform the muscle so that it follows the current action lines.
+
+        Parameters
+        ----------
+        current_lines : mapping of str to (k, 3) array_like
+            The same lines as at `Muscle.bind`, in the new pose; any number of
+            points per line (matched by arc length).
+        reference_point : (3,) array_like, optional
+            Current position of the reference point (required if one was
+            given at `Muscle.bind`).
+        method : {"sqp", "exact", "paper"}, optional
+            ``"sqp"`` (default): constrained least squares solved by a few
+            fixed-point updates of the volume-gradient direction on a proxy
+            mesh, then one exact correction of the FINE volume (the volume
+            along a line in cage space is a cubic). ``"exact"``: the same
+            iteration with the fine mesh's own gradient every step (a
+            reference, about three passes over ``W`` per iteration).
+            ``"paper"``: eq. 11 of Kohout et al. (2012), Gauss-Newton with one
+            Lagrange multiplier, step ``alpha``, cage volume first and then
+            fine volume.
+        max_iterations : int, optional
+            Iteration limit (defaults per method in `musclewrap.constants`).
+        alpha : float, optional
+            ``"paper"`` only: a fixed step; default adaptive from 0.5.
+
+        Returns
+        -------
+        DeformationResult
+
+        Raises
+        ------
+        musclewrap.conditions.LineError
+            If the current lines are invalid or name other lines.
+        ValueError
+            For an unknown method or a reference point given on one side only.
+        """
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        t0 = time.perf_counter()
+        cur, s_cur, d_L, b = self._targets(current_lines, reference_point)
+        x_ls = cho_solve(self._chol, b, check_finite=False)
+        if method == "paper":
+            from ._paper import solve_paper
+
+            x, V, its, ok, reason, hist = solve_paper(
+                self, x_ls, b, d_L, s_cur,
+                max_iterations=max_iterations or defaults.paper_max_iterations, alpha=alpha,
+            )
+        else:
+            x, V, its, ok, reason, hist = self._solve_sqp(
+                x_ls, d_L, s_cur, exact=(method == "exact"),
+                max_iterations=max_iterations or defaults.max_iterations,
+            )
+        return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0)
+
+    def _result(self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0) -> DeformationResult:  # noqa: ANN001
+        mu = self.muscle
+        if not np.isfinite(V).all():
+            ok, reason = False, "numerically singular: non-finite positions"
+            V = np.full_like(V, np.nan)
+            vol = float("nan")
+        else:
+            vol = volume(V, mu.F)
+        rel = (vol - mu.volume_rest) / mu.volume_rest
+        if ok and not abs(rel) <= tol.volume:
+            ok, reason = False, f"volume error {rel:.3g} above tolerance {tol.volume:g}"
+        fit_mean, fit_max = self._skeleton_fit(x, cur) if np.isfinite(x).all() else (np.nan, np.nan)
+        return DeformationResult(
+            V=V,
+            cage=x,
+            volume_rest=mu.volume_rest,
+            volume=vol,
+            relative_volume_error=float(rel),
+            iterations=its,
+            converged=bool(ok),
+            reason=reason,
+            skeleton_fit_mean=fit_mean,
+            skeleton_fit_max=fit_max,
+            energy=self.energy(x, d_L, s_cur) if np.isfinite(x).all() else float("nan"),
+            method=method,
+            seconds=time.perf_counter() - t0,
+            history=tuple(hist),
+        )
+
+    def _solve_sqp(self, x_ls, d_L, s_cur, *, exact: bool, max_iterations: int):  # noqa: ANN001, ANN202
+        mu = self.muscle
+        c = x_ls.mean(axis=0)
+        if exact:
+            Wd, Fd, Vd0 = mu.W, mu.F, mu.volume_rest
+        else:
+            Wd, Fd, Vd0 = mu.proxy_W, mu.proxy_F, mu.proxy_volume_rest
+        WdT = mu.W_T if exact else mu.proxy_W_T
+        P_ls = Wd @ (x_ls - c)
+        G = WdT @ volume_gradient(P_ls, Fd)
+        lam = 0.0
+        x = x_ls
+        hist: list[tuple[float, float]] = []
+        converged_dir = False
+        its = 0
+        u = self._solve(G)
+        for its in range(1, max_iterations + 1):
+            u = self._solve(G)
+            P_u = Wd @ u
+            lam_new = cubic_root_near(volume_cubic(P_ls, -P_u, Fd), Vd0, lam)
+            if not np.isfinite(lam_new):
+                return x, np.full_like(mu.V, np.nan), its, False, "volume gradient vanished", hist
+            x_new = x_ls - lam_new * u
+            step = float(np.abs(x_new - x).max())
+            x, lam = x_new, lam_new
+            P = P_ls - lam * P_u
+            if exact:
+                hist.append((self.energy(x, d_L, s_cur), volume(P, Fd, center=np.zeros(3)) / Vd0 - 1))
+            if step <= tol.direction * max(float(np.abs(lam * u).max()), 1e-9 * self._diag):
+                converged_dir = True
+                break
+            G = WdT @ volume_gradient(P, Fd)
+        if exact:
+            V = P + c
+            its_total = its
+        else:
+            # one pass over W: base positions and the correction direction together
+            XU = mu.W @ np.hstack([x_ls - c, u])
+            lam_f = cubic_root_near(volume_cubic_pair(XU, mu.F), mu.volume_rest, lam)
+            x = x_ls - lam_f * u
+            V = combine_pair(XU, lam_f, c)
+            its_total = its + 1
+        reason = "converged" if converged_dir else f"direction not stationary after {its} iterations"
+        return x, V, its_total, converged_dir, reason, hist
+
+
+def deform(
+    V: npt.ArrayLike,
+    F: npt.ArrayLike,
+    rest_lines: Mapping[str, npt.ArrayLike],
+    current_lines: Mapping[str, npt.ArrayLike],
+    *,
+    reference_rest: npt.ArrayLike | None = None,
+    reference_current: npt.ArrayLike | None = None,
+    cage_size: int = defaults.cage_size,
+    method: str = "sqp",
+) -> DeformationResult:
+    """Deform one muscle to one pose (prepares, binds and solves in one call).
+
+    For many poses build a `Muscle` once and reuse its `Deformer`.
+
+    Parameters
+    ----------
+    V : (n, 3) array_like
+        Rest vertices of a closed muscle surface.
+    F : (k, 3) array_like
+        Triangles.
+    rest_lines, current_lines : mapping of str to (k, 3) array_like
+        Action lines in the rest and the current pose.
+    reference_rest, reference_current : (3,) array_like, optional
+        Reference point in both poses.
+    cage_size : int, optional
+        Target number of cage vertices.
+    method : str, optional
+        See `Deformer.deform`.
+
+    Returns
+    -------
+    DeformationResult
+    """
+    muscle = Muscle.from_mesh(V, F, cage_size=cage_size)
+    return muscle.bind(rest_lines, reference_point=reference_rest).deform(
+        current_lines, reference_point=reference_current, method=method
+    )
+
+

@@ -1,0 +1,70 @@
+"""The frozen result of one deformation."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .._typing import FloatArray
+
+__all__ = ["DeformationResult"]
+
+
+@dataclass(frozen=True)
+class DeformationResult:
+    """Outcome of deforming a muscle to one pose.
+
+    Attributes
+    ----------
+    V : (n, 3) float64 array
+        Deformed fine vertices (faces unchanged).
+    cage : (m, 3) float64 array
+        Deformed cage vertices.
+    volume_rest, volume : float
+        Fine-mesh volume before and after, computed from the vertices.
+    relative_volume_error : float
+        ``(volume - volume_rest) / volume_rest``.
+    iterations : int
+        Solver iterations (for the default solver: volume-direction updates
+        plus the final exact correction).
+    converged : bool
+        Whether the stopping criteria were met.
+    reason : str
+        Why the solver stopped.
+    skeleton_fit_mean, skeleton_fit_max : float
+        Mean and largest distance from the deformed skeleton samples
+        (their mean value coordinates applied to the deformed cage) to the
+        current action lines, in mesh units.
+    energy : float
+        ``||A x - d||**2`` of the soft conditions at the solution.
+    method : str
+        Solver used.
+    seconds : float
+        Wall time of the deformation.
+    history : tuple of (float, float)
+        Per iteration: energy and relative fine-volume error (``paper`` and
+        ``exact`` methods; empty for the default).
+    """
+
+    V: FloatArray
+    cage: FloatArray
+    volume_rest: float
+    volume: float
+    relative_volume_error: float
+    iterations: int
+    converged: bool
+    reason: str
+    skeleton_fit_mean: float
+    skeleton_fit_max: float
+    energy: float
+    method: str
+    seconds: float
+    history: tuple[tuple[float, float], ...] = field(default=())
+
+    def summary(self) -> dict[str, object]:
+        """Scalars of the result as a JSON-ready dict (no arrays)."""
+        d = asdict(self)
+        for k in ("V", "cage", "history"):
+            d.pop(k)
+        return {k: (float(v) if isinstance(v, np.floating) else v) for k, v in d.items()}

@@ -1,0 +1,119 @@
+"""The capsule benchmark of the original 2012 implementation, and its scenarios."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+
+__all__ = ["CAPSULE_SCENARIOS", "capsule", "capsule_scenario", "rings_mesh"]
+
+CAPSULE_SCENARIOS = ("bend", "bend_short", "bend_long", "short", "rot")
+
+
+def rings_mesh(z: FloatArray, r: FloatArray, n_around: int, x: FloatArray | None = None) -> tuple[FloatArray, IntArray]:
+    """Closed surface of revolution from rings between two poles.
+
+    Parameters
+    ----------
+    z : (k,) float64 array
+        Axial positions: first and last are the poles, the rest ring centres.
+    r : (k,) float64 array
+        Radii (first and last ignored).
+    n_around : int
+        Vertices per ring.
+    x : (k,) float64 array, optional
+        Lateral offset of each ring centre along x (to bend the axis).
+
+    Returns
+    -------
+    V : (2 + (k - 2) * n_around, 3) float64 array
+    F : (2 * n_around * (k - 2), 3) int64 array, outward oriented
+    """
+    x = np.zeros_like(z) if x is None else x
+    nr = len(z) - 2
+    ang = 2 * np.pi * np.arange(n_around) / n_around
+    ring = np.stack(
+        [
+            (x[1:-1, None] + r[1:-1, None] * np.cos(ang)[None]).ravel(),
+            (r[1:-1, None] * np.sin(ang)[None]).ravel(),
+            np.repeat(z[1:-1], n_around),
+        ],
+        axis=1,
+    )
+    V = np.vstack([[x[0], 0.0, z[0]], ring, [x[-1], 0.0, z[-1]]])
+    F = []
+    j = np.arange(n_around)
+    jn = (j + 1) % n_around
+    F.append(np.stack([np.zeros(n_around, int), 1 + jn, 1 + j], 1))  # bottom fan
+    for i in range(nr - 1):
+        a = 1 + i * n_around
+        bb = a + n_around
+        F.append(np.stack([a + j, a + jn, bb + jn], 1))
+        F.append(np.stack([a + j, bb + jn, bb + j], 1))
+    top = len(V) - 1
+    last = 1 + (nr - 1) * n_around
+    F.append(np.stack([np.full(n_around, top), last + j, last + jn], 1))
+    return V, np.vstack(F).astype(np.int64)
+
+
+def capsule(
+    radius: float = 20.0,
+    length: float = 160.0,
+    n_around: int = 96,
+    cap_rings: int = 24,
+    segments: int = 110,
+) -> tuple[FloatArray, IntArray]:
+    """Capsule along +z from the pole at the origin (the 2012 benchmark mesh).
+
+    Defaults give 15,074 vertices and 30,144 triangles: radius 20, cylinder
+    length 160 (total 200), 96 vertices per ring, 24 rings per cap (pole
+    included), 110 cylinder segments.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+    """
+    phi = np.pi / 2 * np.arange(1, cap_rings) / cap_rings
+    zb = radius - radius * np.cos(phi)
+    rb = radius * np.sin(phi)
+    zc = radius + length * np.arange(segments + 1) / segments
+    z = np.concatenate([[0.0], zb, zc, (2 * radius + length - zb)[::-1], [2 * radius + length]])
+    r = np.concatenate([[0.0], rb, np.full(segments + 1, radius), rb[::-1], [0.0]])
+    return rings_mesh(z, r, n_around)
+
+
+def capsule_scenario(name: str, total: float = 200.0) -> tuple[dict[str, FloatArray], dict[str, FloatArray]]:
+    """Rest and current action lines of a capsule scenario.
+
+    Parameters
+    ----------
+    name : {"bend", "bend_short", "bend_long", "short", "rot"}
+        ``bend``: 3 points, the second half bent 30 degrees at mid-length,
+        same length; ``bend_short`` / ``bend_long``: the same 15 % shorter /
+        10 % longer; ``short``: straight, 15 % shorter; ``rot``: 2 points,
+        rigid 20 degree rotation about x through the first pole.
+    total : float, optional
+        Pole-to-pole length.
+
+    Returns
+    -------
+    rest, current : dict of str to array
+        One line named ``"axis"``.
+    """
+    rest = {"axis": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, total]])}
+    scale = {"bend": 1.0, "bend_short": 0.85, "bend_long": 1.10}
+    if name in scale:
+        h = total / 2 * scale[name]
+        a = np.radians(30.0)
+        cur = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, h], [h * np.sin(a), 0.0, h + h * np.cos(a)]])
+    elif name == "short":
+        cur = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.85 * total]])
+    elif name == "rot":
+        a = np.radians(20.0)
+        R = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+        cur = rest["axis"] @ R.T
+    else:
+        raise ValueError(f"unknown capsule scenario {name!r}; choose from {CAPSULE_SCENARIOS}")
+    return rest, {"axis": cur}
