@@ -3,7 +3,7 @@
 Every writer goes through a temporary file in the destination folder and an
 atomic rename, so an interrupted run never leaves a partly written file.
 Coordinates are written as float64 wherever the format allows it (VTP, VTK,
-PLY, OBJ as 17 significant digits); STL stores float32 only.
+PLY, OBJ and OFF as 17 significant digits); STL stores float32 only.
 """
 
 from __future__ import annotations
@@ -215,6 +215,13 @@ def _write_obj(path: Path, V: FloatArray, F: IntArray) -> None:
         np.savetxt(fh, F + 1, fmt="f %d %d %d")
 
 
+def _write_off(path: Path, V: FloatArray, F: IntArray) -> None:
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write(f"OFF\n{len(V)} {len(F)} 0\n")
+        np.savetxt(fh, V, fmt="%.17g %.17g %.17g")
+        np.savetxt(fh, F, fmt="3 %d %d %d")
+
+
 def _write_trimesh(path: Path, V: FloatArray, F: IntArray, file_type: str) -> None:
     import trimesh
 
@@ -273,6 +280,8 @@ def write_mesh(
             _write_ply(tmp, V, F)
         elif ext == ".obj":
             _write_obj(tmp, V, F)
+        elif ext == ".off":
+            _write_off(tmp, V, F)
         else:
             _write_trimesh(tmp, V, F, ext[1:])
     return p

@@ -1,0 +1,235 @@
+"""Command-line interface: ``musclewrap prepare | deform | demo | bench``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+__all__ = ["main"]
+
+
+def _point(text: str) -> list[float]:
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z numbers, got {text!r}") from None
+    if len(vals) != 3:
+        raise argparse.ArgumentTypeError(f"expected three comma-separated numbers, got {text!r}")
+    return vals
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="musclewrap",
+        description="Deform muscle surface meshes to follow their action lines, keeping volume exactly.",
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+
+    pr = sub.add_parser("prepare", help="build cage, coordinates and Laplacian once per muscle")
+    pr.add_argument("mesh", help="closed muscle surface (.stl .obj .ply .off .vtk .vtp)")
+    pr.add_argument("-o", "--output", required=True, help="prepared-muscle file (.npz)")
+    pr.add_argument("--cage-size", type=int, default=None, help="target number of cage vertices")
+
+    de = sub.add_parser("deform", help="deform a muscle from its rest to its current action lines")
+    de.add_argument("mesh", help="rest-pose muscle surface")
+    de.add_argument("--rest", required=True, help="rest action lines, CSV with header line,x,y,z")
+    de.add_argument("--current", required=True, help="current action lines, same CSV format and line names")
+    de.add_argument("-o", "--output", required=True, help="deformed mesh (.vtp .vtk .stl .ply .obj .off)")
+    de.add_argument("--report", help="JSON report path")
+    de.add_argument("--prepared", help="prepared-muscle file from 'musclewrap prepare' (skips preparation)")
+    de.add_argument("--cage-size", type=int, default=None, help="target number of cage vertices")
+    de.add_argument("--reference-rest", type=_point, help="reference point in the rest pose, X,Y,Z")
+    de.add_argument("--reference-current", type=_point, help="reference point in the current pose, X,Y,Z")
+    de.add_argument("--method", choices=("sqp", "exact", "paper"), default="sqp", help="solver (default sqp)")
+    de.add_argument("--allow-unconverged", action="store_true", help="exit 0 even if the solve did not converge")
+
+    dm = sub.add_parser("demo", help="run the embedded synthetic example (no data needed)")
+    dm.add_argument("-o", "--output", default="musclewrap_demo", help="output folder")
+    dm.add_argument("--frames", type=int, default=61, help="number of frames (at least 2)")
+
+    be = sub.add_parser("bench", help="run a benchmark")
+    be.add_argument("name", choices=("capsule",), help="benchmark to run")
+    be.add_argument("--repeats", type=int, default=15, help="timed repeats per case")
+    be.add_argument("--json", help="write the results as JSON here")
+    return p
+
+
+def _cmd_prepare(a: argparse.Namespace) -> int:
+    from .constants import defaults
+    from .solver import Muscle
+
+    m = Muscle.from_file(a.mesh, cage_size=a.cage_size or defaults.cage_size)
+    m.save(a.output)
+    c = m.cage
+    print(
+        f"prepared {a.mesh}: {len(m.V)} vertices, cage {len(c.C)} vertices "
+        f"(volume x{c.volume_ratio:.2f}, margin {c.min_distance:.3g}), {m.seconds_prepare:.2f} s -> {a.output}"
+    )
+    for note in m.notes:
+        print(f"  note: {note}")
+    return 0
+
+
+def _cmd_deform(a: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .conditions import read_lines_csv
+    from .constants import defaults
+    from .mesh import read_mesh, write_mesh
+    from .solver import Muscle
+
+    if (a.reference_rest is None) != (a.reference_current is None):
+        raise ValueError("give both --reference-rest and --reference-current, or neither")
+    rest = read_lines_csv(a.rest)
+    cur = read_lines_csv(a.current)
+    t0 = time.perf_counter()
+    if a.prepared:
+        from .mesh import clean_mesh
+
+        muscle = Muscle.load(a.prepared)
+        V, F, _ = clean_mesh(*read_mesh(a.mesh), source=a.mesh)
+        if not (V.shape == muscle.V.shape and F.shape == muscle.F.shape and (V == muscle.V).all() and (F == muscle.F).all()):
+            raise ValueError(f"{a.prepared} was prepared from another mesh than {a.mesh}; run prepare again")
+        seconds_prepare = time.perf_counter() - t0
+    else:
+        muscle = Muscle.from_file(a.mesh, cage_size=a.cage_size or defaults.cage_size)
+        seconds_prepare = muscle.seconds_prepare
+    d = muscle.bind(rest, reference_point=a.reference_rest)
+    res = d.deform(cur, reference_point=a.reference_current, method=a.method)
+    ok = res.converged and bool(abs(res.relative_volume_error) <= 1e-6)
+    if (ok or a.allow_unconverged) and np.isfinite(res.V).all():
+        write_mesh(a.output, res.V, muscle.F)
+    report = {
+        "n_vertices": int(len(muscle.V)),
+        "n_cage_vertices": int(len(muscle.cage.C)),
+        "volume_rest": res.volume_rest,
+        "volume_deformed": res.volume,
+        "relative_volume_error": res.relative_volume_error,
+        "iterations": res.iterations,
+        "converged": res.converged,
+        "reason": res.reason,
+        "skeleton_fit_mean": res.skeleton_fit_mean,
+        "skeleton_fit_max": res.skeleton_fit_max,
+        "energy": res.energy,
+        "method": res.method,
+        "seconds_prepare": seconds_prepare,
+        "seconds_deform": res.seconds,
+        "mesh_notes": list(muscle.notes),
+        "coordinates_precision": "float32 (STL format limit)" if a.output.lower().endswith(".stl") else "float64",
+    }
+    if a.report:
+        from .mesh import atomic_path
+
+        with atomic_path(a.report) as tmp:
+            tmp.write_text(json.dumps(report, indent=2), encoding="utf-8")
+    print(
+        f"{'converged' if res.converged else 'NOT converged'} in {res.iterations} iterations: "
+        f"volume error {res.relative_volume_error:.2e}, skeleton fit {res.skeleton_fit_mean:.3g} (mean), "
+        f"{res.seconds * 1e3:.1f} ms"
+    )
+    if not ok and not a.allow_unconverged:
+        print(f"error: {res.reason}; no output written (use --allow-unconverged to write it anyway)", file=sys.stderr)
+        return 3
+    return 0
+
+
+def _cmd_demo(a: argparse.Namespace) -> int:
+    from .mesh import write_mesh
+    from .output import plot_volume_error, write_csv, write_pvd
+    from .solver import Muscle
+    from .synthetic import demo_scene
+
+    if a.frames < 2:
+        raise ValueError(f"--frames must be at least 2, got {a.frames}")
+    out = Path(a.output)
+    scene = demo_scene(a.frames)
+    muscle = Muscle.from_mesh(scene.V, scene.F, source="demo fusiform muscle")
+    d = muscle.bind(scene.rest_line, reference_point=scene.reference)
+    entries, rows = [], []
+    import numpy as np
+
+    t0 = time.perf_counter()
+    for k in range(len(scene.angles)):
+        line = scene.line(k)
+        res = d.deform(line, reference_point=scene.reference)
+        name = f"muscle/muscle_{k:04d}.vtp"
+        write_mesh(out / name, res.V, muscle.F)
+        entries.append((float(scene.angles[k]), name))
+        for bone in ("thigh", "shank"):
+            bname = f"{bone}/{bone}_{k:04d}.vtp"
+            write_mesh(out / bname, *scene.bone(bone, k))
+            entries.append((float(scene.angles[k]), bname))
+        P = line["main"]
+        lname = f"line/line_{k:04d}.vtp"
+        write_mesh(out / lname, P, np.zeros((0, 3), int), lines=np.array([[i, i + 1] for i in range(len(P) - 1)]))
+        entries.append((float(scene.angles[k]), lname))
+        rows.append(
+            {
+                "frame": k,
+                "flexion_deg": float(scene.angles[k]),
+                "iterations": res.iterations,
+                "converged": res.converged,
+                "relative_volume_error": res.relative_volume_error,
+                "skeleton_fit_mean": res.skeleton_fit_mean,
+                "seconds": res.seconds,
+            }
+        )
+    write_pvd(out / "scene.pvd", entries)
+    write_csv(out / "report.csv", rows, list(rows[0]))
+    plot_volume_error(
+        out / "volume_error.png",
+        {"musclewrap (sqp)": ([r["frame"] for r in rows], [r["relative_volume_error"] for r in rows])},
+        title="Demo: fusiform muscle, 0-90 deg flexion",
+    )
+    worst = max(abs(r["relative_volume_error"]) for r in rows)
+    bad = sum(not r["converged"] for r in rows)
+    print(
+        f"demo: {len(rows)} frames, prepare {muscle.seconds_prepare:.2f} s, solve+write {time.perf_counter() - t0:.2f} s, "
+        f"worst volume error {worst:.2e}, unconverged frames {bad} -> {out}/scene.pvd"
+    )
+    return 0 if bad == 0 else 3
+
+
+def _cmd_bench(a: argparse.Namespace) -> int:
+    from ._bench import capsule_benchmark
+
+    info, rows = capsule_benchmark(repeats=a.repeats)
+    print(
+        f"capsule: {int(info['n_vertices'])} vertices, cage {int(info['n_cage_vertices'])}, "
+        f"prepare {info['seconds_prepare']:.2f} s, W@X {info['ms_W_at_X']:.2f} ms (median)"
+    )
+    print(f"{'scenario':<11}{'method':<7}{'it':>4}{'volume error':>14}{'fit mm':>8}{'ms/pose':>9}{'x W@X':>7}")
+    for r in rows:
+        print(
+            f"{r['scenario']:<11}{r['method']:<7}{r['iterations']:>4}{r['relative_volume_error']:>14.2e}"
+            f"{r['skeleton_fit_mean']:>8.3f}{r['ms_per_pose']:>9.2f}{r['ratio_to_WX']:>7.2f}"
+        )
+    if a.json:
+        from .mesh import atomic_path
+
+        with atomic_path(a.json) as tmp:
+            tmp.write_text(json.dumps({"info": info, "rows": rows}, indent=2), encoding="utf-8")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 2 bad input, 3 not converged)."""
+    from .cage import CageError
+    from .conditions import LineError
+    from .mesh import MeshError
+
+    args = _parser().parse_args(argv)
+    handlers = {"prepare": _cmd_prepare, "deform": _cmd_deform, "demo": _cmd_demo, "bench": _cmd_bench}
+    try:
+        return handlers[args.command](args)
+    except (MeshError, LineError, CageError, ValueError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,173 @@
+import numpy as np
+import pytest
+
+from musclewrap import Muscle
+from musclewrap.cage import build_cage, cage_self_intersections
+from musclewrap.conditions import LineError, check_lines, cotangent_laplacian, sample_lines
+from musclewrap.coordinates import mean_value_coordinates
+from musclewrap.solver import cubic_root_near
+from musclewrap.synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
+
+TET_V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+
+
+def cube():
+    V = np.array([[x, y, z] for x in (0.0, 1) for y in (0.0, 1) for z in (0.0, 1)])
+    F = np.array(
+        [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+         [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
+    )
+    return V, F
+
+
+def test_mvc_octahedron_centre_is_uniform():
+    # symmetric cage and triangulation: every vertex weighs the same at the centre
+    V = np.array([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+    F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    W = mean_value_coordinates([[0.0, 0.0, 0.0]], V, F)
+    assert np.allclose(W, 1 / 6, atol=1e-14)
+
+
+def test_mvc_identities_random_points():
+    V, F = cube()
+    P = np.random.default_rng(0).uniform(0.05, 0.95, size=(500, 3))
+    W = mean_value_coordinates(P, V, F)
+    assert np.allclose(W.sum(axis=1), 1.0, atol=1e-13)
+    assert np.abs(W @ V - P).max() < 1e-10
+    assert (W > 0).all(), "MVC are positive inside a convex cage"
+
+
+def test_mvc_special_cases():
+    V, F = cube()
+    P = np.array([V[3], V[F[2]].mean(axis=0), [0.5, 0.5, 0.0]])
+    W = mean_value_coordinates(P, V, F)
+    assert W[0, 3] == 1.0 and W[0].sum() == 1.0
+    assert np.abs(W @ V - P).max() < 1e-12
+
+
+def test_mvc_validates_input():
+    V, F = cube()
+    with pytest.raises(ValueError, match="shape"):
+        mean_value_coordinates(np.zeros((3, 2)), V, F)
+    with pytest.raises(ValueError, match="indices"):
+        mean_value_coordinates(np.zeros((1, 3)), V, F + 10)
+
+
+def test_laplacian_rows_and_planar_patch():
+    V, F = capsule(n_around=16, cap_rings=5, segments=8)
+    L = cotangent_laplacian(V, F)
+    assert np.allclose(L.sum(axis=1), 0) and np.allclose(np.diag(L), -1)
+    # interior vertices of a flat patch have zero Laplacian
+    g = np.array([[x, y, 0.0] for y in range(5) for x in range(5)])
+    Fp = []
+    for y in range(4):
+        for x in range(4):
+            a = 5 * y + x
+            Fp += [[a, a + 1, a + 6], [a, a + 6, a + 5]]
+    from musclewrap.conditions._laplacian import cotangent_laplacian as lap
+
+    Lp = lap(g, np.array(Fp))
+    inner = [6, 7, 8, 11, 12, 13, 16, 17, 18]
+    assert np.abs((Lp @ g)[inner]).max() < 1e-12
+
+
+def test_cubic_root():
+    assert cubic_root_near(np.array([1.0, -3.0, 0.0, 1.0]), 0.0, 0.3) == pytest.approx(0.34729635533386, rel=1e-12)
+
+
+def test_lines_validation():
+    with pytest.raises(LineError, match="two distinct points"):
+        check_lines({"a": [[0, 0, 0]]})
+    with pytest.raises(LineError, match="two distinct points"):
+        check_lines({"a": [[0, 0, 0], [0, 0, 0]]})
+    with pytest.raises(LineError, match="non-finite"):
+        check_lines({"a": [[0, 0, 0], [np.nan, 0, 1]]})
+    s = sample_lines(check_lines({"a": [[0, 0, 0], [0, 0, 10], [0, 0, 20]]}), spacing=1.0)
+    with pytest.raises(LineError, match="missing"):
+        s.evaluate({"b": np.array([[0.0, 0, 0], [1, 0, 0]])})
+    # a current line with another point count matches by arc length
+    pts = s.evaluate({"a": np.array([[0.0, 0, 0], [0, 0, 40]])})
+    assert np.allclose(pts[:, 2], 2 * s.evaluate({"a": np.array([[0.0, 0, 0], [0, 0, 20]])})[:, 2])
+
+
+@pytest.fixture(scope="module")
+def small_muscle():
+    V, F = capsule(n_around=32, cap_rings=8, segments=30)
+    return Muscle.from_mesh(V, F, cage_size=200)
+
+
+def test_cage_encloses_and_is_clean(small_muscle):
+    c = small_muscle.cage
+    assert c.min_winding > 0.99 and c.min_distance > 0
+    assert cage_self_intersections(c.C, c.CF) == 0
+
+
+def test_cage_too_small_rejected():
+    V, F = capsule(n_around=12, cap_rings=4, segments=5)
+    with pytest.raises(ValueError, match="at least 20"):
+        build_cage(V, F, size=5)
+
+
+@pytest.mark.parametrize("name", CAPSULE_SCENARIOS)
+@pytest.mark.parametrize("method", ["sqp", "exact"])
+def test_capsule_scenarios_volume_exact(small_muscle, name, method):
+    rest, cur = capsule_scenario(name)
+    r = small_muscle.bind(rest).deform(cur, method=method)
+    assert r.converged, r.reason
+    assert abs(r.relative_volume_error) <= 1e-9
+
+
+SLOW_BENDS = pytest.mark.xfail(
+    strict=True, reason="open gap (issue 2): bends of this coarse capsule need 6 iterations, target <= 5"
+)
+
+
+@pytest.mark.parametrize(
+    "name",
+    [pytest.param(n, marks=SLOW_BENDS) if n in ("bend", "bend_short") else n for n in CAPSULE_SCENARIOS],
+)
+def test_capsule_iterations_target(small_muscle, name):
+    rest, cur = capsule_scenario(name)
+    assert small_muscle.bind(rest).deform(cur).iterations <= 5
+
+
+def test_sqp_matches_exact_energy(small_muscle):
+    rest, cur = capsule_scenario("bend_short")
+    d = small_muscle.bind(rest)
+    a, b = d.deform(cur), d.deform(cur, method="exact")
+    assert a.energy == pytest.approx(b.energy, rel=1e-5)
+    assert d.stationarity(b, cur) < 1e-5
+
+
+def test_paper_method_converges(small_muscle):
+    rest, cur = capsule_scenario("short")
+    r = small_muscle.bind(rest).deform(cur, method="paper")
+    assert abs(r.relative_volume_error) <= 1e-9 and len(r.history) == r.iterations
+
+
+def test_rigid_motion_gives_rigid_mesh(small_muscle):
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_rotvec([0.3, -0.5, 0.7]).as_matrix()
+    t = np.array([10.0, -4.0, 25.0])
+    rest = {"a": np.array([[0.0, 0, 0], [2, 1, 100], [0, 3, 200]]), "b": np.array([[5.0, 0, 20], [5, 0, 180]])}
+    cur = {k: v @ R.T + t for k, v in rest.items()}
+    ref = np.array([40.0, 10.0, 90.0])
+    d = small_muscle.bind(rest, reference_point=ref)
+    r = d.deform(cur, reference_point=R @ ref + t)
+    dev = np.abs(r.V - (small_muscle.V @ R.T + t)).max()
+    assert dev <= 1e-6 * 200, dev
+    assert abs(r.relative_volume_error) <= 1e-9
+
+
+def test_save_load_roundtrip_and_corruption(small_muscle, tmp_path):
+    p = small_muscle.save(tmp_path / "m.npz")
+    m2 = Muscle.load(p)
+    assert np.array_equal(m2.W, small_muscle.W)
+    raw = bytearray(p.read_bytes())
+    raw[len(raw) // 2] ^= 0xFF
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(bytes(raw))
+    with pytest.raises(ValueError, match="bad.npz"):
+        Muscle.load(bad)

@@ -1,0 +1,100 @@
+import numpy as np
+import pytest
+
+from musclewrap.mesh import (
+    MeshError,
+    check_mesh,
+    clean_mesh,
+    read_mesh,
+    volume,
+    volume_cubic,
+    volume_gradient,
+    write_mesh,
+)
+from musclewrap.synthetic import capsule, rings_mesh
+
+TET_V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+
+
+def test_tetrahedron_volume_analytic():
+    assert volume(TET_V, TET_F) == pytest.approx(1 / 6, rel=1e-15)
+    assert volume(TET_V + 1e4, TET_F) == pytest.approx(1 / 6, rel=1e-9)
+
+
+def test_sphere_volume_converges():
+    # a fine surface of revolution approximating a sphere of radius 10
+    th = np.linspace(0, np.pi, 401)
+    V, F = rings_mesh(-10 * np.cos(th), 10 * np.sin(th), 400)
+    assert volume(V, F) == pytest.approx(4 / 3 * np.pi * 1000, rel=1e-3)
+
+
+def test_volume_gradient_matches_finite_differences():
+    V, F = capsule(n_around=12, cap_rings=4, segments=5)
+    rng = np.random.default_rng(1)
+    V = V + rng.normal(scale=0.5, size=V.shape)
+    G = volume_gradient(V, F)
+    h = 1.0  # the volume is linear in any single coordinate: central differences are exact
+    for i, k in [(0, 0), (7, 1), (30, 2)]:
+        Vp, Vm = V.copy(), V.copy()
+        Vp[i, k] += h
+        Vm[i, k] -= h
+        assert G[i, k] == pytest.approx((volume(Vp, F) - volume(Vm, F)) / (2 * h), rel=1e-7)
+
+
+def test_volume_cubic_is_exact():
+    V, F = capsule(n_around=12, cap_rings=4, segments=5)
+    B = np.random.default_rng(2).normal(size=V.shape)
+    c = volume_cubic(V, B, F)
+    for t in (-0.7, 0.3, 2.0):
+        assert np.polyval(c[::-1], t) == pytest.approx(volume(V + t * B, F, center=np.zeros(3)), rel=1e-12)
+
+
+def test_capsule_counts_and_checks():
+    V, F = capsule()
+    assert V.shape == (15074, 3) and F.shape == (30144, 3)
+    chk = check_mesh(V, F)
+    assert chk.ok and chk.closed
+
+
+def test_open_mesh_refused():
+    V, F = capsule(n_around=12, cap_rings=4, segments=5)
+    with pytest.raises(MeshError, match="boundary edge"):
+        clean_mesh(V, F[1:], source="holey.stl")
+
+
+def test_inward_mesh_flipped():
+    V, F = capsule(n_around=12, cap_rings=4, segments=5)
+    V2, F2, notes = clean_mesh(V, F[:, ::-1], source="x")
+    assert volume(V2, F2) > 0 and any("inward" in n for n in notes)
+
+
+@pytest.mark.parametrize("ext", [".vtp", ".vtk", ".ply", ".obj", ".stl", ".off"])
+def test_roundtrip_formats(tmp_path, ext):
+    V, F = capsule(n_around=12, cap_rings=4, segments=5)
+    V = V + 0.123456789012345
+    p = write_mesh(tmp_path / f"m{ext}", V, F)
+    V2, F2 = read_mesh(p)
+    if ext == ".stl":
+        from musclewrap.mesh import merge_duplicate_vertices
+
+        V2, F2, _ = merge_duplicate_vertices(V2, F2)
+        assert volume(V2, F2) == pytest.approx(volume(V, F), rel=1e-6)
+    else:
+        assert np.array_equal(V2, V), "float64 coordinates must survive"
+        assert volume(V2, F2) == volume(V, F)
+    assert not list(tmp_path.glob(".*part*")), "no temporary file may be left behind"
+
+
+@pytest.mark.parametrize("content", [b"", b"solid x\nfacet garbage", b"\x00\x01\x02" * 50])
+@pytest.mark.parametrize("ext", [".stl", ".vtk", ".vtp", ".ply", ".obj"])
+def test_bad_files_named_in_error(tmp_path, content, ext):
+    p = tmp_path / f"bad{ext}"
+    p.write_bytes(content)
+    with pytest.raises(MeshError, match="bad"):
+        read_mesh(p)
+
+
+def test_missing_file():
+    with pytest.raises(MeshError, match="no such mesh file"):
+        read_mesh("/nonexistent/muscle.stl")
