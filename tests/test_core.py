@@ -15,8 +15,20 @@ TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
 def cube():
     V = np.array([[x, y, z] for x in (0.0, 1) for y in (0.0, 1) for z in (0.0, 1)])
     F = np.array(
-        [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-         [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
+        [
+            [0, 1, 3],
+            [0, 3, 2],
+            [4, 6, 7],
+            [4, 7, 5],
+            [0, 4, 5],
+            [0, 5, 1],
+            [2, 3, 7],
+            [2, 7, 6],
+            [0, 2, 6],
+            [0, 6, 4],
+            [1, 5, 7],
+            [1, 7, 3],
+        ]
     )
     return V, F
 
@@ -24,7 +36,9 @@ def cube():
 def test_mvc_octahedron_centre_is_uniform():
     # symmetric cage and triangulation: every vertex weighs the same at the centre
     V = np.array([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
-    F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    F = np.array(
+        [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    )
     W = mean_value_coordinates([[0.0, 0.0, 0.0]], V, F)
     assert np.allclose(W, 1 / 6, atol=1e-14)
 
@@ -73,7 +87,9 @@ def test_laplacian_rows_and_planar_patch():
 
 
 def test_cubic_root():
-    assert cubic_root_near(np.array([1.0, -3.0, 0.0, 1.0]), 0.0, 0.3) == pytest.approx(0.34729635533386, rel=1e-12)
+    assert cubic_root_near(np.array([1.0, -3.0, 0.0, 1.0]), 0.0, 0.3) == pytest.approx(
+        0.34729635533386, rel=1e-12
+    )
 
 
 def test_lines_validation():
@@ -119,13 +135,17 @@ def test_capsule_scenarios_volume_exact(small_muscle, name, method):
 
 
 SLOW_BENDS = pytest.mark.xfail(
-    strict=True, reason="open gap (issue 2): bends of this coarse capsule need 6 iterations, target <= 5"
+    strict=True,
+    reason="open gap (issue 2): bends of this coarse capsule need 6 iterations, target <= 5",
 )
 
 
 @pytest.mark.parametrize(
     "name",
-    [pytest.param(n, marks=SLOW_BENDS) if n in ("bend", "bend_short") else n for n in CAPSULE_SCENARIOS],
+    [
+        pytest.param(n, marks=SLOW_BENDS) if n in ("bend", "bend_short") else n
+        for n in CAPSULE_SCENARIOS
+    ],
 )
 def test_capsule_iterations_target(small_muscle, name):
     rest, cur = capsule_scenario(name)
@@ -151,7 +171,10 @@ def test_rigid_motion_gives_rigid_mesh(small_muscle):
 
     R = Rotation.from_rotvec([0.3, -0.5, 0.7]).as_matrix()
     t = np.array([10.0, -4.0, 25.0])
-    rest = {"a": np.array([[0.0, 0, 0], [2, 1, 100], [0, 3, 200]]), "b": np.array([[5.0, 0, 20], [5, 0, 180]])}
+    rest = {
+        "a": np.array([[0.0, 0, 0], [2, 1, 100], [0, 3, 200]]),
+        "b": np.array([[5.0, 0, 20], [5, 0, 180]]),
+    }
     cur = {k: v @ R.T + t for k, v in rest.items()}
     ref = np.array([40.0, 10.0, 90.0])
     d = small_muscle.bind(rest, reference_point=ref)

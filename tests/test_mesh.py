@@ -47,7 +47,9 @@ def test_volume_cubic_is_exact():
     B = np.random.default_rng(2).normal(size=V.shape)
     c = volume_cubic(V, B, F)
     for t in (-0.7, 0.3, 2.0):
-        assert np.polyval(c[::-1], t) == pytest.approx(volume(V + t * B, F, center=np.zeros(3)), rel=1e-12)
+        assert np.polyval(c[::-1], t) == pytest.approx(
+            volume(V + t * B, F, center=np.zeros(3)), rel=1e-12
+        )
 
 
 def test_capsule_counts_and_checks():

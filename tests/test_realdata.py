@@ -96,7 +96,9 @@ def _osim_path_points(path, names):
                 if body is None:
                     body = pp.find("socket_parent_frame")
                 if loc is not None and body is not None:
-                    pts.append(([float(v) for v in loc.text.split()], body.text.strip().split("/")[-1]))
+                    pts.append(
+                        ([float(v) for v in loc.text.split()], body.text.strip().split("/")[-1])
+                    )
             out[musc.get("name")] = pts
     return out
 
@@ -120,7 +122,9 @@ def test_lhdl_gluteus_maximus_hip_rotation(data_dir):
         P = np.array([p for p, _ in pts[n]]) * 1000.0
         bodies = [b for _, b in pts[n]]
         rest[n] = P
-        cur[n] = np.array([(R @ (p - hip) + hip) if b.startswith("femur") else p for p, b in zip(P, bodies)])
+        cur[n] = np.array(
+            [(R @ (p - hip) + hip) if b.startswith("femur") else p for p, b in zip(P, bodies)]
+        )
     ref_rest = FV.mean(axis=0)
     d = muscle.bind(rest, reference_point=ref_rest)
     r = d.deform(cur, reference_point=R @ (ref_rest - hip) + hip)

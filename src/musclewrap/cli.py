@@ -37,15 +37,27 @@ def _parser() -> argparse.ArgumentParser:
     de = sub.add_parser("deform", help="deform a muscle from its rest to its current action lines")
     de.add_argument("mesh", help="rest-pose muscle surface")
     de.add_argument("--rest", required=True, help="rest action lines, CSV with header line,x,y,z")
-    de.add_argument("--current", required=True, help="current action lines, same CSV format and line names")
-    de.add_argument("-o", "--output", required=True, help="deformed mesh (.vtp .vtk .stl .ply .obj .off)")
+    de.add_argument(
+        "--current", required=True, help="current action lines, same CSV format and line names"
+    )
+    de.add_argument(
+        "-o", "--output", required=True, help="deformed mesh (.vtp .vtk .stl .ply .obj .off)"
+    )
     de.add_argument("--report", help="JSON report path")
-    de.add_argument("--prepared", help="prepared-muscle file from 'musclewrap prepare' (skips preparation)")
+    de.add_argument(
+        "--prepared", help="prepared-muscle file from 'musclewrap prepare' (skips preparation)"
+    )
     de.add_argument("--cage-size", type=int, default=None, help="target number of cage vertices")
     de.add_argument("--reference-rest", type=_point, help="reference point in the rest pose, X,Y,Z")
-    de.add_argument("--reference-current", type=_point, help="reference point in the current pose, X,Y,Z")
-    de.add_argument("--method", choices=("sqp", "exact", "paper"), default="sqp", help="solver (default sqp)")
-    de.add_argument("--allow-unconverged", action="store_true", help="exit 0 even if the solve did not converge")
+    de.add_argument(
+        "--reference-current", type=_point, help="reference point in the current pose, X,Y,Z"
+    )
+    de.add_argument(
+        "--method", choices=("sqp", "exact", "paper"), default="sqp", help="solver (default sqp)"
+    )
+    de.add_argument(
+        "--allow-unconverged", action="store_true", help="exit 0 even if the solve did not converge"
+    )
 
     dm = sub.add_parser("demo", help="run the embedded synthetic example (no data needed)")
     dm.add_argument("-o", "--output", default="musclewrap_demo", help="output folder")
@@ -92,8 +104,15 @@ def _cmd_deform(a: argparse.Namespace) -> int:
 
         muscle = Muscle.load(a.prepared)
         V, F, _ = clean_mesh(*read_mesh(a.mesh), source=a.mesh)
-        if not (V.shape == muscle.V.shape and F.shape == muscle.F.shape and (V == muscle.V).all() and (F == muscle.F).all()):
-            raise ValueError(f"{a.prepared} was prepared from another mesh than {a.mesh}; run prepare again")
+        if not (
+            V.shape == muscle.V.shape
+            and F.shape == muscle.F.shape
+            and (V == muscle.V).all()
+            and (F == muscle.F).all()
+        ):
+            raise ValueError(
+                f"{a.prepared} was prepared from another mesh than {a.mesh}; run prepare again"
+            )
         seconds_prepare = time.perf_counter() - t0
     else:
         muscle = Muscle.from_file(a.mesh, cage_size=a.cage_size or defaults.cage_size)
@@ -119,7 +138,9 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         "seconds_prepare": seconds_prepare,
         "seconds_deform": res.seconds,
         "mesh_notes": list(muscle.notes),
-        "coordinates_precision": "float32 (STL format limit)" if a.output.lower().endswith(".stl") else "float64",
+        "coordinates_precision": "float32 (STL format limit)"
+        if a.output.lower().endswith(".stl")
+        else "float64",
     }
     if a.report:
         from .mesh import atomic_path
@@ -132,7 +153,10 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         f"{res.seconds * 1e3:.1f} ms"
     )
     if not ok and not a.allow_unconverged:
-        print(f"error: {res.reason}; no output written (use --allow-unconverged to write it anyway)", file=sys.stderr)
+        print(
+            f"error: {res.reason}; no output written (use --allow-unconverged to write it anyway)",
+            file=sys.stderr,
+        )
         return 3
     return 0
 
@@ -165,7 +189,12 @@ def _cmd_demo(a: argparse.Namespace) -> int:
             entries.append((float(scene.angles[k]), bname))
         P = line["main"]
         lname = f"line/line_{k:04d}.vtp"
-        write_mesh(out / lname, P, np.zeros((0, 3), int), lines=np.array([[i, i + 1] for i in range(len(P) - 1)]))
+        write_mesh(
+            out / lname,
+            P,
+            np.zeros((0, 3), int),
+            lines=np.array([[i, i + 1] for i in range(len(P) - 1)]),
+        )
         entries.append((float(scene.angles[k]), lname))
         rows.append(
             {
@@ -182,7 +211,12 @@ def _cmd_demo(a: argparse.Namespace) -> int:
     write_csv(out / "report.csv", rows, list(rows[0]))
     plot_volume_error(
         out / "volume_error.png",
-        {"musclewrap (sqp)": ([r["frame"] for r in rows], [r["relative_volume_error"] for r in rows])},
+        {
+            "musclewrap (sqp)": (
+                [r["frame"] for r in rows],
+                [r["relative_volume_error"] for r in rows],
+            )
+        },
         title="Demo: fusiform muscle, 0-90 deg flexion",
     )
     worst = max(abs(r["relative_volume_error"]) for r in rows)
@@ -202,7 +236,9 @@ def _cmd_bench(a: argparse.Namespace) -> int:
         f"capsule: {int(info['n_vertices'])} vertices, cage {int(info['n_cage_vertices'])}, "
         f"prepare {info['seconds_prepare']:.2f} s, W@X {info['ms_W_at_X']:.2f} ms (median)"
     )
-    print(f"{'scenario':<11}{'method':<7}{'it':>4}{'volume error':>14}{'fit mm':>8}{'ms/pose':>9}{'x W@X':>7}")
+    print(
+        f"{'scenario':<11}{'method':<7}{'it':>4}{'volume error':>14}{'fit mm':>8}{'ms/pose':>9}{'x W@X':>7}"
+    )
     for r in rows:
         print(
             f"{r['scenario']:<11}{r['method']:<7}{r['iterations']:>4}{r['relative_volume_error']:>14.2e}"
@@ -223,7 +259,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .mesh import MeshError
 
     args = _parser().parse_args(argv)
-    handlers = {"prepare": _cmd_prepare, "deform": _cmd_deform, "demo": _cmd_demo, "bench": _cmd_bench}
+    handlers = {
+        "prepare": _cmd_prepare,
+        "deform": _cmd_deform,
+        "demo": _cmd_demo,
+        "bench": _cmd_bench,
+    }
     try:
         return handlers[args.command](args)
     except (MeshError, LineError, CageError, ValueError, OSError) as exc:

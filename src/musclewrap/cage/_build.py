@@ -57,7 +57,9 @@ def _min_angle_deg(C: FloatArray, CF: IntArray) -> float:
     angles = []
     for p, q, r in ((a, b, c), (b, c, a), (c, a, b)):
         u, v = q - p, r - p
-        cosang = np.einsum("ij,ij->i", u, v) / (np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
+        cosang = np.einsum("ij,ij->i", u, v) / (
+            np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
+        )
         angles.append(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))))
     return float(np.min(angles))
 
@@ -79,7 +81,9 @@ def cage_self_intersections(C: FloatArray, CF: IntArray) -> int:
     """
     T = C[CF]
     lo, hi = T.min(axis=1), T.max(axis=1)
-    overlap = np.all((lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :]), axis=2)
+    overlap = np.all(
+        (lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :]), axis=2
+    )
     overlap = np.triu(overlap, k=1)
     i, j = np.nonzero(overlap)
     shares = (CF[i][:, :, None] == CF[j][:, None, :]).any(axis=(1, 2))
@@ -101,13 +105,17 @@ def _vertex_normals(C: FloatArray, CF: IntArray) -> FloatArray:
     return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
 
 
-def _enclosure(V: FloatArray, C: FloatArray, CF: IntArray) -> tuple[FloatArray, FloatArray, IntArray]:
+def _enclosure(
+    V: FloatArray, C: FloatArray, CF: IntArray
+) -> tuple[FloatArray, FloatArray, IntArray]:
     wn = igl.winding_number(C, CF, V)
     d2, face, _ = igl.point_mesh_squared_distance(V, C, CF)
     return wn, np.sqrt(d2), face
 
 
-def verify_cage(V: FloatArray, F: IntArray, C: FloatArray, CF: IntArray, *, margin: float) -> list[str]:
+def verify_cage(
+    V: FloatArray, F: IntArray, C: FloatArray, CF: IntArray, *, margin: float
+) -> list[str]:
     """List every way a cage fails its guarantees (empty list = valid).
 
     Parameters
@@ -199,7 +207,10 @@ def build_cage(
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     longest = float(np.max(V.max(0) - V.min(0)))
     vol = volume(V, F)
-    area = float(np.sum(np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)) / 2)
+    area = float(
+        np.sum(np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1))
+        / 2
+    )
     if offset is None:
         offset = min(defaults.cage_offset * 4.0 * vol / area, defaults.cage_offset_max * diag)
     if not offset > 0:
@@ -207,7 +218,9 @@ def build_cage(
     spacing = max(offset / 1.2, longest / 160.0)
     offset = max(offset, 1.2 * spacing)
     cells = int(np.ceil((longest + 4 * offset) / spacing))
-    SV, SF, _, _, _ = igl.offset_surface(V, F, offset, cells, igl.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER)
+    SV, SF, _, _, _ = igl.offset_surface(
+        V, F, offset, cells, igl.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER
+    )
     if len(SF) == 0:
         raise CageError("the offset surface is empty (is the mesh closed?)")
     target_faces = 2 * size - 4

@@ -139,7 +139,9 @@ class LineSampling:
                 f"{label}: action lines must be the rest lines {sorted(self.names)}; "
                 f"missing {missing}, unexpected {extra}"
             )
-        return np.vstack([polyline_at(lines[n], t) for n, t in zip(self.names, self.params, strict=True)])
+        return np.vstack(
+            [polyline_at(lines[n], t) for n, t in zip(self.names, self.params, strict=True)]
+        )
 
 
 def sample_lines(
@@ -217,7 +219,9 @@ def read_lines_csv(path: PathLike) -> dict[str, FloatArray]:
                 try:
                     xyz = [float(c) for c in row[1:]]
                 except ValueError:
-                    raise LineError(f"{p}: row {row_no} has a non-numeric coordinate: {row}") from None
+                    raise LineError(
+                        f"{p}: row {row_no} has a non-numeric coordinate: {row}"
+                    ) from None
                 pts.setdefault(row[0].strip(), []).append(xyz)
     except UnicodeDecodeError:
         raise LineError(f"{p}: not a text CSV file") from None

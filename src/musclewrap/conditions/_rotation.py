@@ -146,14 +146,43 @@ def matrix_to_quaternion(R: FloatArray) -> FloatArray:
     tr = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
     cand = np.stack(
         [
-            np.stack([1 + tr, m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], 1),
-            np.stack([m[:, 2, 1] - m[:, 1, 2], 1 + 2 * m[:, 0, 0] - tr, m[:, 0, 1] + m[:, 1, 0], m[:, 0, 2] + m[:, 2, 0]], 1),
-            np.stack([m[:, 0, 2] - m[:, 2, 0], m[:, 0, 1] + m[:, 1, 0], 1 + 2 * m[:, 1, 1] - tr, m[:, 1, 2] + m[:, 2, 1]], 1),
-            np.stack([m[:, 1, 0] - m[:, 0, 1], m[:, 0, 2] + m[:, 2, 0], m[:, 1, 2] + m[:, 2, 1], 1 + 2 * m[:, 2, 2] - tr], 1),
+            np.stack(
+                [1 + tr, m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]],
+                1,
+            ),
+            np.stack(
+                [
+                    m[:, 2, 1] - m[:, 1, 2],
+                    1 + 2 * m[:, 0, 0] - tr,
+                    m[:, 0, 1] + m[:, 1, 0],
+                    m[:, 0, 2] + m[:, 2, 0],
+                ],
+                1,
+            ),
+            np.stack(
+                [
+                    m[:, 0, 2] - m[:, 2, 0],
+                    m[:, 0, 1] + m[:, 1, 0],
+                    1 + 2 * m[:, 1, 1] - tr,
+                    m[:, 1, 2] + m[:, 2, 1],
+                ],
+                1,
+            ),
+            np.stack(
+                [
+                    m[:, 1, 0] - m[:, 0, 1],
+                    m[:, 0, 2] + m[:, 2, 0],
+                    m[:, 1, 2] + m[:, 2, 1],
+                    1 + 2 * m[:, 2, 2] - tr,
+                ],
+                1,
+            ),
         ],
         axis=1,
     )  # (k, 4 candidates, 4)
-    diag = np.stack([1 + tr, 1 + 2 * m[:, 0, 0] - tr, 1 + 2 * m[:, 1, 1] - tr, 1 + 2 * m[:, 2, 2] - tr], 1)
+    diag = np.stack(
+        [1 + tr, 1 + 2 * m[:, 0, 0] - tr, 1 + 2 * m[:, 1, 1] - tr, 1 + 2 * m[:, 2, 2] - tr], 1
+    )
     best = np.argmax(diag, axis=1)
     q = cand[np.arange(len(R)), best]
     return q / np.linalg.norm(q, axis=1, keepdims=True)
@@ -193,7 +222,9 @@ class RotationField:
         ``h`` above, in mesh units.
     """
 
-    def __init__(self, C: FloatArray, samples: FloatArray, line: IntArray, smoothing: float) -> None:
+    def __init__(
+        self, C: FloatArray, samples: FloatArray, line: IntArray, smoothing: float
+    ) -> None:
         d2 = np.sum((C[:, None, :] - samples[None, :, :]) ** 2, axis=2)
         w = 1.0 / (d2 + smoothing**2) ** 2
         self.weights = w / w.sum(axis=1, keepdims=True)

@@ -162,7 +162,9 @@ def merge_duplicate_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, In
     return np.ascontiguousarray(uniq[used]), remap[F2], len(V) - len(used)
 
 
-def clean_mesh(V: FloatArray, F: IntArray, *, source: str = "mesh") -> tuple[FloatArray, IntArray, list[str]]:
+def clean_mesh(
+    V: FloatArray, F: IntArray, *, source: str = "mesh"
+) -> tuple[FloatArray, IntArray, list[str]]:
     """Make a mesh usable or refuse it with a message naming the problem.
 
     Merges duplicate vertices, drops faces with repeated indices, flips a
@@ -201,7 +203,9 @@ def clean_mesh(V: FloatArray, F: IntArray, *, source: str = "mesh") -> tuple[Flo
         notes.append(f"removed {int(rep.sum())} faces with repeated vertices")
     chk = check_mesh(V, F)
     problems = [
-        p for p in chk.problems() if not p.startswith(("faces point inward", f"{chk.degenerate_faces} degenerate"))
+        p
+        for p in chk.problems()
+        if not p.startswith(("faces point inward", f"{chk.degenerate_faces} degenerate"))
     ]
     if chk.degenerate_faces:
         notes.append(f"kept {chk.degenerate_faces} zero-area face(s) (they add no volume)")
@@ -210,7 +214,9 @@ def clean_mesh(V: FloatArray, F: IntArray, *, source: str = "mesh") -> tuple[Flo
             "repair it first (e.g. PyMeshFix, or MeshLab's 'remove non-manifold edges' and "
             "'close holes'), or keep only the main component"
         )
-        raise MeshError(f"{source}: not a closed 2-manifold muscle surface: {'; '.join(problems)}; {hint}")
+        raise MeshError(
+            f"{source}: not a closed 2-manifold muscle surface: {'; '.join(problems)}; {hint}"
+        )
     if chk.volume < 0:
         F = F[:, ::-1].copy()
         notes.append("faces were oriented inward: flipped to outward")

@@ -40,7 +40,9 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
     """
     dest = Path(path)
     dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".part" + dest.suffix, dir=dest.parent)
+    fd, tmp = tempfile.mkstemp(
+        prefix=f".{dest.name}.", suffix=".part" + dest.suffix, dir=dest.parent
+    )
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -83,7 +85,9 @@ def _vtk_read(path: Path) -> tuple[FloatArray, IntArray]:
         raise MeshError(f"{path}: not a legacy VTK POLYDATA file (or unreadable)")
     poly = reader.GetOutput()
     if errors.messages or poly is None or poly.GetNumberOfPoints() == 0:
-        raise MeshError(f"{path}: VTK could not read a polygon mesh from this file (empty or corrupted)")
+        raise MeshError(
+            f"{path}: VTK could not read a polygon mesh from this file (empty or corrupted)"
+        )
     tri = vtkTriangleFilter()
     tri.PassLinesOff()
     tri.PassVertsOff()
@@ -107,7 +111,9 @@ def _trimesh_read(path: Path) -> tuple[FloatArray, IntArray]:
     try:
         mesh = trimesh.load_mesh(str(path), process=False, force="mesh")
     except Exception as exc:  # noqa: BLE001 - any parser failure becomes one clear message
-        raise MeshError(f"{path}: could not be parsed as {path.suffix.upper()[1:]}: {exc}") from None
+        raise MeshError(
+            f"{path}: could not be parsed as {path.suffix.upper()[1:]}: {exc}"
+        ) from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise MeshError(f"{path}: no triangles found (empty or not a surface mesh)")
     return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
@@ -152,7 +158,13 @@ def read_mesh(path: PathLike) -> tuple[FloatArray, IntArray]:
     return V, F
 
 
-def _write_vtk(path: Path, V: FloatArray, F: IntArray, point_data: Mapping[str, np.ndarray], lines: IntArray | None) -> None:
+def _write_vtk(
+    path: Path,
+    V: FloatArray,
+    F: IntArray,
+    point_data: Mapping[str, np.ndarray],
+    lines: IntArray | None,
+) -> None:
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
     from vtkmodules.vtkCommonCore import vtkPoints
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData

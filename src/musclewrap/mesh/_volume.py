@@ -38,7 +38,11 @@ def volume(V: FloatArray, F: IntArray, *, center: FloatArray | None = None) -> f
     0.166666666667
     """
     c = V.mean(axis=0) if center is None else np.asarray(center, dtype=np.float64)
-    return float(_volume_kernel(np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64), c))
+    return float(
+        _volume_kernel(
+            np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64), c
+        )
+    )
 
 
 def volume_gradient(V: FloatArray, F: IntArray) -> FloatArray:
@@ -100,9 +104,15 @@ def _volume_kernel(V, F, c):  # pragma: no cover - compiled
     for f in range(F.shape[0]):
         a, b, d = F[f, 0], F[f, 1], F[f, 2]
         s += _det(
-            V[a, 0] - c[0], V[a, 1] - c[1], V[a, 2] - c[2],
-            V[b, 0] - c[0], V[b, 1] - c[1], V[b, 2] - c[2],
-            V[d, 0] - c[0], V[d, 1] - c[1], V[d, 2] - c[2],
+            V[a, 0] - c[0],
+            V[a, 1] - c[1],
+            V[a, 2] - c[2],
+            V[b, 0] - c[0],
+            V[b, 1] - c[1],
+            V[b, 2] - c[2],
+            V[d, 0] - c[0],
+            V[d, 1] - c[1],
+            V[d, 2] - c[2],
         )
     return s / 6.0
 
@@ -144,8 +154,22 @@ def _cubic_kernel(A, B, F):  # pragma: no cover - compiled
         my = A[b, 2] * B[d, 0] - A[b, 0] * B[d, 2] + B[b, 2] * A[d, 0] - B[b, 0] * A[d, 2]
         mz = A[b, 0] * B[d, 1] - A[b, 1] * B[d, 0] + B[b, 0] * A[d, 1] - B[b, 1] * A[d, 0]
         c0 += A[a, 0] * aax + A[a, 1] * aay + A[a, 2] * aaz
-        c1 += B[a, 0] * aax + B[a, 1] * aay + B[a, 2] * aaz + A[a, 0] * mx + A[a, 1] * my + A[a, 2] * mz
-        c2 += A[a, 0] * bbx + A[a, 1] * bby + A[a, 2] * bbz + B[a, 0] * mx + B[a, 1] * my + B[a, 2] * mz
+        c1 += (
+            B[a, 0] * aax
+            + B[a, 1] * aay
+            + B[a, 2] * aaz
+            + A[a, 0] * mx
+            + A[a, 1] * my
+            + A[a, 2] * mz
+        )
+        c2 += (
+            A[a, 0] * bbx
+            + A[a, 1] * bby
+            + A[a, 2] * bbz
+            + B[a, 0] * mx
+            + B[a, 1] * my
+            + B[a, 2] * mz
+        )
         c3 += B[a, 0] * bbx + B[a, 1] * bby + B[a, 2] * bbz
     out = np.empty(4)
     out[0], out[1], out[2], out[3] = c0 / 6.0, c1 / 6.0, c2 / 6.0, c3 / 6.0

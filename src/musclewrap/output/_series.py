@@ -33,7 +33,9 @@ def write_pvd(path: PathLike, entries: Sequence[tuple[float, str]]) -> Path:
     for t, name in entries:
         part = parts.get(t, 0)
         parts[t] = part + 1
-        lines.append(f"    <DataSet timestep={quoteattr(repr(float(t)))} part=\"{part}\" file={quoteattr(name)}/>")
+        lines.append(
+            f'    <DataSet timestep={quoteattr(repr(float(t)))} part="{part}" file={quoteattr(name)}/>'
+        )
     lines += ["  </Collection>", "</VTKFile>", ""]
     p = Path(path)
     with atomic_path(p) as tmp:

@@ -5,4 +5,12 @@ from ._muscle import METHODS, Deformer, Muscle, deform
 from ._paper import solve_paper
 from ._result import DeformationResult
 
-__all__ = ["METHODS", "DeformationResult", "Deformer", "Muscle", "cubic_root_near", "deform", "solve_paper"]
+__all__ = [
+    "METHODS",
+    "DeformationResult",
+    "Deformer",
+    "Muscle",
+    "cubic_root_near",
+    "deform",
+    "solve_paper",
+]

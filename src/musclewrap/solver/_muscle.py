@@ -105,7 +105,9 @@ class Muscle:
         self.delta_rest = self.L @ C
         self._center = C.mean(axis=0)
         self.proxy_W_T = np.ascontiguousarray(self.proxy_W.T)
-        self.proxy_volume_rest = volume(self.proxy_W @ (C - self._center), self.proxy_F, center=np.zeros(3))
+        self.proxy_volume_rest = volume(
+            self.proxy_W @ (C - self._center), self.proxy_F, center=np.zeros(3)
+        )
 
     @property
     def W_T(self) -> FloatArray:
@@ -160,7 +162,10 @@ class Muscle:
         L = cotangent_laplacian(cage.C, cage.CF)
         if len(F) > 2 * defaults.proxy_size:
             PV, PF, _, _ = igl.decimate(
-                np.asfortranarray(V), np.asfortranarray(F.astype(np.int32)), defaults.proxy_size, False
+                np.asfortranarray(V),
+                np.asfortranarray(F.astype(np.int32)),
+                defaults.proxy_size,
+                False,
             )
             PV = np.ascontiguousarray(PV)
             PF = np.ascontiguousarray(PF, dtype=np.int64)
@@ -210,7 +215,14 @@ class Muscle:
             "mesh_sha256": self.mesh_hash(),
             "cage": {
                 k: getattr(c, k)
-                for k in ("offset", "min_distance", "min_winding", "volume_ratio", "min_angle_deg", "push_rounds")
+                for k in (
+                    "offset",
+                    "min_distance",
+                    "min_winding",
+                    "volume_ratio",
+                    "min_angle_deg",
+                    "push_rounds",
+                )
             },
         }
         p = Path(path)
@@ -249,7 +261,9 @@ class Muscle:
         except Exception as exc:  # noqa: BLE001 - any damage is reported the same way
             raise ValueError(f"{p}: not a readable musclewrap preparation ({exc})") from None
         if meta.get("format") != _FORMAT:
-            raise ValueError(f"{p}: preparation format {meta.get('format')} is not {_FORMAT}; run prepare again")
+            raise ValueError(
+                f"{p}: preparation format {meta.get('format')} is not {_FORMAT}; run prepare again"
+            )
         cage = Cage(C=data["C"], CF=data["CF"], **meta["cage"])
         m = cls(
             V=data["V"],
@@ -265,7 +279,9 @@ class Muscle:
             source=meta["source"],
         )
         if m.mesh_hash() != meta["mesh_sha256"]:
-            raise ValueError(f"{p}: content does not match its stored hash (corrupted); run prepare again")
+            raise ValueError(
+                f"{p}: content does not match its stored hash (corrupted); run prepare again"
+            )
         return m
 
     # ------------------------------------------------------------------ bind
@@ -293,7 +309,9 @@ class Muscle:
         -------
         Deformer
         """
-        return Deformer(self, rest_lines, reference_point=reference_point, skeleton_weight=skeleton_weight)
+        return Deformer(
+            self, rest_lines, reference_point=reference_point, skeleton_weight=skeleton_weight
+        )
 
 
 class Deformer:
@@ -330,7 +348,9 @@ class Deformer:
         self.rest_lines = rest
         edges = np.concatenate([CF[:, [0, 1]], CF[:, [1, 2]], CF[:, [2, 0]]])
         self.spacing = float(np.mean(np.linalg.norm(C[edges[:, 0]] - C[edges[:, 1]], axis=1))) / 2
-        self.sampling = sample_lines(rest, spacing=self.spacing, min_samples=defaults.samples_per_line)
+        self.sampling = sample_lines(
+            rest, spacing=self.spacing, min_samples=defaults.samples_per_line
+        )
         self.rest_samples = self.sampling.evaluate(rest, "rest lines")
         self.sample_line = self.sampling.line_index()
         self.S = mean_value_coordinates(self.rest_samples, C, CF)
@@ -344,7 +364,9 @@ class Deformer:
         ev = np.linalg.eigvalsh(self.H)
         self.condition_number = float(ev[-1] / ev[0])
         self.rotation_field = RotationField(C, self.rest_samples, self.sample_line, self.spacing)
-        self.reference_rest = None if reference_point is None else as_points([reference_point], "reference_point")[0]
+        self.reference_rest = (
+            None if reference_point is None else as_points([reference_point], "reference_point")[0]
+        )
         self._LT = np.ascontiguousarray(L.T)
         self._ST = np.ascontiguousarray(self.S.T)
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
@@ -362,7 +384,9 @@ class Deformer:
             raise ValueError(
                 "reference point: give it both at bind (rest) and at deform (current), or neither"
             )
-        ref_cur = None if reference_point is None else as_points([reference_point], "reference_point")[0]
+        ref_cur = (
+            None if reference_point is None else as_points([reference_point], "reference_point")[0]
+        )
         R_s = sample_rotations(
             self.rest_samples,
             s_cur,
@@ -397,8 +421,12 @@ class Deformer:
         c = x.mean(axis=0)
         return mu.W_T @ volume_gradient(mu.W @ (x - c), mu.F)
 
-    def stationarity(self, result: DeformationResult, current_lines: Mapping[str, npt.ArrayLike],
-                     reference_point: npt.ArrayLike | None = None) -> float:
+    def stationarity(
+        self,
+        result: DeformationResult,
+        current_lines: Mapping[str, npt.ArrayLike],
+        reference_point: npt.ArrayLike | None = None,
+    ) -> float:
         """Sine of the angle between the energy gradient and the fine volume gradient.
 
         Zero at an exact KKT point of ``min ||A x - d||^2 s.t. V(W x) = V0``
@@ -469,17 +497,27 @@ class Deformer:
             from ._paper import solve_paper
 
             x, V, its, ok, reason, hist = solve_paper(
-                self, x_ls, b, d_L, s_cur,
-                max_iterations=max_iterations or defaults.paper_max_iterations, alpha=alpha,
+                self,
+                x_ls,
+                b,
+                d_L,
+                s_cur,
+                max_iterations=max_iterations or defaults.paper_max_iterations,
+                alpha=alpha,
             )
         else:
             x, V, its, ok, reason, hist = self._solve_sqp(
-                x_ls, d_L, s_cur, exact=(method == "exact"),
+                x_ls,
+                d_L,
+                s_cur,
+                exact=(method == "exact"),
                 max_iterations=max_iterations or defaults.max_iterations,
             )
         return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0)
 
-    def _result(self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0) -> DeformationResult:  # noqa: ANN001
+    def _result(
+        self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0
+    ) -> DeformationResult:  # noqa: ANN001
         mu = self.muscle
         if not np.isfinite(V).all():
             ok, reason = False, "numerically singular: non-finite positions"
@@ -535,7 +573,9 @@ class Deformer:
             x, lam = x_new, lam_new
             P = P_ls - lam * P_u
             if exact:
-                hist.append((self.energy(x, d_L, s_cur), volume(P, Fd, center=np.zeros(3)) / Vd0 - 1))
+                hist.append(
+                    (self.energy(x, d_L, s_cur), volume(P, Fd, center=np.zeros(3)) / Vd0 - 1)
+                )
             if step <= tol.direction * max(float(np.abs(lam * u).max()), 1e-9 * self._diag):
                 converged_dir = True
                 break
@@ -550,7 +590,9 @@ class Deformer:
             x = x_ls - lam_f * u
             V = combine_pair(XU, lam_f, c)
             its_total = its + 1
-        reason = "converged" if converged_dir else f"direction not stationary after {its} iterations"
+        reason = (
+            "converged" if converged_dir else f"direction not stationary after {its} iterations"
+        )
         return x, V, its_total, converged_dir, reason, hist
 
 
@@ -592,5 +634,3 @@ def deform(
     return muscle.bind(rest_lines, reference_point=reference_rest).deform(
         current_lines, reference_point=reference_current, method=method
     )
-
-

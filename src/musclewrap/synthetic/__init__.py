@@ -3,4 +3,11 @@
 from ._capsule import CAPSULE_SCENARIOS, capsule, capsule_scenario, rings_mesh
 from ._demo import DemoScene, demo_scene
 
-__all__ = ["CAPSULE_SCENARIOS", "DemoScene", "capsule", "capsule_scenario", "demo_scene", "rings_mesh"]
+__all__ = [
+    "CAPSULE_SCENARIOS",
+    "DemoScene",
+    "capsule",
+    "capsule_scenario",
+    "demo_scene",
+    "rings_mesh",
+]

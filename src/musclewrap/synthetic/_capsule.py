@@ -11,7 +11,9 @@ __all__ = ["CAPSULE_SCENARIOS", "capsule", "capsule_scenario", "rings_mesh"]
 CAPSULE_SCENARIOS = ("bend", "bend_short", "bend_long", "short", "rot")
 
 
-def rings_mesh(z: FloatArray, r: FloatArray, n_around: int, x: FloatArray | None = None) -> tuple[FloatArray, IntArray]:
+def rings_mesh(
+    z: FloatArray, r: FloatArray, n_around: int, x: FloatArray | None = None
+) -> tuple[FloatArray, IntArray]:
     """Closed surface of revolution from rings between two poles.
 
     Parameters
@@ -84,7 +86,9 @@ def capsule(
     return rings_mesh(z, r, n_around)
 
 
-def capsule_scenario(name: str, total: float = 200.0) -> tuple[dict[str, FloatArray], dict[str, FloatArray]]:
+def capsule_scenario(
+    name: str, total: float = 200.0
+) -> tuple[dict[str, FloatArray], dict[str, FloatArray]]:
     """Rest and current action lines of a capsule scenario.
 
     Parameters

@@ -38,7 +38,9 @@ class DemoScene:
             "thigh": (bV + [0.0, 0.0, 15.0], bF),
             "shank": (bV * [1, 1, -1] - [0.0, 0.0, 15.0], bF[:, ::-1].copy()),
         }
-        self.rest_line = {"main": np.array([[32.0, 0.0, -40.0], [36.0, 0.0, 20.0], [32.0, 0.0, 250.0]])}
+        self.rest_line = {
+            "main": np.array([[32.0, 0.0, -40.0], [36.0, 0.0, 20.0], [32.0, 0.0, 250.0]])
+        }
         self.angles = np.linspace(0.0, max_flexion, n_frames)
         self.reference = self.bones["thigh"][0].mean(axis=0)
 
@@ -46,7 +48,9 @@ class DemoScene:
     def shank_rotation(angle_deg: float) -> FloatArray:
         """Rotation of the shank about the knee axis (y through the origin)."""
         a = np.radians(angle_deg)
-        return np.array([[np.cos(a), 0.0, -np.sin(a)], [0.0, 1.0, 0.0], [np.sin(a), 0.0, np.cos(a)]])
+        return np.array(
+            [[np.cos(a), 0.0, -np.sin(a)], [0.0, 1.0, 0.0], [np.sin(a), 0.0, np.cos(a)]]
+        )
 
     def line(self, frame: int) -> dict[str, FloatArray]:
         """Current action line: insertion moves with the shank, the rest with the thigh."""
