@@ -72,8 +72,15 @@ class MeshCheck:
             and self.volume > 0
         )
 
-    def problems(self) -> list[str]:
-        """Human-readable list of what is wrong (empty when `ok`)."""
+    def problems(self, *, repairable: bool = True) -> list[str]:
+        """Human-readable list of what is wrong (empty when `ok`).
+
+        Parameters
+        ----------
+        repairable : bool, optional
+            Include what `clean_mesh` repairs or tolerates (inward orientation,
+            zero-area faces); False lists only what makes the mesh unusable.
+        """
         out = []
         if self.boundary_edges:
             out.append(f"open: {self.boundary_edges} boundary edge(s) (holes)")
@@ -81,11 +88,11 @@ class MeshCheck:
             out.append(f"{self.nonmanifold_edges} non-manifold edge(s) (shared by >2 faces)")
         if self.inconsistent_edges:
             out.append(f"{self.inconsistent_edges} edge(s) with inconsistent face orientation")
-        if self.degenerate_faces:
+        if self.degenerate_faces and repairable:
             out.append(f"{self.degenerate_faces} degenerate (zero-area) face(s)")
         if self.components != 1:
             out.append(f"{self.components} connected components")
-        if self.closed and self.consistently_oriented and self.volume <= 0:
+        if repairable and self.closed and self.consistently_oriented and self.volume <= 0:
             out.append("faces point inward (negative volume)")
         return out
 
@@ -202,11 +209,7 @@ def clean_mesh(
         F = F[~rep]
         notes.append(f"removed {int(rep.sum())} faces with repeated vertices")
     chk = check_mesh(V, F)
-    problems = [
-        p
-        for p in chk.problems()
-        if not p.startswith(("faces point inward", f"{chk.degenerate_faces} degenerate"))
-    ]
+    problems = chk.problems(repairable=False)
     if chk.degenerate_faces:
         notes.append(f"kept {chk.degenerate_faces} zero-area face(s) (they add no volume)")
     if problems:

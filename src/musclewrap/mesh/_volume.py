@@ -86,11 +86,8 @@ def volume_cubic(A: FloatArray, B: FloatArray, F: IntArray) -> FloatArray:
     line search on the volume needs one evaluation of this cubic instead of
     repeated volume evaluations; its root is the exact volume correction.
     """
-    return _cubic_kernel(
-        np.ascontiguousarray(A, dtype=np.float64),
-        np.ascontiguousarray(B, dtype=np.float64),
-        np.ascontiguousarray(F, dtype=np.int64),
-    )
+    # one kernel serves both forms: volume(A + tB) is the pair form of [A, -B]
+    return _cubic_pair_kernel(np.hstack([A, -B]), np.ascontiguousarray(F, dtype=np.int64))
 
 
 @numba.njit(cache=True)
@@ -133,47 +130,6 @@ def _gradient_kernel(V, F, c):  # pragma: no cover - compiled
             G[i[k], 1] += (u[2] * w[0] - u[0] * w[2]) / 6.0
             G[i[k], 2] += (u[0] * w[1] - u[1] * w[0]) / 6.0
     return G
-
-
-@numba.njit(cache=True)
-def _cubic_kernel(A, B, F):  # pragma: no cover - compiled
-    c0 = 0.0
-    c1 = 0.0
-    c2 = 0.0
-    c3 = 0.0
-    for f in range(F.shape[0]):
-        a, b, d = F[f, 0], F[f, 1], F[f, 2]
-        # crosses of the second and third vertex, A-A, mixed and B-B
-        aax = A[b, 1] * A[d, 2] - A[b, 2] * A[d, 1]
-        aay = A[b, 2] * A[d, 0] - A[b, 0] * A[d, 2]
-        aaz = A[b, 0] * A[d, 1] - A[b, 1] * A[d, 0]
-        bbx = B[b, 1] * B[d, 2] - B[b, 2] * B[d, 1]
-        bby = B[b, 2] * B[d, 0] - B[b, 0] * B[d, 2]
-        bbz = B[b, 0] * B[d, 1] - B[b, 1] * B[d, 0]
-        mx = A[b, 1] * B[d, 2] - A[b, 2] * B[d, 1] + B[b, 1] * A[d, 2] - B[b, 2] * A[d, 1]
-        my = A[b, 2] * B[d, 0] - A[b, 0] * B[d, 2] + B[b, 2] * A[d, 0] - B[b, 0] * A[d, 2]
-        mz = A[b, 0] * B[d, 1] - A[b, 1] * B[d, 0] + B[b, 0] * A[d, 1] - B[b, 1] * A[d, 0]
-        c0 += A[a, 0] * aax + A[a, 1] * aay + A[a, 2] * aaz
-        c1 += (
-            B[a, 0] * aax
-            + B[a, 1] * aay
-            + B[a, 2] * aaz
-            + A[a, 0] * mx
-            + A[a, 1] * my
-            + A[a, 2] * mz
-        )
-        c2 += (
-            A[a, 0] * bbx
-            + A[a, 1] * bby
-            + A[a, 2] * bbz
-            + B[a, 0] * mx
-            + B[a, 1] * my
-            + B[a, 2] * mz
-        )
-        c3 += B[a, 0] * bbx + B[a, 1] * bby + B[a, 2] * bbz
-    out = np.empty(4)
-    out[0], out[1], out[2], out[3] = c0 / 6.0, c1 / 6.0, c2 / 6.0, c3 / 6.0
-    return out
 
 
 @numba.njit(cache=True)

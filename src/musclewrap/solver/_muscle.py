@@ -561,7 +561,6 @@ class Deformer:
         hist: list[tuple[float, float]] = []
         converged_dir = False
         its = 0
-        u = self._solve(G)
         for its in range(1, max_iterations + 1):
             u = self._solve(G)
             P_u = Wd @ u
