@@ -134,19 +134,7 @@ def test_capsule_scenarios_volume_exact(small_muscle, name, method):
     assert abs(r.relative_volume_error) <= 1e-9
 
 
-SLOW_BENDS = pytest.mark.xfail(
-    strict=True,
-    reason="open gap (issue 2): bends of this coarse capsule need 6 iterations, target <= 5",
-)
-
-
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=SLOW_BENDS) if n in ("bend", "bend_short") else n
-        for n in CAPSULE_SCENARIOS
-    ],
-)
+@pytest.mark.parametrize("name", CAPSULE_SCENARIOS)
 def test_capsule_iterations_target(small_muscle, name):
     rest, cur = capsule_scenario(name)
     assert small_muscle.bind(rest).deform(cur).iterations <= 5

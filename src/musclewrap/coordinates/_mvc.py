@@ -71,25 +71,19 @@ def mean_value_coordinates(
     return W
 
 
-@numba.njit(cache=True, inline="always")
-def _angle(U, a, b):  # pragma: no cover - compiled
-    # atan2 of |u x v| and u.v stays accurate near 0 and pi, unlike arcsin of the chord.
-    cx = U[a, 1] * U[b, 2] - U[a, 2] * U[b, 1]
-    cy = U[a, 2] * U[b, 0] - U[a, 0] * U[b, 2]
-    cz = U[a, 0] * U[b, 1] - U[a, 1] * U[b, 0]
-    dot = U[a, 0] * U[b, 0] + U[a, 1] * U[b, 1] + U[a, 2] * U[b, 2]
-    return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), dot)
-
-
 @numba.njit(parallel=True, cache=True, fastmath=False)
-def _mvc_kernel(P, C, CF, eps_vertex, eps_face, W):  # pragma: no cover - compiled
+def _mvc_kernel(P, C, CF, E, FE, eps_vertex, eps_face, W):  # pragma: no cover - compiled
     n = P.shape[0]
     m = C.shape[0]
     k = CF.shape[0]
+    ne = E.shape[0]
     for r in numba.prange(n):
         px, py, pz = P[r, 0], P[r, 1], P[r, 2]
         d = np.empty(m)
         U = np.empty((m, 3))
+        th = np.empty(ne)
+        st = np.empty(ne)
+        ct = np.empty(ne)
         hit_vertex = -1
         for j in range(m):
             dx, dy, dz = C[j, 0] - px, C[j, 1] - py, C[j, 2] - pz
@@ -104,22 +98,36 @@ def _mvc_kernel(P, C, CF, eps_vertex, eps_face, W):  # pragma: no cover - compil
         if hit_vertex >= 0:
             W[r, hit_vertex] = 1.0
             continue
+        # angle subtended by every cage edge, once per edge (two faces share it);
+        # atan2 of |u x v| and u.v stays accurate near 0 and pi
+        for e in range(ne):
+            a, b = E[e, 0], E[e, 1]
+            cx = U[a, 1] * U[b, 2] - U[a, 2] * U[b, 1]
+            cy = U[a, 2] * U[b, 0] - U[a, 0] * U[b, 2]
+            cz = U[a, 0] * U[b, 1] - U[a, 1] * U[b, 0]
+            sn = np.sqrt(cx * cx + cy * cy + cz * cz)
+            cs = U[a, 0] * U[b, 0] + U[a, 1] * U[b, 1] + U[a, 2] * U[b, 2]
+            th[e] = np.arctan2(sn, cs)
+            rn = np.sqrt(sn * sn + cs * cs)
+            st[e] = sn / rn
+            ct[e] = cs / rn
         hit_face = -1
         total = 0.0
         for f in range(k):
             i0, i1, i2 = CF[f, 0], CF[f, 1], CF[f, 2]
-            th0 = _angle(U, i1, i2)
-            th1 = _angle(U, i2, i0)
-            th2 = _angle(U, i0, i1)
+            e0, e1, e2 = FE[f, 0], FE[f, 1], FE[f, 2]
+            th0, th1, th2 = th[e0], th[e1], th[e2]
             h = 0.5 * (th0 + th1 + th2)
             if np.pi - h < eps_face:
                 hit_face = f
                 break
             sh = np.sin(h)
-            s0, s1, s2 = np.sin(th0), np.sin(th1), np.sin(th2)
-            c0 = 2.0 * sh * np.sin(h - th0) / (s1 * s2) - 1.0
-            c1 = 2.0 * sh * np.sin(h - th1) / (s2 * s0) - 1.0
-            c2 = 2.0 * sh * np.sin(h - th2) / (s0 * s1) - 1.0
+            ch = np.cos(h)
+            s0, s1, s2 = st[e0], st[e1], st[e2]
+            # sin(h - th_i) = sin h cos th_i - cos h sin th_i
+            c0 = 2.0 * sh * (sh * ct[e0] - ch * s0) / (s1 * s2) - 1.0
+            c1 = 2.0 * sh * (sh * ct[e1] - ch * s1) / (s2 * s0) - 1.0
+            c2 = 2.0 * sh * (sh * ct[e2] - ch * s2) / (s0 * s1) - 1.0
             det = (
                 U[i0, 0] * (U[i1, 1] * U[i2, 2] - U[i1, 2] * U[i2, 1])
                 - U[i0, 1] * (U[i1, 0] * U[i2, 2] - U[i1, 2] * U[i2, 0])
@@ -165,9 +173,18 @@ def _mvc_kernel(P, C, CF, eps_vertex, eps_face, W):  # pragma: no cover - compil
 
 def _mvc_block(P: FloatArray, C: FloatArray, CF: IntArray) -> FloatArray:
     diag = float(np.linalg.norm(C.max(0) - C.min(0)))
+    E, FE = _face_edges(CF)
     W = np.empty((len(P), len(C)))
-    _mvc_kernel(P, C, CF, tol.mvc_on_vertex * diag, tol.mvc_on_face, W)
+    _mvc_kernel(P, C, CF, E, FE, tol.mvc_on_vertex * diag, tol.mvc_on_face, W)
     return W
+
+
+def _face_edges(CF: IntArray) -> tuple[IntArray, IntArray]:
+    """Unique edges and, per face, the edge opposite each of its corners."""
+    opp = np.stack([CF[:, [1, 2]], CF[:, [2, 0]], CF[:, [0, 1]]], axis=1)  # (k, 3, 2)
+    keys = np.sort(opp.reshape(-1, 2), axis=1)
+    E, inv = np.unique(keys, axis=0, return_inverse=True)
+    return np.ascontiguousarray(E, dtype=np.int64), inv.reshape(-1, 3).astype(np.int64)
 
 
 def _barycentric(p: FloatArray, T: FloatArray) -> FloatArray:

@@ -42,7 +42,7 @@ from ._result import DeformationResult
 __all__ = ["METHODS", "Deformer", "Muscle", "deform"]
 
 METHODS = ("sqp", "exact", "paper")
-_FORMAT = 1
+_FORMAT = 2
 
 
 def _point_polyline_distance(Q: FloatArray, P: FloatArray) -> FloatArray:
@@ -222,6 +222,7 @@ class Muscle:
                     "volume_ratio",
                     "min_angle_deg",
                     "push_rounds",
+                    "method",
                 )
             },
         }
