@@ -100,3 +100,13 @@ def test_bad_files_named_in_error(tmp_path, content, ext):
 def test_missing_file():
     with pytest.raises(MeshError, match="no such mesh file"):
         read_mesh("/nonexistent/muscle.stl")
+
+
+def test_merge_duplicate_vertices_soup_and_signed_zero():
+    from musclewrap.mesh import merge_duplicate_vertices
+
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [-0.0, 0, 0], [1, 0, 0], [0, 0, 1]])
+    F = np.array([[0, 1, 2], [3, 4, 5]])
+    V2, F2, merged = merge_duplicate_vertices(V, F)
+    assert merged == 2 and len(V2) == 4
+    assert np.array_equal(V2[F2], V[F])

@@ -135,6 +135,12 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         "skeleton_fit_max": res.skeleton_fit_max,
         "energy": res.energy,
         "method": res.method,
+        "shape_change_max": float(muscle.shape_change(res.V).max())
+        if np.isfinite(res.V).all()
+        else None,
+        "cage_min_angle_deg": muscle.cage.min_angle_deg,
+        "cage_coarsening": muscle.cage.method,
+        "condition_number": d.condition_number,
         "seconds_prepare": seconds_prepare,
         "seconds_deform": res.seconds,
         "mesh_notes": list(muscle.notes),

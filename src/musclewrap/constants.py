@@ -20,8 +20,10 @@ class Tolerances:
     volume : float
         Relative fine-volume error accepted as converged, ``|V - V0| / V0``.
     direction : float
-        Relative change of the volume-gradient direction between two
-        iterations below which the constrained solve is considered stationary.
+        Estimated distance of the cage positions from the fixed point of the
+        constrained solve (the a posteriori bound ``rho / (1 - rho) * step``
+        of a linearly converging iteration), relative to the size of the
+        volume correction, below which the solve counts as stationary.
     mvc_on_vertex : float
         Distance to a cage vertex, relative to the cage's bounding-box
         diagonal, below which a point is treated as lying on that vertex.

@@ -296,18 +296,25 @@ def build_cage(
     margin = defaults.cage_margin * offset
     rounds = 0
     for rounds in range(max_push_rounds + 1):
-        wn, dist, face = _enclosure(V, C, CF)
-        bad = (wn < tol.winding_inside) | (dist < margin)
-        if not bad.any():
+        # signed distance with pseudo-normal signs (exact for a closed 2-manifold,
+        # 3x cheaper than winding numbers); negative inside
+        sd, face, _, _ = igl.signed_distance(
+            V, C, CF, sign_type=igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL
+        )
+        bad = sd > -margin
+        if not bad.any() or rounds == max_push_rounds:
             break
-        if rounds == max_push_rounds:
-            break
-        # Push the vertices of the cage faces nearest to offending fine vertices.
-        need = np.where(wn[bad] < tol.winding_inside, dist[bad] + margin, margin - dist[bad])
+        # Push the vertices of the cage faces nearest to offending fine vertices
+        # (by distance + margin when outside, margin - distance when inside).
+        need = sd[bad] + margin
         push = np.zeros(len(C))
         for k in range(3):
             np.maximum.at(push, CF[face[bad], k], need)
-        C = C + _vertex_normals(C, CF) * (1.25 * push + 1e-3 * offset * (push > 0))[:, None]
+        # twice the need: a vertex normal meets the nearest face at an angle, so the face
+        # moves less than its corners (1.25x took 7-9 rounds on thin VHF muscles, 2x takes 2-3)
+        C = C + _vertex_normals(C, CF) * (2.0 * push + 1e-3 * offset * (push > 0))[:, None]
+    # the final verdict uses generalized winding numbers, whatever the cage's state
+    wn, dist, _ = _enclosure(V, C, CF)
     # the remesh was checked for self-intersections; pushing may create some
     n_self = cage_self_intersections(C, CF) if rounds or method != "uniform" else 0
     problems = _problems(C, CF, wn, dist, margin, n_self)

@@ -116,6 +116,40 @@ class Muscle:
             self._W_T = np.ascontiguousarray(self.W.T)
         return self._W_T
 
+    def shape_change(self, V: npt.ArrayLike) -> FloatArray:
+        """Per-vertex change of local shape, in mean rest edge lengths (spike measure).
+
+        With ``delta_i = v_i - mean(1-ring of v_i)`` (uniform Laplacian of the
+        fine mesh), returns ``| |delta_i(V)| - |delta_i(rest)| |`` divided by
+        the mean rest edge length. Zero under a rigid motion; a spike or a
+        crease shows up as a large value at its vertices.
+
+        Parameters
+        ----------
+        V : (n, 3) array_like
+            Deformed positions of the fine vertices.
+
+        Returns
+        -------
+        (n,) float64 array
+        """
+        if getattr(self, "_umbrella", None) is None:
+            import scipy.sparse as sp
+
+            F, n = self.F, len(self.V)
+            e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+            A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+            A = ((A + A.T) > 0).astype(np.float64)
+            deg = np.asarray(A.sum(axis=1)).ravel()
+            U = (sp.identity(n, format="csr") - sp.diags(1.0 / deg) @ A).tocsr()
+            edge = float(np.mean(np.linalg.norm(self.V[e[:, 0]] - self.V[e[:, 1]], axis=1)))
+            self._umbrella = (U, np.linalg.norm(U @ self.V, axis=1), edge)
+        U, d0, edge = self._umbrella
+        V = as_vertices(V, "V")
+        if V.shape != self.V.shape:
+            raise ValueError(f"V has shape {V.shape}, the muscle has {self.V.shape}")
+        return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / edge
+
     # ------------------------------------------------------------------ build
     @classmethod
     def from_mesh(
@@ -362,8 +396,6 @@ class Deformer:
         self._chol = cho_factor(self.H, lower=False, check_finite=False)
         # explicit inverse for the 3-column solves of the per-pose loop (cond(H) ~ 1e5)
         self._Hinv = cho_solve(self._chol, np.eye(m), check_finite=False)
-        ev = np.linalg.eigvalsh(self.H)
-        self.condition_number = float(ev[-1] / ev[0])
         self.rotation_field = RotationField(C, self.rest_samples, self.sample_line, self.spacing)
         self.reference_rest = (
             None if reference_point is None else as_points([reference_point], "reference_point")[0]
@@ -371,6 +403,14 @@ class Deformer:
         self._LT = np.ascontiguousarray(L.T)
         self._ST = np.ascontiguousarray(self.S.T)
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
+
+    @property
+    def condition_number(self) -> float:
+        """2-norm condition number of ``A^T A`` (computed on first use)."""
+        if getattr(self, "_cond", None) is None:
+            ev = np.linalg.eigvalsh(self.H)
+            self._cond = float(ev[-1] / ev[0])
+        return self._cond
 
     # ------------------------------------------------------------- helpers
     def _solve(self, rhs: FloatArray) -> FloatArray:
@@ -562,6 +602,7 @@ class Deformer:
         hist: list[tuple[float, float]] = []
         converged_dir = False
         its = 0
+        prev_step = 0.0
         for its in range(1, max_iterations + 1):
             u = self._solve(G)
             P_u = Wd @ u
@@ -576,7 +617,13 @@ class Deformer:
                 hist.append(
                     (self.energy(x, d_L, s_cur), volume(P, Fd, center=np.zeros(3)) / Vd0 - 1)
                 )
-            if step <= tol.direction * max(float(np.abs(lam * u).max()), 1e-9 * self._diag):
+            # The fixed point converges linearly; with rate rho = step / previous step the
+            # distance to the limit is at most rho / (1 - rho) * step (a posteriori bound).
+            # The first step (from x_ls) is the whole correction, so rho needs two more.
+            rho = step / prev_step if its >= 3 and prev_step > 0 else 1.0
+            error = step * rho / (1.0 - rho) if rho < 0.5 else step
+            prev_step = step
+            if error <= tol.direction * max(float(np.abs(lam * u).max()), 1e-9 * self._diag):
                 converged_dir = True
                 break
             G = WdT @ volume_gradient(P, Fd)
