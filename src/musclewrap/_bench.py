@@ -12,18 +12,23 @@ from .synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
 __all__ = ["capsule_benchmark"]
 
 
-def _median_ms(fn, repeats: int) -> float:  # noqa: ANN001
+def _interleaved_ms(fn, ref, repeats: int) -> tuple[float, float]:  # noqa: ANN001
+    """Median times (ms) of ``fn`` and ``ref`` run alternately, so drift hits both."""
     fn()
-    ts = []
+    ref()
+    ts, tr = [], []
     for _ in range(repeats):
         t = time.perf_counter()
         fn()
         ts.append(time.perf_counter() - t)
-    return float(np.median(ts) * 1e3)
+        t = time.perf_counter()
+        ref()
+        tr.append(time.perf_counter() - t)
+    return float(np.median(ts) * 1e3), float(np.median(tr) * 1e3)
 
 
 def capsule_benchmark(
-    methods: tuple[str, ...] = ("sqp", "exact", "paper"), repeats: int = 15
+    methods: tuple[str, ...] = ("sqp", "exact", "paper"), repeats: int = 41
 ) -> tuple[dict[str, float], list[dict[str, object]]]:
     """Run the five capsule scenarios with each method.
 
@@ -31,7 +36,7 @@ def capsule_benchmark(
     -------
     info : dict
         Preparation time, cage size, and the median time of one float64
-        ``W @ X`` (3 columns) measured interleaved with the solves.
+        ``W @ X`` (numpy, 3 columns), each solve timed alternately with it.
     rows : list of dict
         One per scenario and method: iterations, volume error, skeleton fit,
         energy, median time per pose (ms) and its ratio to ``W @ X``.
@@ -48,9 +53,12 @@ def capsule_benchmark(
         d = muscle.bind(rest)
         for method in methods:
             res = d.deform(cur, method=method)
-            reps = repeats if method == "sqp" else max(1, repeats // 5)
-            wx = _median_ms(lambda: muscle.W @ X, repeats)
-            ms = _median_ms(lambda d=d, cur=cur, method=method: d.deform(cur, method=method), reps)
+            reps = repeats if method == "sqp" else max(3, repeats // 10)
+            ms, wx = _interleaved_ms(
+                lambda d=d, cur=cur, method=method: d.deform(cur, method=method),
+                lambda: muscle.W @ X,
+                reps,
+            )
             wx_all.append(wx)
             rows.append(
                 {

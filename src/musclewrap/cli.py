@@ -65,7 +65,7 @@ def _parser() -> argparse.ArgumentParser:
 
     be = sub.add_parser("bench", help="run a benchmark")
     be.add_argument("name", choices=("capsule",), help="benchmark to run")
-    be.add_argument("--repeats", type=int, default=15, help="timed repeats per case")
+    be.add_argument("--repeats", type=int, default=41, help="timed repeats per case")
     be.add_argument("--json", help="write the results as JSON here")
     return p
 

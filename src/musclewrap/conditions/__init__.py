@@ -4,6 +4,7 @@ from ._laplacian import cotangent_laplacian
 from ._lines import LineError, LineSampling, check_lines, polyline_at, read_lines_csv, sample_lines
 from ._rotation import (
     RotationField,
+    SampleRotations,
     kabsch,
     matrix_to_quaternion,
     quaternion_to_matrix,
@@ -14,6 +15,7 @@ __all__ = [
     "LineError",
     "LineSampling",
     "RotationField",
+    "SampleRotations",
     "check_lines",
     "cotangent_laplacian",
     "kabsch",

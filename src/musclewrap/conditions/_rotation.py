@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
 
 __all__ = [
     "RotationField",
+    "SampleRotations",
     "kabsch",
     "matrix_to_quaternion",
     "quaternion_to_matrix",
@@ -36,21 +38,38 @@ def kabsch(P: FloatArray, Q: FloatArray) -> tuple[FloatArray, bool]:
 
 
 def _tangents(S: FloatArray, line: IntArray) -> FloatArray:
-    T = np.zeros_like(S)
-    for i in np.unique(line):
-        idx = np.flatnonzero(line == i)
-        P = S[idx]
-        seg = np.diff(P, axis=0)
-        seg /= np.linalg.norm(seg, axis=1, keepdims=True)
-        t = np.empty_like(P)
-        t[0], t[-1] = seg[0], seg[-1]
-        t[1:-1] = seg[:-1] + seg[1:]
-        n = np.linalg.norm(t, axis=1, keepdims=True)
-        # a fold-back (opposite segments) leaves no direction: use the incoming one
-        fold = n[:, 0] < 1e-9
-        t[fold] = np.vstack([seg[0:1], seg])[fold]
-        T[idx] = t / np.linalg.norm(t, axis=1, keepdims=True)
+    T = np.empty_like(S)
+    _tangents_kernel(np.ascontiguousarray(S, dtype=np.float64), np.asarray(line), T)
     return T
+
+
+@numba.njit(cache=True)
+def _tangents_kernel(S, line, T):  # pragma: no cover - compiled
+    # per line: unit segment directions; a sample's tangent is the mean of its two
+    # segments (the end segment at the ends; the incoming one at a fold-back)
+    k = S.shape[0]
+    start = 0
+    while start < k:
+        end = start
+        while end + 1 < k and line[end + 1] == line[start]:
+            end += 1
+        nseg = end - start
+        seg = np.empty((nseg, 3))
+        for i in range(nseg):
+            d = S[start + i + 1] - S[start + i]
+            seg[i] = d / np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+        for i in range(start, end + 1):
+            j = i - start
+            if j == 0:
+                t = seg[0].copy()
+            elif j == nseg:
+                t = seg[nseg - 1].copy()
+            else:
+                t = seg[j - 1] + seg[j]
+                if np.sqrt(t[0] ** 2 + t[1] ** 2 + t[2] ** 2) < 1e-9:
+                    t = seg[j - 1].copy()
+            T[i] = t / np.sqrt(t[0] ** 2 + t[1] ** 2 + t[2] ** 2)
+        start = end + 1
 
 
 def _minimal_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -112,32 +131,162 @@ def sample_rotations(
         Rotations; under a rigid motion of lines and reference point, every
         one equals that motion's rotation.
     """
-    T0 = _tangents(rest, line)
-    T1 = _tangents(current, line)
-    if reference_rest is not None and reference_current is not None:
-        A0 = reference_rest[None, :] - rest
-        A1 = reference_current[None, :] - current
-    else:
-        R, determined = kabsch(rest, current)
-        if not determined:
-            return _minimal_rotation(T0, T1)
+    return SampleRotations(rest, line, reference_rest=reference_rest)(
+        current, reference_current=reference_current
+    )
+
+
+class SampleRotations:
+    """`sample_rotations` with everything that depends on the rest pose done once.
+
+    Parameters
+    ----------
+    rest : (k, 3) float64 array
+        Rest samples of all lines.
+    line : (k,) int array
+        Line index of each sample.
+    reference_rest : (3,) float64 array, optional
+        Rest reference point.
+    """
+
+    def __init__(
+        self, rest: FloatArray, line: IntArray, *, reference_rest: FloatArray | None = None
+    ) -> None:
+        self.rest = np.ascontiguousarray(rest, dtype=np.float64)
+        self.line = np.asarray(line)
+        self.reference_rest = reference_rest
+        self.T0 = _tangents(self.rest, self.line)
+        self._rest_centred = self.rest - self.rest.mean(axis=0)
+        sv = np.linalg.svd(self._rest_centred, compute_uv=False)
+        self.collinear = not (len(rest) >= 3 and sv[1] > 1e-6 * sv[0])
         # a reference direction perpendicular to the skeleton's principal axis
-        _, _, vt = np.linalg.svd(rest - rest.mean(axis=0))
-        A0 = np.tile(vt[1], (len(rest), 1))
-        A1 = A0 @ R.T
-    N0 = A0 - np.einsum("ij,ij->i", A0, T0)[:, None] * T0
-    N1 = A1 - np.einsum("ij,ij->i", A1, T1)[:, None] * T1
-    n0 = np.linalg.norm(N0, axis=1)
-    n1 = np.linalg.norm(N1, axis=1)
-    scale = np.maximum(np.linalg.norm(A0, axis=1), 1e-300)
-    ok = (n0 > 1e-6 * scale) & (n1 > 1e-6 * scale)
-    out = _minimal_rotation(T0, T1)
-    if ok.any():
-        N0o, N1o = N0[ok] / n0[ok, None], N1[ok] / n1[ok, None]
-        F0 = np.stack([T0[ok], N0o, np.cross(T0[ok], N0o)], axis=2)
-        F1 = np.stack([T1[ok], N1o, np.cross(T1[ok], N1o)], axis=2)
-        out[ok] = F1 @ np.transpose(F0, (0, 2, 1))
-    return out
+        _, _, vt = np.linalg.svd(self._rest_centred)
+        self._A0 = np.ascontiguousarray(np.tile(vt[1], (len(rest), 1)))
+
+    def __call__(
+        self, current: FloatArray, *, reference_current: FloatArray | None = None
+    ) -> FloatArray:
+        """(k, 3, 3) rotations of the samples for the current pose."""
+        T1 = _tangents(current, self.line)
+        if self.reference_rest is not None and reference_current is not None:
+            A0 = self.reference_rest[None, :] - self.rest
+            A1 = reference_current[None, :] - current
+        elif self.collinear:
+            return _minimal_rotation(self.T0, T1)
+        else:
+            Q0 = current - current.mean(axis=0)
+            U, _, Vt = np.linalg.svd(self._rest_centred.T @ Q0)
+            d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
+            R = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+            A0 = self._A0
+            A1 = A0 @ R.T
+        out = np.empty((len(self.rest), 3, 3))
+        _frame_rotations(self.T0, T1, np.ascontiguousarray(A0), np.ascontiguousarray(A1), out)
+        return out
+
+
+@numba.njit(cache=True)
+def _minimal_rotation_one(a, b, out):  # pragma: no cover - compiled
+    # rotation taking unit a to unit b about a x b (Rodrigues); pi about a normal of a
+    vx, vy, vz = a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+    c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    s = np.sqrt(vx * vx + vy * vy + vz * vz)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = 1.0 if i == j else 0.0
+    if s > 1e-12:
+        kx, ky, kz = vx / s, vy / s, vz / s
+    elif c < 0:
+        ex, ey, ez = (1.0, 0.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0, 0.0)
+        kx, ky, kz = a[1] * ez - a[2] * ey, a[2] * ex - a[0] * ez, a[0] * ey - a[1] * ex
+        n = np.sqrt(kx * kx + ky * ky + kz * kz)
+        kx, ky, kz = kx / n, ky / n, kz / n
+        s = 0.0
+    else:
+        return
+    K = np.array([[0.0, -kz, ky], [kz, 0.0, -kx], [-ky, kx, 0.0]])
+    KK = K @ K
+    for i in range(3):
+        for j in range(3):
+            out[i, j] += s * K[i, j] + (1.0 - c) * KK[i, j]
+
+
+@numba.njit(cache=True)
+def _frame_rotations(T0, T1, A0, A1, out):  # pragma: no cover - compiled
+    # per sample: frames (tangent, reference direction made normal, binormal) in both
+    # poses and the rotation F1 F0^T; the minimal rotation where a frame is undefined
+    for i in range(T0.shape[0]):
+        t0, t1, a0, a1 = T0[i], T1[i], A0[i], A1[i]
+        n0 = a0 - (a0[0] * t0[0] + a0[1] * t0[1] + a0[2] * t0[2]) * t0
+        n1 = a1 - (a1[0] * t1[0] + a1[1] * t1[1] + a1[2] * t1[2]) * t1
+        l0 = np.sqrt(n0[0] ** 2 + n0[1] ** 2 + n0[2] ** 2)
+        l1 = np.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
+        scale = max(np.sqrt(a0[0] ** 2 + a0[1] ** 2 + a0[2] ** 2), 1e-300)
+        if l0 > 1e-6 * scale and l1 > 1e-6 * scale:
+            n0 = n0 / l0
+            n1 = n1 / l1
+            b0 = np.cross(t0, n0)
+            b1 = np.cross(t1, n1)
+            for r in range(3):
+                for c in range(3):
+                    out[i, r, c] = t1[r] * t0[c] + n1[r] * n0[c] + b1[r] * b0[c]
+        else:
+            _minimal_rotation_one(t0, t1, out[i])
+
+
+@numba.njit(cache=True)
+def _blend_rotate(weights, R, first, delta, out):  # pragma: no cover - compiled
+    # quaternions of the sample rotations, signs made to agree along each line,
+    # Shepard-blended per cage vertex, normalized, applied to that vertex's delta
+    k = R.shape[0]
+    q = np.empty((k, 4))
+    for i in range(k):
+        m = R[i]
+        tr = m[0, 0] + m[1, 1] + m[2, 2]
+        d = np.array([1 + tr, 1 + 2 * m[0, 0] - tr, 1 + 2 * m[1, 1] - tr, 1 + 2 * m[2, 2] - tr])
+        j = np.argmax(d)
+        if j == 0:
+            v = (1 + tr, m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1])
+        elif j == 1:
+            v = (m[2, 1] - m[1, 2], 1 + 2 * m[0, 0] - tr, m[0, 1] + m[1, 0], m[0, 2] + m[2, 0])
+        elif j == 2:
+            v = (m[0, 2] - m[2, 0], m[0, 1] + m[1, 0], 1 + 2 * m[1, 1] - tr, m[1, 2] + m[2, 1])
+        else:
+            v = (m[1, 0] - m[0, 1], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1], 1 + 2 * m[2, 2] - tr)
+        n = np.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2 + v[3] ** 2)
+        for c in range(4):
+            q[i, c] = v[c] / n
+    # q and -q are the same rotation: make neighbouring samples agree in sign
+    for i in range(k):
+        p = 0 if first[i] else i - 1
+        if (
+            i > 0
+            and q[i, 0] * q[p, 0] + q[i, 1] * q[p, 1] + q[i, 2] * q[p, 2] + q[i, 3] * q[p, 3] < 0
+        ):
+            for c in range(4):
+                q[i, c] = -q[i, c]
+    for v in range(weights.shape[0]):
+        w = x = y = z = 0.0
+        for i in range(k):
+            g = weights[v, i]
+            w += g * q[i, 0]
+            x += g * q[i, 1]
+            y += g * q[i, 2]
+            z += g * q[i, 3]
+        n = np.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w / n, x / n, y / n, z / n
+        M = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        if delta.shape[0] == 0:
+            out[v] = M
+        else:
+            for r in range(3):
+                out[v, r, 0] = M[r, 0] * delta[v, 0] + M[r, 1] * delta[v, 1] + M[r, 2] * delta[v, 2]
 
 
 def matrix_to_quaternion(R: FloatArray) -> FloatArray:
@@ -233,11 +382,20 @@ class RotationField:
 
     def rotations(self, R_samples: FloatArray) -> FloatArray:
         """(m, 3, 3) rotation per cage vertex from (k, 3, 3) sample rotations."""
-        q = matrix_to_quaternion(R_samples)
-        # make neighbouring samples agree in sign (q and -q are the same rotation)
-        ref = q[0].copy()
-        for i in range(len(q)):
-            prev = ref if self._first[i] else q[i - 1]
-            if q[i] @ prev < 0:
-                q[i] = -q[i]
-        return quaternion_to_matrix(self.weights @ q)
+        out = np.empty((self.weights.shape[0], 3, 3))
+        _blend_rotate(
+            self.weights, np.ascontiguousarray(R_samples), self._first, np.empty((0, 3)), out
+        )
+        return out
+
+    def rotate(self, R_samples: FloatArray, delta: FloatArray) -> FloatArray:
+        """(m, 3) vectors ``delta`` each turned by its cage vertex's blended rotation."""
+        out = np.empty((self.weights.shape[0], 3, 1))
+        _blend_rotate(
+            self.weights,
+            np.ascontiguousarray(R_samples),
+            self._first,
+            np.ascontiguousarray(delta, dtype=np.float64),
+            out,
+        )
+        return out[:, :, 0]

@@ -1,5 +1,5 @@
 """Generalized barycentric coordinates of points in the cage."""
 
-from ._mvc import mean_value_coordinates
+from ._mvc import mean_value_coordinates, rows_dot
 
-__all__ = ["mean_value_coordinates"]
+__all__ = ["mean_value_coordinates", "rows_dot"]

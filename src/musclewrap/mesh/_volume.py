@@ -95,23 +95,35 @@ def _det(ax, ay, az, bx, by, bz, cx, cy, cz):  # pragma: no cover - compiled
     return ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
 
 
-@numba.njit(cache=True)
-def _volume_kernel(V, F, c):  # pragma: no cover - compiled
-    s = 0.0
-    for f in range(F.shape[0]):
-        a, b, d = F[f, 0], F[f, 1], F[f, 2]
-        s += _det(
-            V[a, 0] - c[0],
-            V[a, 1] - c[1],
-            V[a, 2] - c[2],
-            V[b, 0] - c[0],
-            V[b, 1] - c[1],
-            V[b, 2] - c[2],
-            V[d, 0] - c[0],
-            V[d, 1] - c[1],
-            V[d, 2] - c[2],
-        )
-    return s / 6.0
+# Reductions over faces split them into this many fixed chunks (run in parallel) and
+# add the partial sums in order: the result is the same bit for bit on any number of
+# threads.
+_CHUNKS = 16
+
+
+def _volume_py(V, F, c):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    m = F.shape[0]
+    part = np.zeros(_CHUNKS)
+    for ch in numba.prange(_CHUNKS):
+        s = 0.0
+        for f in range(ch * m // _CHUNKS, (ch + 1) * m // _CHUNKS):
+            a, b, d = F[f, 0], F[f, 1], F[f, 2]
+            s += _det(
+                V[a, 0] - c[0],
+                V[a, 1] - c[1],
+                V[a, 2] - c[2],
+                V[b, 0] - c[0],
+                V[b, 1] - c[1],
+                V[b, 2] - c[2],
+                V[d, 0] - c[0],
+                V[d, 1] - c[1],
+                V[d, 2] - c[2],
+            )
+        part[ch] = s
+    total = 0.0
+    for ch in range(_CHUNKS):
+        total += part[ch]
+    return total / 6.0
 
 
 @numba.njit(cache=True)
@@ -132,44 +144,66 @@ def _gradient_kernel(V, F, c):  # pragma: no cover - compiled
     return G
 
 
-@numba.njit(cache=True)
-def _cubic_pair_kernel(XU, F):  # pragma: no cover - compiled
+def _cubic_pair_py(XU, F):  # pragma: no cover - compiled
     # volume of XU[:, :3] - t * XU[:, 3:] as a cubic in t, read in place
-    c0 = 0.0
-    c1 = 0.0
-    c2 = 0.0
-    c3 = 0.0
-    for f in range(F.shape[0]):
-        a, b, d = F[f, 0], F[f, 1], F[f, 2]
-        ab0, ab1, ab2 = XU[b, 0], XU[b, 1], XU[b, 2]
-        ad0, ad1, ad2 = XU[d, 0], XU[d, 1], XU[d, 2]
-        bb0, bb1, bb2 = -XU[b, 3], -XU[b, 4], -XU[b, 5]
-        bd0, bd1, bd2 = -XU[d, 3], -XU[d, 4], -XU[d, 5]
-        aax = ab1 * ad2 - ab2 * ad1
-        aay = ab2 * ad0 - ab0 * ad2
-        aaz = ab0 * ad1 - ab1 * ad0
-        bbx = bb1 * bd2 - bb2 * bd1
-        bby = bb2 * bd0 - bb0 * bd2
-        bbz = bb0 * bd1 - bb1 * bd0
-        mx = ab1 * bd2 - ab2 * bd1 + bb1 * ad2 - bb2 * ad1
-        my = ab2 * bd0 - ab0 * bd2 + bb2 * ad0 - bb0 * ad2
-        mz = ab0 * bd1 - ab1 * bd0 + bb0 * ad1 - bb1 * ad0
-        a0, a1, a2 = XU[a, 0], XU[a, 1], XU[a, 2]
-        b0, b1, b2 = -XU[a, 3], -XU[a, 4], -XU[a, 5]
-        c0 += a0 * aax + a1 * aay + a2 * aaz
-        c1 += b0 * aax + b1 * aay + b2 * aaz + a0 * mx + a1 * my + a2 * mz
-        c2 += a0 * bbx + a1 * bby + a2 * bbz + b0 * mx + b1 * my + b2 * mz
-        c3 += b0 * bbx + b1 * bby + b2 * bbz
-    out = np.empty(4)
-    out[0], out[1], out[2], out[3] = c0 / 6.0, c1 / 6.0, c2 / 6.0, c3 / 6.0
-    return out
+    m = F.shape[0]
+    part = np.zeros((_CHUNKS, 4))
+    for ch in numba.prange(_CHUNKS):
+        p0 = 0.0
+        p1 = 0.0
+        p2 = 0.0
+        p3 = 0.0
+        for f in range(ch * m // _CHUNKS, (ch + 1) * m // _CHUNKS):
+            a, b, d = F[f, 0], F[f, 1], F[f, 2]
+            ab0, ab1, ab2 = XU[b, 0], XU[b, 1], XU[b, 2]
+            ad0, ad1, ad2 = XU[d, 0], XU[d, 1], XU[d, 2]
+            bb0, bb1, bb2 = -XU[b, 3], -XU[b, 4], -XU[b, 5]
+            bd0, bd1, bd2 = -XU[d, 3], -XU[d, 4], -XU[d, 5]
+            aax = ab1 * ad2 - ab2 * ad1
+            aay = ab2 * ad0 - ab0 * ad2
+            aaz = ab0 * ad1 - ab1 * ad0
+            bbx = bb1 * bd2 - bb2 * bd1
+            bby = bb2 * bd0 - bb0 * bd2
+            bbz = bb0 * bd1 - bb1 * bd0
+            mx = ab1 * bd2 - ab2 * bd1 + bb1 * ad2 - bb2 * ad1
+            my = ab2 * bd0 - ab0 * bd2 + bb2 * ad0 - bb0 * ad2
+            mz = ab0 * bd1 - ab1 * bd0 + bb0 * ad1 - bb1 * ad0
+            a0, a1, a2 = XU[a, 0], XU[a, 1], XU[a, 2]
+            b0, b1, b2 = -XU[a, 3], -XU[a, 4], -XU[a, 5]
+            p0 += a0 * aax + a1 * aay + a2 * aaz
+            p1 += b0 * aax + b1 * aay + b2 * aaz + a0 * mx + a1 * my + a2 * mz
+            p2 += a0 * bbx + a1 * bby + a2 * bbz + b0 * mx + b1 * my + b2 * mz
+            p3 += b0 * bbx + b1 * bby + b2 * bbz
+        part[ch, 0], part[ch, 1], part[ch, 2], part[ch, 3] = p0, p1, p2, p3
+    out = np.zeros(4)
+    for ch in range(_CHUNKS):
+        for k in range(4):
+            out[k] += part[ch, k]
+    return out / 6.0
 
 
-@numba.njit(cache=True)
+# Each reduction is compiled twice: threads pay off from ~10K faces, below that the
+# start of a parallel region costs more than it saves. Same chunks, same result.
+_PARALLEL_FACES = 10000
+_volume_par = numba.njit(parallel=True, cache=True)(_volume_py)
+_volume_ser = numba.njit(cache=True)(_volume_py)
+_cubic_pair_par = numba.njit(parallel=True, cache=True)(_cubic_pair_py)
+_cubic_pair_ser = numba.njit(cache=True)(_cubic_pair_py)
+
+
+def _volume_kernel(V, F, c):  # noqa: ANN001, ANN202
+    return (_volume_par if F.shape[0] >= _PARALLEL_FACES else _volume_ser)(V, F, c)
+
+
+def _cubic_pair_kernel(XU, F):  # noqa: ANN001, ANN202
+    return (_cubic_pair_par if F.shape[0] >= _PARALLEL_FACES else _cubic_pair_ser)(XU, F)
+
+
+@numba.njit(parallel=True, cache=True)
 def _combine_kernel(XU, t, c):  # pragma: no cover - compiled
     n = XU.shape[0]
     V = np.empty((n, 3))
-    for i in range(n):
+    for i in numba.prange(n):
         for k in range(3):
             V[i, k] = XU[i, k] - t * XU[i, 3 + k] + c[k]
     return V

@@ -26,15 +26,15 @@ def cubic_root_near(c: FloatArray, target: float, guess: float) -> float:
     float
         The root (``nan`` when the polynomial is constant).
     """
-    p = np.array([c[0] - target, c[1], c[2], c[3]])
-    scale = np.max(np.abs(p[1:]))
-    if scale == 0:
+    p0, p1, p2, p3 = float(c[0]) - target, float(c[1]), float(c[2]), float(c[3])
+    p = np.array([p0, p1, p2, p3])
+    if max(abs(p1), abs(p2), abs(p3)) == 0:
         return float("nan")
     # Newton from the guess: the volume correction is a small, simple root
     t = float(guess)
     for _ in range(30):
-        f = p[0] + t * (p[1] + t * (p[2] + t * p[3]))
-        df = p[1] + t * (2 * p[2] + 3 * t * p[3])
+        f = p0 + t * (p1 + t * (p2 + t * p3))
+        df = p1 + t * (2 * p2 + 3 * t * p3)
         if df == 0 or not np.isfinite(df):
             break
         step = f / df

@@ -19,13 +19,13 @@ from .._validation import as_faces, as_points, as_vertices
 from ..cage import Cage, build_cage
 from ..conditions import (
     RotationField,
+    SampleRotations,
     check_lines,
     cotangent_laplacian,
     sample_lines,
-    sample_rotations,
 )
 from ..constants import defaults, tol
-from ..coordinates import mean_value_coordinates
+from ..coordinates import mean_value_coordinates, rows_dot
 from ..mesh import (
     atomic_path,
     check_mesh,
@@ -400,6 +400,9 @@ class Deformer:
         self.reference_rest = (
             None if reference_point is None else as_points([reference_point], "reference_point")[0]
         )
+        self._sample_rotations = SampleRotations(
+            self.rest_samples, self.sample_line, reference_rest=self.reference_rest
+        )
         self._LT = np.ascontiguousarray(L.T)
         self._ST = np.ascontiguousarray(self.S.T)
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
@@ -428,15 +431,8 @@ class Deformer:
         ref_cur = (
             None if reference_point is None else as_points([reference_point], "reference_point")[0]
         )
-        R_s = sample_rotations(
-            self.rest_samples,
-            s_cur,
-            self.sample_line,
-            reference_rest=self.reference_rest,
-            reference_current=ref_cur,
-        )
-        R_v = self.rotation_field.rotations(R_s)
-        d_L = np.einsum("mij,mj->mi", R_v, self.muscle.delta_rest)
+        R_s = self._sample_rotations(s_cur, reference_current=ref_cur)
+        d_L = self.rotation_field.rotate(R_s, self.muscle.delta_rest)
         b = self._LT @ d_L + self.weight**2 * (self._ST @ s_cur)
         return cur, s_cur, d_L, b
 
@@ -533,7 +529,7 @@ class Deformer:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
         t0 = time.perf_counter()
         cur, s_cur, d_L, b = self._targets(current_lines, reference_point)
-        x_ls = cho_solve(self._chol, b, check_finite=False)
+        x_ls = self._solve(b)
         if method == "paper":
             from ._paper import solve_paper
 
@@ -632,7 +628,7 @@ class Deformer:
             its_total = its
         else:
             # one pass over W: base positions and the correction direction together
-            XU = mu.W @ np.hstack([x_ls - c, u])
+            XU = rows_dot(mu.W, np.hstack([x_ls - c, u]))
             lam_f = cubic_root_near(volume_cubic_pair(XU, mu.F), mu.volume_rest, lam)
             x = x_ls - lam_f * u
             V = combine_pair(XU, lam_f, c)
