@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from musclewrap import Muscle, read_mesh
-from musclewrap.synthetic import CAPSULE_SCENARIOS
+from musclewrap.synthetic import CAPSULE_SCENARIOS, principal_axis_scenario
 
 pytestmark = pytest.mark.realdata
 
@@ -17,32 +17,6 @@ VHF = [
     "VHF_Right_Muscle_GluteusMedius_smooth.stl",
     "VHF_Left_Muscle_BicepsFemorisLong_smooth.stl",
 ]
-
-
-def principal_axis_scenario(V, name):
-    """Capsule-like scenarios on the muscle's own principal-axis line."""
-    c = V.mean(axis=0)
-    _, _, vt = np.linalg.svd(V - c, full_matrices=False)
-    ax = vt[0]
-    proj = (V - c) @ ax
-    p0, p1 = c + proj.min() * ax, c + proj.max() * ax
-    length = proj.max() - proj.min()
-    perp = vt[1]
-    rest = {"axis": np.array([p0, p1])}
-    scale = {"bend": 1.0, "bend_short": 0.85, "bend_long": 1.10}
-    if name in scale:
-        h = length / 2 * scale[name]
-        a = np.radians(30.0)
-        mid = p0 + h * ax
-        cur = np.array([p0, mid, mid + h * (np.cos(a) * ax + np.sin(a) * perp)])
-    elif name == "short":
-        cur = np.array([p0, p0 + 0.85 * length * ax])
-    else:  # rot: rigid 20 degrees about the second principal axis through the first end
-        from scipy.spatial.transform import Rotation
-
-        R = Rotation.from_rotvec(np.radians(20.0) * vt[2]).as_matrix()
-        cur = (rest["axis"] - p0) @ R.T + p0
-    return rest, {"axis": cur}
 
 
 @pytest.fixture(scope="module", params=VHF)

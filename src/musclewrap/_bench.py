@@ -39,7 +39,8 @@ def capsule_benchmark(
         ``W @ X`` (numpy, 3 columns), each solve timed alternately with it.
     rows : list of dict
         One per scenario and method: iterations, volume error, skeleton fit,
-        energy, median time per pose (ms) and its ratio to ``W @ X``.
+        energy, largest shape change (spike measure, in mean rest edge
+        lengths), median time per pose (ms) and its ratio to ``W @ X``.
     """
     V, F = capsule()
     t = time.perf_counter()
@@ -68,6 +69,7 @@ def capsule_benchmark(
                     "converged": res.converged,
                     "relative_volume_error": res.relative_volume_error,
                     "skeleton_fit_mean": res.skeleton_fit_mean,
+                    "shape_change_max": float(muscle.shape_change(res.V).max()),
                     "energy": res.energy,
                     "ms_per_pose": ms,
                     "ratio_to_WX": ms / wx,

@@ -243,12 +243,14 @@ def _cmd_bench(a: argparse.Namespace) -> int:
         f"prepare {info['seconds_prepare']:.2f} s, W@X {info['ms_W_at_X']:.2f} ms (median)"
     )
     print(
-        f"{'scenario':<11}{'method':<7}{'it':>4}{'volume error':>14}{'fit mm':>8}{'ms/pose':>9}{'x W@X':>7}"
+        f"{'scenario':<11}{'method':<7}{'it':>4}{'volume error':>14}{'fit mm':>8}{'shape':>7}"
+        f"{'ms/pose':>9}{'x W@X':>7}"
     )
     for r in rows:
         print(
             f"{r['scenario']:<11}{r['method']:<7}{r['iterations']:>4}{r['relative_volume_error']:>14.2e}"
-            f"{r['skeleton_fit_mean']:>8.3f}{r['ms_per_pose']:>9.2f}{r['ratio_to_WX']:>7.2f}"
+            f"{r['skeleton_fit_mean']:>8.3f}{r['shape_change_max']:>7.3f}"
+            f"{r['ms_per_pose']:>9.2f}{r['ratio_to_WX']:>7.2f}"
         )
     if a.json:
         from .mesh import atomic_path

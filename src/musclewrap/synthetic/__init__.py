@@ -1,6 +1,12 @@
 """Synthetic muscles and motions shipped with the package (no external data needed)."""
 
-from ._capsule import CAPSULE_SCENARIOS, capsule, capsule_scenario, rings_mesh
+from ._capsule import (
+    CAPSULE_SCENARIOS,
+    capsule,
+    capsule_scenario,
+    principal_axis_scenario,
+    rings_mesh,
+)
 from ._demo import DemoScene, demo_scene
 
 __all__ = [
@@ -9,5 +15,6 @@ __all__ = [
     "capsule",
     "capsule_scenario",
     "demo_scene",
+    "principal_axis_scenario",
     "rings_mesh",
 ]

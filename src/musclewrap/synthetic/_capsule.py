@@ -6,7 +6,13 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 
-__all__ = ["CAPSULE_SCENARIOS", "capsule", "capsule_scenario", "rings_mesh"]
+__all__ = [
+    "CAPSULE_SCENARIOS",
+    "capsule",
+    "capsule_scenario",
+    "principal_axis_scenario",
+    "rings_mesh",
+]
 
 CAPSULE_SCENARIOS = ("bend", "bend_short", "bend_long", "short", "rot")
 
@@ -120,4 +126,53 @@ def capsule_scenario(
         cur = rest["axis"] @ R.T
     else:
         raise ValueError(f"unknown capsule scenario {name!r}; choose from {CAPSULE_SCENARIOS}")
+    return rest, {"axis": cur}
+
+
+def principal_axis_scenario(
+    V: FloatArray, name: str
+) -> tuple[dict[str, FloatArray], dict[str, FloatArray]]:
+    """A capsule scenario applied to any muscle along its own principal axis.
+
+    The rest line joins the extreme projections of the vertices on the first
+    principal axis; ``bend``, ``bend_short`` and ``bend_long`` bend its second
+    half by 30 degrees towards the second principal axis (same length, 15%
+    shorter, 10% longer), ``short`` shortens it by 15%, ``rot`` turns it
+    rigidly by 20 degrees about the third axis through its first end.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+        Rest vertices of the muscle.
+    name : str
+        One of `CAPSULE_SCENARIOS`.
+
+    Returns
+    -------
+    rest, current : dict of str to array
+        One line named ``"axis"`` in each pose.
+    """
+    if name not in CAPSULE_SCENARIOS:
+        raise ValueError(f"unknown scenario {name!r}; choose one of {CAPSULE_SCENARIOS}")
+    c = V.mean(axis=0)
+    _, _, vt = np.linalg.svd(V - c, full_matrices=False)
+    ax = vt[0]
+    proj = (V - c) @ ax
+    p0, p1 = c + proj.min() * ax, c + proj.max() * ax
+    length = proj.max() - proj.min()
+    rest = {"axis": np.array([p0, p1])}
+    scale = {"bend": 1.0, "bend_short": 0.85, "bend_long": 1.10}
+    if name in scale:
+        h = length / 2 * scale[name]
+        a = np.radians(30.0)
+        mid = p0 + h * ax
+        cur = np.array([p0, mid, mid + h * (np.cos(a) * ax + np.sin(a) * vt[1])])
+    elif name == "short":
+        cur = np.array([p0, p0 + 0.85 * length * ax])
+    else:  # rot
+        k = vt[2]
+        K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+        a = np.radians(20.0)
+        R = np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * (K @ K)
+        cur = (rest["axis"] - p0) @ R.T + p0
     return rest, {"axis": cur}
