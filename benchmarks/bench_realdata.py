@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/bench_realdata.py [DATA_DIR]`` (default ``../shared/data``).
 
-For every VHF muscle (and the LHDL gluteus maximus): preparation (clean, cage, coordinates,
+For every VHF muscle in ``DATA/vhf`` (and the LHDL gluteus maximus): preparation (clean, cage, coordinates,
 proxy) and bind (skeleton coordinates, factorisation) times, then the five capsule scenarios
 on the muscle's principal axis with the default solver: iterations, volume error, skeleton
 fit, largest shape change (spike measure, mean rest edge lengths) and the median time per
@@ -16,25 +16,17 @@ from pathlib import Path
 import numpy as np
 
 from musclewrap import Muscle
+from musclewrap._bench import interleaved_ms
 from musclewrap.synthetic import CAPSULE_SCENARIOS, principal_axis_scenario
-
-VHF = [
-    "VHF_Right_Muscle_Sartorius_smooth.stl",
-    "VHF_Right_Muscle_RectusFemoris_smooth.stl",
-    "VHF_Right_Muscle_Semitendonosus_smooth.stl",
-    "VHF_Right_Muscle_VastusLateralis_smooth.stl",
-    "VHF_Right_Muscle_AdductorLongus_smooth.stl",
-    "VHF_Right_Muscle_GluteusMedius_smooth.stl",
-    "VHF_Left_Muscle_BicepsFemorisLong_smooth.stl",
-]
 
 
 def main(data: Path, repeats: int = 21) -> None:
-    files = [data / "vhf" / f for f in VHF] + [data / "lhdl/muscles/LHDL_R_GluteusMaximus.vtk"]
+    files = sorted((data / "vhf").glob("VHF_*_Muscle_*.stl"))
+    files.append(data / "lhdl" / "muscles" / "LHDL_R_GluteusMaximus.vtk")
     Muscle.from_file(files[0])  # compile/load the kernels once, outside the timings
     print(
         "muscle                      verts  prep s  bind s  scenario    it  vol err   "
-        "fit mm  shape  ms/pose  x W@X"
+        "fit mm  shape  ms/pose  W@X ms  x W@X"
     )
     for path in files:
         t = time.perf_counter()
@@ -48,20 +40,14 @@ def main(data: Path, repeats: int = 21) -> None:
             d = m.bind(rest)
             bind = time.perf_counter() - t
             r = d.deform(cur)
-            ts, tw = [], []
-            for _ in range(repeats):
-                t = time.perf_counter()
-                d.deform(cur)
-                ts.append(time.perf_counter() - t)
-                t = time.perf_counter()
-                m.W @ X
-                tw.append(time.perf_counter() - t)
-            ms, wx = np.median(ts) * 1e3, np.median(tw) * 1e3
+            ms, wx = interleaved_ms(
+                lambda d=d, cur=cur: d.deform(cur), lambda W=m.W, X=X: W @ X, repeats
+            )
             head = f"{name[:27]:27s} {len(m.V):6d}  {prep:6.2f}" if k == 0 else " " * 41
             print(
                 f"{head}  {bind:6.3f}  {sc:10s} {r.iterations:2d}  {r.relative_volume_error:8.1e}"
                 f"  {r.skeleton_fit_mean:6.3f}  {m.shape_change(r.V).max():5.3f}"
-                f"  {ms:7.2f}  {ms / wx:5.2f}",
+                f"  {ms:7.2f}  {wx:6.2f}  {ms / wx:5.2f}",
                 flush=True,
             )
 

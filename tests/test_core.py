@@ -210,3 +210,33 @@ def test_save_load_roundtrip_and_corruption(small_muscle, tmp_path):
     bad.write_bytes(bytes(raw))
     with pytest.raises(ValueError, match="bad.npz"):
         Muscle.load(bad)
+
+
+def test_quaternion_roundtrip_and_sign():
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import matrix_to_quaternion, quaternion_to_matrix
+
+    R = Rotation.random(50, random_state=3).as_matrix()
+    q = matrix_to_quaternion(R)
+    assert np.allclose(np.linalg.norm(q, axis=1), 1.0)
+    assert np.allclose(quaternion_to_matrix(q), R, atol=1e-12)
+    assert np.allclose(quaternion_to_matrix(-3.0 * q), R, atol=1e-12)
+
+
+def test_verify_cage_reports_unenclosed_vertices(small_muscle):
+    from musclewrap.cage import verify_cage
+
+    c = small_muscle.cage
+    assert verify_cage(small_muscle.V, c.C, c.CF, margin=0.0) == []
+    shrunk = c.C.mean(axis=0) + 0.5 * (c.C - c.C.mean(axis=0))
+    problems = verify_cage(small_muscle.V, shrunk, c.CF, margin=0.0)
+    assert any("outside the cage" in p for p in problems)
+
+
+def test_quadric_coarsening_builds_valid_cage():
+    V, F = capsule(n_around=32, cap_rings=8, segments=30)
+    c = build_cage(V, F, size=200, coarsening="quadric")
+    assert c.method == "quadric" and c.min_winding > 0.99
+    with pytest.raises(ValueError, match="coarsening"):
+        build_cage(V, F, coarsening="other")

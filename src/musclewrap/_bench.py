@@ -6,14 +6,18 @@ import time
 
 import numpy as np
 
+from .coordinates import rows_dot
 from .solver import Muscle
 from .synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
 
-__all__ = ["capsule_benchmark"]
+__all__ = ["capsule_benchmark", "interleaved_ms"]
 
 
-def _interleaved_ms(fn, ref, repeats: int) -> tuple[float, float]:  # noqa: ANN001
-    """Median times (ms) of ``fn`` and ``ref`` run alternately, so drift hits both."""
+def interleaved_ms(fn, ref, repeats: int) -> tuple[float, float]:  # noqa: ANN001
+    """Median times (ms) of ``fn`` and ``ref`` run alternately, so drift hits both.
+
+    Each is called once untimed first, then ``repeats`` times timed.
+    """
     fn()
     ref()
     ts, tr = [], []
@@ -28,15 +32,28 @@ def _interleaved_ms(fn, ref, repeats: int) -> tuple[float, float]:  # noqa: ANN0
 
 
 def capsule_benchmark(
-    methods: tuple[str, ...] = ("sqp", "exact", "paper"), repeats: int = 41
-) -> tuple[dict[str, float], list[dict[str, object]]]:
+    methods: tuple[str, ...] = ("sqp", "exact", "paper"),
+    repeats: int = 41,
+    cage_coarsening: str = "uniform",
+) -> tuple[dict[str, object], list[dict[str, object]]]:
     """Run the five capsule scenarios with each method.
+
+    Parameters
+    ----------
+    methods : tuple of str, optional
+        Solvers to run.
+    repeats : int, optional
+        Timed repeats per case (a tenth of them for the slow reference methods).
+    cage_coarsening : {"uniform", "quadric"}, optional
+        Cage construction (see `musclewrap.cage.build_cage`).
 
     Returns
     -------
     info : dict
-        Preparation time, cage size, and the median time of one float64
-        ``W @ X`` (numpy, 3 columns), each solve timed alternately with it.
+        Preparation time, cage size, coarsening and smallest cage angle, the
+        median time of one float64 ``W @ X`` (numpy, 3 columns; each solve is
+        timed alternately with it) and of the solver's one pass
+        ``rows_dot(W, [x, u])`` (6 columns) timed the same way.
     rows : list of dict
         One per scenario and method: iterations, volume error, skeleton fit,
         energy, largest shape change (spike measure, in mean rest edge
@@ -44,9 +61,13 @@ def capsule_benchmark(
     """
     V, F = capsule()
     t = time.perf_counter()
-    muscle = Muscle.from_mesh(V, F)
+    muscle = Muscle.from_mesh(V, F, cage_coarsening=cage_coarsening)
     prep = time.perf_counter() - t
     X = np.random.default_rng(0).random((muscle.W.shape[1], 3))
+    X6 = np.random.default_rng(1).random((muscle.W.shape[1], 6))
+    ms_rows, ms_wx_rows = interleaved_ms(
+        lambda: rows_dot(muscle.W, X6), lambda: muscle.W @ X, repeats
+    )
     rows = []
     wx_all = []
     for name in CAPSULE_SCENARIOS:
@@ -55,7 +76,7 @@ def capsule_benchmark(
         for method in methods:
             res = d.deform(cur, method=method)
             reps = repeats if method == "sqp" else max(3, repeats // 10)
-            ms, wx = _interleaved_ms(
+            ms, wx = interleaved_ms(
                 lambda d=d, cur=cur, method=method: d.deform(cur, method=method),
                 lambda: muscle.W @ X,
                 reps,
@@ -79,6 +100,10 @@ def capsule_benchmark(
         "n_vertices": float(len(muscle.V)),
         "n_cage_vertices": float(len(muscle.cage.C)),
         "seconds_prepare": prep,
+        "cage_coarsening": muscle.cage.method,
+        "cage_min_angle_deg": muscle.cage.min_angle_deg,
+        "ms_rows_dot_6": ms_rows,
+        "ratio_rows_dot_6_to_WX": ms_rows / ms_wx_rows,
         "ms_W_at_X": float(np.median(wx_all)),
     }
     return info, rows

@@ -66,6 +66,12 @@ def _parser() -> argparse.ArgumentParser:
     be = sub.add_parser("bench", help="run a benchmark")
     be.add_argument("name", choices=("capsule",), help="benchmark to run")
     be.add_argument("--repeats", type=int, default=41, help="timed repeats per case")
+    be.add_argument(
+        "--cage-coarsening",
+        choices=("uniform", "quadric"),
+        default="uniform",
+        help="cage construction (quadric: the earlier decimation, for comparison)",
+    )
     be.add_argument("--json", help="write the results as JSON here")
     return p
 
@@ -237,10 +243,12 @@ def _cmd_demo(a: argparse.Namespace) -> int:
 def _cmd_bench(a: argparse.Namespace) -> int:
     from ._bench import capsule_benchmark
 
-    info, rows = capsule_benchmark(repeats=a.repeats)
+    info, rows = capsule_benchmark(repeats=a.repeats, cage_coarsening=a.cage_coarsening)
     print(
-        f"capsule: {int(info['n_vertices'])} vertices, cage {int(info['n_cage_vertices'])}, "
-        f"prepare {info['seconds_prepare']:.2f} s, W@X {info['ms_W_at_X']:.2f} ms (median)"
+        f"capsule: {int(info['n_vertices'])} vertices, cage {int(info['n_cage_vertices'])} "
+        f"({info['cage_coarsening']}, min angle {info['cage_min_angle_deg']:.1f} deg), "
+        f"prepare {info['seconds_prepare']:.2f} s, W@X {info['ms_W_at_X']:.2f} ms (median), "
+        f"rows_dot 6 columns {info['ms_rows_dot_6']:.2f} ms = {info['ratio_rows_dot_6_to_WX']:.2f}x W@X"
     )
     print(
         f"{'scenario':<11}{'method':<7}{'it':>4}{'volume error':>14}{'fit mm':>8}{'shape':>7}"

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..mesh import check_mesh, volume
+from ..mesh import check_mesh, face_areas, volume
 
 __all__ = ["Cage", "CageError", "build_cage", "cage_self_intersections", "verify_cage"]
 
@@ -120,17 +120,13 @@ def _enclosure(
     return wn, np.sqrt(d2), face
 
 
-def verify_cage(
-    V: FloatArray, F: IntArray, C: FloatArray, CF: IntArray, *, margin: float
-) -> list[str]:
+def verify_cage(V: FloatArray, C: FloatArray, CF: IntArray, *, margin: float) -> list[str]:
     """List every way a cage fails its guarantees (empty list = valid).
 
     Parameters
     ----------
     V : (n, 3) float64 array
         Fine vertices.
-    F : (k, 3) int array
-        Fine triangles (for the volume ratio only).
     C, CF : arrays
         Cage.
     margin : float
@@ -200,20 +196,25 @@ def _quadric_decimate(SV: FloatArray, SF: IntArray, size: int) -> tuple[FloatArr
     return np.ascontiguousarray(C, dtype=np.float64), np.ascontiguousarray(CF, dtype=np.int64)
 
 
-def _coarsen(SV: FloatArray, SF: IntArray, size: int) -> tuple[FloatArray, IntArray, str]:
-    """Coarse closed 2-manifold of about ``size`` vertices from the offset surface.
+def _coarsen(
+    SV: FloatArray, SF: IntArray, size: int, coarsening: str
+) -> tuple[FloatArray, IntArray, str]:
+    """Coarse, self-intersection-free closed 2-manifold from the offset surface.
 
     Uniform remeshing first: quadric decimation keeps almost no vertices on
-    flat or cylindrical stretches (the 200 mm benchmark capsule's cage had
-    nearly all its vertices at the two caps, joined by slivers of 0.7
-    degrees), and such a cage cannot bend in the middle. Quadric decimation
-    remains the fallback.
+    flat or cylindrical stretches and joins what it keeps by slivers, and such
+    a cage cannot bend in the middle (compare the smallest angle, fit and
+    shape change of ``musclewrap bench capsule --cage-coarsening quadric``).
+    Quadric decimation remains the fallback.
     """
-    for n in (size, int(round(1.1 * size)), int(round(0.9 * size))):
-        C, CF = _uniform_remesh(SV, SF, n)
-        if len(CF) and check_mesh(C, CF).ok and cage_self_intersections(C, CF) == 0:
-            return C, CF, "uniform"
+    if coarsening == "uniform":
+        for n in (size, int(round(1.1 * size)), int(round(0.9 * size))):
+            C, CF = _uniform_remesh(SV, SF, n)
+            if len(CF) and check_mesh(C, CF).ok and cage_self_intersections(C, CF) == 0:
+                return C, CF, "uniform"
     C, CF = _quadric_decimate(SV, SF, size)
+    if cage_self_intersections(C, CF):
+        raise CageError("quadric decimation of the offset surface self-intersects")
     return C, CF, "quadric"
 
 
@@ -223,6 +224,7 @@ def build_cage(
     *,
     size: int = defaults.cage_size,
     offset: float | None = None,
+    coarsening: str = "uniform",
     max_push_rounds: int = 12,
 ) -> Cage:
     """Build a verified cage around a closed fine mesh.
@@ -249,6 +251,9 @@ def build_cage(
         Offset distance in mesh units. Default: ``defaults.cage_offset`` times
         the mean thickness ``4 V / A``, at most ``defaults.cage_offset_max``
         times the bounding-box diagonal.
+    coarsening : {"uniform", "quadric"}, optional
+        ``"uniform"`` (default): equal-area clustering, quadric decimation
+        only if that fails; ``"quadric"``: quadric decimation (for comparison).
     max_push_rounds : int, optional
         Limit of the enclosure repair loop.
 
@@ -269,15 +274,14 @@ def build_cage(
     """
     if size < 20:
         raise ValueError(f"size must be at least 20 cage vertices, got {size}")
+    if coarsening not in ("uniform", "quadric"):
+        raise ValueError(f"coarsening must be 'uniform' or 'quadric', got {coarsening!r}")
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     longest = float(np.max(V.max(0) - V.min(0)))
     vol = volume(V, F)
-    area = float(
-        np.sum(np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1))
-        / 2
-    )
+    area = float(face_areas(V, F).sum())
     if offset is None:
         offset = min(defaults.cage_offset * 4.0 * vol / area, defaults.cage_offset_max * diag)
     if not offset > 0:
@@ -290,7 +294,7 @@ def build_cage(
     )
     if len(SF) == 0:
         raise CageError("the offset surface is empty (is the mesh closed?)")
-    C, CF, method = _coarsen(SV, SF.astype(np.int64), size)
+    C, CF, method = _coarsen(SV, SF.astype(np.int64), size, coarsening)
     if volume(C, CF) < 0:
         CF = CF[:, ::-1].copy()
     margin = defaults.cage_margin * offset
@@ -311,12 +315,12 @@ def build_cage(
         for k in range(3):
             np.maximum.at(push, CF[face[bad], k], need)
         # twice the need: a vertex normal meets the nearest face at an angle, so the face
-        # moves less than its corners (1.25x took 7-9 rounds on thin VHF muscles, 2x takes 2-3)
+        # moves less than its corners (Cage.push_rounds records how many rounds it took)
         C = C + _vertex_normals(C, CF) * (2.0 * push + 1e-3 * offset * (push > 0))[:, None]
     # the final verdict uses generalized winding numbers, whatever the cage's state
     wn, dist, _ = _enclosure(V, C, CF)
-    # the remesh was checked for self-intersections; pushing may create some
-    n_self = cage_self_intersections(C, CF) if rounds or method != "uniform" else 0
+    # _coarsen checked for self-intersections; only pushing can have made some
+    n_self = cage_self_intersections(C, CF) if rounds else 0
     problems = _problems(C, CF, wn, dist, margin, n_self)
     if problems:
         raise CageError("could not build a valid cage: " + "; ".join(problems))

@@ -28,13 +28,19 @@ def kabsch(P: FloatArray, Q: FloatArray) -> tuple[FloatArray, bool]:
         is not determined by the points.
     """
     P0 = P - P.mean(axis=0)
-    Q0 = Q - Q.mean(axis=0)
+    return _best_rotation(P0, Q - Q.mean(axis=0)), not _collinear(P0)
+
+
+def _collinear(P0: FloatArray) -> bool:
+    """True when centred points ``P0`` lie (nearly) on one line (or are fewer than 3)."""
     sv = np.linalg.svd(P0, compute_uv=False)
-    determined = bool(len(P) >= 3 and sv[1] > 1e-6 * sv[0])
+    return not (len(P0) >= 3 and sv[1] > 1e-6 * sv[0])
+
+
+def _best_rotation(P0: FloatArray, Q0: FloatArray) -> FloatArray:
     U, _, Vt = np.linalg.svd(P0.T @ Q0)
     d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
-    R = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
-    return R, determined
+    return Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
 
 
 def _tangents(S: FloatArray, line: IntArray) -> FloatArray:
@@ -74,27 +80,15 @@ def _tangents_kernel(S, line, T):  # pragma: no cover - compiled
 
 def _minimal_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
     """(k, 3, 3) rotations taking unit vectors ``a`` to ``b`` about ``a x b``."""
-    v = np.cross(a, b)
-    c = np.einsum("ij,ij->i", a, b)
-    s = np.linalg.norm(v, axis=1)
-    R = np.tile(np.eye(3), (len(a), 1, 1))
-    ok = s > 1e-12
-    k = np.zeros_like(v)
-    k[ok] = v[ok] / s[ok, None]
-    # opposite vectors: rotate by pi about any axis perpendicular to a
-    anti = (~ok) & (c < 0)
-    if anti.any():
-        e = np.where(np.abs(a[anti, 0:1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
-        kk = np.cross(a[anti], e)
-        k[anti] = kk / np.linalg.norm(kk, axis=1, keepdims=True)
-        s = s.copy()
-        s[anti] = 0.0
-    K = np.zeros((len(a), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
-    sel = ok | anti
-    R[sel] += s[sel, None, None] * K[sel] + (1 - c[sel, None, None]) * (K[sel] @ K[sel])
-    return R
+    out = np.empty((len(a), 3, 3))
+    _minimal_rotations(np.ascontiguousarray(a), np.ascontiguousarray(b), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _minimal_rotations(a, b, out):  # pragma: no cover - compiled
+    for i in range(a.shape[0]):
+        _minimal_rotation_one(a[i], b[i], out[i])
 
 
 def sample_rotations(
@@ -157,8 +151,7 @@ class SampleRotations:
         self.reference_rest = reference_rest
         self.T0 = _tangents(self.rest, self.line)
         self._rest_centred = self.rest - self.rest.mean(axis=0)
-        sv = np.linalg.svd(self._rest_centred, compute_uv=False)
-        self.collinear = not (len(rest) >= 3 and sv[1] > 1e-6 * sv[0])
+        self.collinear = _collinear(self._rest_centred)
         # a reference direction perpendicular to the skeleton's principal axis
         _, _, vt = np.linalg.svd(self._rest_centred)
         self._A0 = np.ascontiguousarray(np.tile(vt[1], (len(rest), 1)))
@@ -174,10 +167,7 @@ class SampleRotations:
         elif self.collinear:
             return _minimal_rotation(self.T0, T1)
         else:
-            Q0 = current - current.mean(axis=0)
-            U, _, Vt = np.linalg.svd(self._rest_centred.T @ Q0)
-            d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
-            R = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+            R = _best_rotation(self._rest_centred, current - current.mean(axis=0))
             A0 = self._A0
             A1 = A0 @ R.T
         out = np.empty((len(self.rest), 3, 3))
@@ -235,53 +225,68 @@ def _frame_rotations(T0, T1, A0, A1, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
+def _quaternion_of(m, q):  # pragma: no cover - compiled
+    # unit quaternion (w, x, y, z) of rotation matrix m, from its largest diagonal term
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    d = np.array([1 + tr, 1 + 2 * m[0, 0] - tr, 1 + 2 * m[1, 1] - tr, 1 + 2 * m[2, 2] - tr])
+    j = np.argmax(d)
+    if j == 0:
+        v = (1 + tr, m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1])
+    elif j == 1:
+        v = (m[2, 1] - m[1, 2], 1 + 2 * m[0, 0] - tr, m[0, 1] + m[1, 0], m[0, 2] + m[2, 0])
+    elif j == 2:
+        v = (m[0, 2] - m[2, 0], m[0, 1] + m[1, 0], 1 + 2 * m[1, 1] - tr, m[1, 2] + m[2, 1])
+    else:
+        v = (m[1, 0] - m[0, 1], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1], 1 + 2 * m[2, 2] - tr)
+    n = np.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2 + v[3] ** 2)
+    for c in range(4):
+        q[c] = v[c] / n
+
+
+@numba.njit(cache=True)
+def _matrix_of(q, M):  # pragma: no cover - compiled
+    # rotation matrix of quaternion q (normalized here)
+    n = np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+    M[0, 0], M[0, 1], M[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+    M[1, 0], M[1, 1], M[1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+    M[2, 0], M[2, 1], M[2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+
+
+@numba.njit(cache=True)
+def _quaternions_kernel(R, q):  # pragma: no cover - compiled
+    for i in range(R.shape[0]):
+        _quaternion_of(R[i], q[i])
+
+
+@numba.njit(cache=True)
+def _matrices_kernel(q, R):  # pragma: no cover - compiled
+    for i in range(q.shape[0]):
+        _matrix_of(q[i], R[i])
+
+
+@numba.njit(cache=True)
 def _blend_rotate(weights, R, first, delta, out):  # pragma: no cover - compiled
     # quaternions of the sample rotations, signs made to agree along each line,
-    # Shepard-blended per cage vertex, normalized, applied to that vertex's delta
+    # Shepard-blended per cage vertex, turned back into a matrix; with deltas given,
+    # out[v, :, 0] receives that matrix times the vertex's delta, else the matrix
     k = R.shape[0]
     q = np.empty((k, 4))
-    for i in range(k):
-        m = R[i]
-        tr = m[0, 0] + m[1, 1] + m[2, 2]
-        d = np.array([1 + tr, 1 + 2 * m[0, 0] - tr, 1 + 2 * m[1, 1] - tr, 1 + 2 * m[2, 2] - tr])
-        j = np.argmax(d)
-        if j == 0:
-            v = (1 + tr, m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1])
-        elif j == 1:
-            v = (m[2, 1] - m[1, 2], 1 + 2 * m[0, 0] - tr, m[0, 1] + m[1, 0], m[0, 2] + m[2, 0])
-        elif j == 2:
-            v = (m[0, 2] - m[2, 0], m[0, 1] + m[1, 0], 1 + 2 * m[1, 1] - tr, m[1, 2] + m[2, 1])
-        else:
-            v = (m[1, 0] - m[0, 1], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1], 1 + 2 * m[2, 2] - tr)
-        n = np.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2 + v[3] ** 2)
-        for c in range(4):
-            q[i, c] = v[c] / n
+    _quaternions_kernel(R, q)
     # q and -q are the same rotation: make neighbouring samples agree in sign
-    for i in range(k):
+    for i in range(1, k):
         p = 0 if first[i] else i - 1
-        if (
-            i > 0
-            and q[i, 0] * q[p, 0] + q[i, 1] * q[p, 1] + q[i, 2] * q[p, 2] + q[i, 3] * q[p, 3] < 0
-        ):
+        if q[i, 0] * q[p, 0] + q[i, 1] * q[p, 1] + q[i, 2] * q[p, 2] + q[i, 3] * q[p, 3] < 0:
             for c in range(4):
                 q[i, c] = -q[i, c]
+    qv = np.empty(4)
+    M = np.empty((3, 3))
     for v in range(weights.shape[0]):
-        w = x = y = z = 0.0
+        qv[:] = 0.0
         for i in range(k):
-            g = weights[v, i]
-            w += g * q[i, 0]
-            x += g * q[i, 1]
-            y += g * q[i, 2]
-            z += g * q[i, 3]
-        n = np.sqrt(w * w + x * x + y * y + z * z)
-        w, x, y, z = w / n, x / n, y / n, z / n
-        M = np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-            ]
-        )
+            for c in range(4):
+                qv[c] += weights[v, i] * q[i, c]
+        _matrix_of(qv, M)
         if delta.shape[0] == 0:
             out[v] = M
         else:
@@ -291,64 +296,16 @@ def _blend_rotate(weights, R, first, delta, out):  # pragma: no cover - compiled
 
 def matrix_to_quaternion(R: FloatArray) -> FloatArray:
     """(k, 4) unit quaternions (w, x, y, z) of (k, 3, 3) rotation matrices."""
-    m = R
-    tr = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
-    cand = np.stack(
-        [
-            np.stack(
-                [1 + tr, m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]],
-                1,
-            ),
-            np.stack(
-                [
-                    m[:, 2, 1] - m[:, 1, 2],
-                    1 + 2 * m[:, 0, 0] - tr,
-                    m[:, 0, 1] + m[:, 1, 0],
-                    m[:, 0, 2] + m[:, 2, 0],
-                ],
-                1,
-            ),
-            np.stack(
-                [
-                    m[:, 0, 2] - m[:, 2, 0],
-                    m[:, 0, 1] + m[:, 1, 0],
-                    1 + 2 * m[:, 1, 1] - tr,
-                    m[:, 1, 2] + m[:, 2, 1],
-                ],
-                1,
-            ),
-            np.stack(
-                [
-                    m[:, 1, 0] - m[:, 0, 1],
-                    m[:, 0, 2] + m[:, 2, 0],
-                    m[:, 1, 2] + m[:, 2, 1],
-                    1 + 2 * m[:, 2, 2] - tr,
-                ],
-                1,
-            ),
-        ],
-        axis=1,
-    )  # (k, 4 candidates, 4)
-    diag = np.stack(
-        [1 + tr, 1 + 2 * m[:, 0, 0] - tr, 1 + 2 * m[:, 1, 1] - tr, 1 + 2 * m[:, 2, 2] - tr], 1
-    )
-    best = np.argmax(diag, axis=1)
-    q = cand[np.arange(len(R)), best]
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
+    q = np.empty((len(R), 4))
+    _quaternions_kernel(np.ascontiguousarray(R, dtype=np.float64), q)
+    return q
 
 
 def quaternion_to_matrix(q: FloatArray) -> FloatArray:
     """(k, 3, 3) rotation matrices of (k, 4) quaternions (w, x, y, z), normalized first."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], 1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], 1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], 1),
-        ],
-        axis=1,
-    )
+    R = np.empty((len(q), 3, 3))
+    _matrices_kernel(np.ascontiguousarray(q, dtype=np.float64), R)
+    return R
 
 
 class RotationField:

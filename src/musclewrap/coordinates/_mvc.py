@@ -187,16 +187,6 @@ def _face_edges(CF: IntArray) -> tuple[IntArray, IntArray]:
     return np.ascontiguousarray(E, dtype=np.int64), inv.reshape(-1, 3).astype(np.int64)
 
 
-def _barycentric(p: FloatArray, T: FloatArray) -> FloatArray:
-    """Barycentric coordinates of ``p`` (on the plane of) triangle ``T``."""
-    a, b, c = T
-    n = np.cross(b - a, c - a)
-    nn = n @ n
-    wa = np.cross(c - b, p - b) @ n / nn
-    wb = np.cross(a - c, p - c) @ n / nn
-    return np.array([wa, wb, 1.0 - wa - wb])
-
-
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def _rows_dot_kernel(W, XT, out):  # pragma: no cover - compiled
     n, m = W.shape
@@ -213,8 +203,7 @@ def rows_dot(W: FloatArray, X: npt.ArrayLike) -> FloatArray:
 
     Every entry is one contiguous dot product of a row of ``W`` with a column
     of ``X``, so ``W`` is read once from memory; OpenBLAS is slow for 3-6
-    right-hand columns (measured 0.6x the time of numpy's ``W @ X`` with 3
-    columns while doing 6, on the 15K x 300 capsule, 2 cores).
+    right-hand columns (``musclewrap bench capsule`` prints both timings).
 
     Parameters
     ----------

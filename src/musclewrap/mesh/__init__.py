@@ -1,6 +1,7 @@
 """Mesh input/output, checks and volume."""
 
 from ._checks import MeshCheck, MeshError, check_mesh, clean_mesh, merge_duplicate_vertices
+from ._geometry import face_areas, half_edges, mean_edge_length, umbrella_laplacian
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
 from ._volume import combine_pair, volume, volume_cubic, volume_cubic_pair, volume_gradient
 
@@ -10,6 +11,10 @@ __all__ = [
     "MeshError",
     "atomic_path",
     "combine_pair",
+    "face_areas",
+    "half_edges",
+    "mean_edge_length",
+    "umbrella_laplacian",
     "check_mesh",
     "clean_mesh",
     "merge_duplicate_vertices",

@@ -10,6 +10,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .._typing import FloatArray, IntArray
 from ..constants import tol
+from ._geometry import face_areas, half_edges
 from ._volume import volume
 
 __all__ = ["MeshCheck", "MeshError", "check_mesh", "clean_mesh", "merge_duplicate_vertices"]
@@ -97,13 +98,6 @@ class MeshCheck:
         return out
 
 
-def _edges(F: IntArray) -> tuple[IntArray, IntArray]:
-    """Directed half-edges (m*3, 2) and their undirected sorted keys."""
-    he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    und = np.sort(he, axis=1)
-    return he, und
-
-
 def check_mesh(V: FloatArray, F: IntArray) -> MeshCheck:
     """Check a triangle mesh for the properties the deformation needs.
 
@@ -120,7 +114,8 @@ def check_mesh(V: FloatArray, F: IntArray) -> MeshCheck:
         Counts of boundary, non-manifold and inconsistently oriented edges,
         degenerate faces, components and the signed volume.
     """
-    he, und = _edges(F)
+    he = half_edges(F)
+    und = np.sort(he, axis=1)
     n = V.shape[0]
     # one int64 key per undirected edge: a 1-D unique is ~10x faster than a row-wise one
     keys, inverse, counts = np.unique(
@@ -135,7 +130,7 @@ def check_mesh(V: FloatArray, F: IntArray) -> MeshCheck:
     fwd_count = np.bincount(inverse, forward.astype(np.int64), minlength=len(keys))
     inconsistent = int(np.sum((counts == 2) & (fwd_count != 1)))
     diag = float(np.linalg.norm(V.max(0) - V.min(0))) or 1.0
-    area2 = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    area2 = 2.0 * face_areas(V, F)
     repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
     degenerate = int(np.sum(repeated | (area2 <= 2 * tol.degenerate_area * diag**2)))
     used = np.unique(F)

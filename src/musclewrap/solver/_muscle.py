@@ -31,6 +31,8 @@ from ..mesh import (
     check_mesh,
     clean_mesh,
     combine_pair,
+    mean_edge_length,
+    umbrella_laplacian,
     volume,
     volume_cubic,
     volume_cubic_pair,
@@ -134,16 +136,12 @@ class Muscle:
         (n,) float64 array
         """
         if getattr(self, "_umbrella", None) is None:
-            import scipy.sparse as sp
-
-            F, n = self.F, len(self.V)
-            e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-            A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
-            A = ((A + A.T) > 0).astype(np.float64)
-            deg = np.asarray(A.sum(axis=1)).ravel()
-            U = (sp.identity(n, format="csr") - sp.diags(1.0 / deg) @ A).tocsr()
-            edge = float(np.mean(np.linalg.norm(self.V[e[:, 0]] - self.V[e[:, 1]], axis=1)))
-            self._umbrella = (U, np.linalg.norm(U @ self.V, axis=1), edge)
+            U = umbrella_laplacian(self.F, len(self.V))
+            self._umbrella = (
+                U,
+                np.linalg.norm(U @ self.V, axis=1),
+                mean_edge_length(self.V, self.F),
+            )
         U, d0, edge = self._umbrella
         V = as_vertices(V, "V")
         if V.shape != self.V.shape:
@@ -159,6 +157,7 @@ class Muscle:
         *,
         cage_size: int = defaults.cage_size,
         cage_offset: float | None = None,
+        cage_coarsening: str = "uniform",
         source: str = "mesh",
     ) -> Muscle:
         """Prepare a muscle from its rest-pose surface.
@@ -173,6 +172,8 @@ class Muscle:
             Target number of cage vertices.
         cage_offset : float, optional
             Cage offset in mesh units (see `musclewrap.cage.build_cage`).
+        cage_coarsening : {"uniform", "quadric"}, optional
+            How the cage is coarsened (see `musclewrap.cage.build_cage`).
         source : str, optional
             Name quoted in messages (e.g. the file name).
 
@@ -191,7 +192,7 @@ class Muscle:
         V = as_vertices(V, "V")
         F = as_faces(F, len(V), "F")
         V, F, notes = clean_mesh(V, F, source=source)
-        cage = build_cage(V, F, size=cage_size, offset=cage_offset)
+        cage = build_cage(V, F, size=cage_size, offset=cage_offset, coarsening=cage_coarsening)
         W = mean_value_coordinates(V, cage.C, cage.CF)
         L = cotangent_laplacian(cage.C, cage.CF)
         if len(F) > 2 * defaults.proxy_size:
@@ -352,8 +353,9 @@ class Muscle:
 class Deformer:
     """Per-pose solver for one muscle bound to its rest action lines.
 
-    Holds the skeleton matrix ``S`` and the Cholesky factor of
-    ``A^T A = L^T L + w^2 S^T S``, both fixed per muscle and rest pose.
+    Holds the skeleton matrix ``S`` and the inverse of
+    ``A^T A = L^T L + w^2 S^T S`` (from its Cholesky factor), both fixed per
+    muscle and rest pose.
 
     Parameters
     ----------
@@ -381,8 +383,7 @@ class Deformer:
         C, CF = muscle.cage.C, muscle.cage.CF
         rest = check_lines(rest_lines, "rest lines")
         self.rest_lines = rest
-        edges = np.concatenate([CF[:, [0, 1]], CF[:, [1, 2]], CF[:, [2, 0]]])
-        self.spacing = float(np.mean(np.linalg.norm(C[edges[:, 0]] - C[edges[:, 1]], axis=1))) / 2
+        self.spacing = mean_edge_length(C, CF) / 2
         self.sampling = sample_lines(
             rest, spacing=self.spacing, min_samples=defaults.samples_per_line
         )
@@ -393,9 +394,9 @@ class Deformer:
         self.weight = skeleton_weight * np.sqrt(m / k)
         L = muscle.L
         self.H = L.T @ L + self.weight**2 * (self.S.T @ self.S)
-        self._chol = cho_factor(self.H, lower=False, check_finite=False)
         # explicit inverse for the 3-column solves of the per-pose loop (cond(H) ~ 1e5)
-        self._Hinv = cho_solve(self._chol, np.eye(m), check_finite=False)
+        chol = cho_factor(self.H, lower=False, check_finite=False)
+        self._Hinv = cho_solve(chol, np.eye(m), check_finite=False)
         self.rotation_field = RotationField(C, self.rest_samples, self.sample_line, self.spacing)
         self.reference_rest = (
             None if reference_point is None else as_points([reference_point], "reference_point")[0]

@@ -1,0 +1,66 @@
+"""Where the time of one pose goes (default solver, capsule ``bend``).
+
+Run: ``python benchmarks/breakdown_pose.py [--repeats N]``.
+
+Wraps the solver's building blocks with timers, runs ``deform`` N times and prints the mean
+milliseconds per pose of each block (mean) next to the median time per pose and the median float64
+``W @ X`` (numpy, 3 columns) of the same run. The timers add a little overhead of their own.
+"""
+
+import argparse
+import time
+
+import numpy as np
+
+import musclewrap.solver._muscle as solver
+from musclewrap import Muscle
+from musclewrap._bench import interleaved_ms
+from musclewrap.synthetic import capsule, capsule_scenario
+
+BLOCKS = {
+    "W @ [x, u] (rows_dot)": (solver, "rows_dot"),
+    "fine cubic": (solver, "volume_cubic_pair"),
+    "final volume": (solver, "volume"),
+    "positions": (solver, "combine_pair"),
+    "targets and rotations": (solver.Deformer, "_targets"),
+    "H^-1 products": (solver.Deformer, "_solve"),
+    "proxy gradient": (solver, "volume_gradient"),
+    "proxy cubic": (solver, "volume_cubic"),
+    "cubic roots": (solver, "cubic_root_near"),
+    "skeleton fit": (solver.Deformer, "_skeleton_fit"),
+    "energy": (solver.Deformer, "energy"),
+}
+
+
+def main(repeats: int) -> None:
+    muscle = Muscle.from_mesh(*capsule())
+    rest, cur = capsule_scenario("bend")
+    d = muscle.bind(rest)
+    spent = dict.fromkeys(BLOCKS, 0.0)
+    for label, (owner, name) in BLOCKS.items():
+        fn = getattr(owner, name)
+
+        def timed(*args, _fn=fn, _label=label, **kwargs):
+            t = time.perf_counter()
+            out = _fn(*args, **kwargs)
+            spent[_label] += time.perf_counter() - t
+            return out
+
+        setattr(owner, name, timed)
+    for _ in range(5):
+        d.deform(cur)
+    for label in spent:
+        spent[label] = 0.0
+    X = np.random.default_rng(0).random((muscle.W.shape[1], 3))
+    ms, wx = interleaved_ms(lambda: d.deform(cur), lambda: muscle.W @ X, repeats)
+    calls = repeats + 1  # interleaved_ms runs each once untimed first
+    print(f"per pose {ms:.2f} ms (median), W@X {wx:.2f} ms (median), {repeats} repeats")
+    for label, s in sorted(spent.items(), key=lambda kv: -kv[1]):
+        print(f"  {label:24s} {s / calls * 1e3:6.2f} ms (mean)")
+    print(f"  {'sum of the blocks':24s} {sum(spent.values()) / calls * 1e3:6.2f} ms")
+
+
+if __name__ == "__main__":
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--repeats", type=int, default=41)
+    main(p.parse_args().repeats)
