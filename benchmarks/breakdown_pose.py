@@ -2,9 +2,10 @@
 
 Run: ``python benchmarks/breakdown_pose.py [--repeats N]``.
 
-Wraps the solver's building blocks with timers, runs ``deform`` N times and prints the mean
-milliseconds per pose of each block (mean) next to the median time per pose and the median float64
-``W @ X`` (numpy, 3 columns) of the same run. The timers add a little overhead of their own.
+Wraps the solver's building blocks with timers, runs ``deform`` N times and prints the
+milliseconds per pose of each block (median over the poses) next to the median time per
+pose and the median float64 ``W @ X`` (numpy, 3 columns) timed alternately with it. The
+timers add a little overhead of their own.
 """
 
 import argparse
@@ -47,17 +48,24 @@ def main(repeats: int) -> None:
             return out
 
         setattr(owner, name, timed)
-    for _ in range(5):
+    per_pose = {label: [] for label in BLOCKS}
+
+    def pose() -> None:
+        for label in spent:
+            spent[label] = 0.0
         d.deform(cur)
-    for label in spent:
-        spent[label] = 0.0
+        for label, s in spent.items():
+            per_pose[label].append(s)
+
+    for _ in range(5):
+        pose()
     X = np.random.default_rng(0).random((muscle.W.shape[1], 3))
-    ms, wx = interleaved_ms(lambda: d.deform(cur), lambda: muscle.W @ X, repeats)
-    calls = repeats + 1  # interleaved_ms runs each once untimed first
+    ms, wx = interleaved_ms(pose, lambda: muscle.W @ X, repeats)
     print(f"per pose {ms:.2f} ms (median), W@X {wx:.2f} ms (median), {repeats} repeats")
-    for label, s in sorted(spent.items(), key=lambda kv: -kv[1]):
-        print(f"  {label:24s} {s / calls * 1e3:6.2f} ms (mean)")
-    print(f"  {'sum of the blocks':24s} {sum(spent.values()) / calls * 1e3:6.2f} ms")
+    med = {label: float(np.median(v[-repeats:])) * 1e3 for label, v in per_pose.items()}
+    for label, v in sorted(med.items(), key=lambda kv: -kv[1]):
+        print(f"  {label:24s} {v:6.2f} ms (median)")
+    print(f"  {'sum of the medians':24s} {sum(med.values()):6.2f} ms")
 
 
 if __name__ == "__main__":

@@ -199,16 +199,6 @@ def _cubic_pair_kernel(XU, F):  # noqa: ANN001, ANN202
     return (_cubic_pair_par if F.shape[0] >= _PARALLEL_FACES else _cubic_pair_ser)(XU, F)
 
 
-@numba.njit(parallel=True, cache=True)
-def _combine_kernel(XU, t, c):  # pragma: no cover - compiled
-    n = XU.shape[0]
-    V = np.empty((n, 3))
-    for i in numba.prange(n):
-        for k in range(3):
-            V[i, k] = XU[i, k] - t * XU[i, 3 + k] + c[k]
-    return V
-
-
 def volume_cubic_pair(XU: FloatArray, F: IntArray) -> FloatArray:
     """`volume_cubic` of ``XU[:, :3] - t * XU[:, 3:]`` without copying the halves.
 
@@ -229,4 +219,7 @@ def volume_cubic_pair(XU: FloatArray, F: IntArray) -> FloatArray:
 
 def combine_pair(XU: FloatArray, t: float, c: FloatArray) -> FloatArray:
     """Positions ``XU[:, :3] - t * XU[:, 3:] + c`` as a new contiguous (n, 3) array."""
-    return _combine_kernel(np.ascontiguousarray(XU), float(t), np.asarray(c, dtype=np.float64))
+    V = XU[:, 3:] * -float(t)
+    V += XU[:, :3]
+    V += np.asarray(c, dtype=np.float64)
+    return V
