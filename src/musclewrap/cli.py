@@ -1,4 +1,4 @@
-"""Command-line interface: ``musclewrap prepare | deform | demo | bench``."""
+"""Command-line interface: ``musclewrap prepare | deform | run | demo | bench``."""
 
 from __future__ import annotations
 
@@ -57,6 +57,33 @@ def _parser() -> argparse.ArgumentParser:
     )
     de.add_argument(
         "--allow-unconverged", action="store_true", help="exit 0 even if the solve did not converge"
+    )
+
+    ru = sub.add_parser(
+        "run",
+        help="deform every muscle of a scene (OpenSim model + motion) for every frame",
+        description=(
+            "Read a scene file (TOML; see examples/ and the README), compute each muscle's "
+            "action lines per frame with OpenSim (or read them from a CSV), deform every "
+            "muscle, and write OUTDIR/<muscle>/<muscle>_<frame>.vtp, bones, action lines, "
+            "scene.pvd (ParaView), report.csv, volume_error.png, convergence.png and scene.gif."
+        ),
+    )
+    ru.add_argument("scene", help="scene file (.toml)")
+    ru.add_argument("-o", "--output", help="output folder (default: the scene's name next to it)")
+    ru.add_argument(
+        "--frames", help="START:STOP[:STEP] over the motion's rows, e.g. 0:211:1 (default all)"
+    )
+    ru.add_argument(
+        "--workers", type=int, default=None, help="processes over muscles (default: CPU count)"
+    )
+    ru.add_argument(
+        "--cache-dir", help="where preparations are cached (default ~/.cache/musclewrap)"
+    )
+    ru.add_argument("--no-cache", action="store_true", help="prepare every muscle afresh")
+    ru.add_argument("--no-gif", action="store_true", help="skip scene.gif")
+    ru.add_argument(
+        "--allow-unconverged", action="store_true", help="exit 0 even if a frame did not converge"
     )
 
     dm = sub.add_parser("demo", help="run the embedded synthetic example (no data needed)")
@@ -240,6 +267,38 @@ def _cmd_demo(a: argparse.Namespace) -> int:
     return 0 if bad == 0 else 3
 
 
+def _cmd_run(a: argparse.Namespace) -> int:
+    import os
+
+    from .scene import load_scene, run_scene
+
+    scene = load_scene(a.scene)
+    out = Path(a.output) if a.output else scene.path.parent / f"{scene.path.stem}_out"
+    workers = a.workers if a.workers is not None else min(os.cpu_count() or 1, len(scene.muscles))
+    if workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {workers}")
+    cache: Path | bool = False if a.no_cache else (Path(a.cache_dir) if a.cache_dir else True)
+    summary = run_scene(
+        scene,
+        out,
+        frames=a.frames,
+        workers=workers,
+        cache_dir=cache,
+        progress=sys.stderr,
+        render=False if a.no_gif else None,
+        log=lambda m: print(m, file=sys.stderr),
+    )
+    print(summary.text())
+    if summary.unconverged and not a.allow_unconverged:
+        print(
+            f"error: {summary.unconverged} frame(s) did not converge (see report.csv, column "
+            "'reason'); --allow-unconverged to accept",
+            file=sys.stderr,
+        )
+        return 3
+    return 0
+
+
 def _cmd_bench(a: argparse.Namespace) -> int:
     from ._bench import capsule_benchmark
 
@@ -278,12 +337,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     handlers = {
         "prepare": _cmd_prepare,
         "deform": _cmd_deform,
+        "run": _cmd_run,
         "demo": _cmd_demo,
         "bench": _cmd_bench,
     }
     try:
         return handlers[args.command](args)
-    except (MeshError, LineError, CageError, ValueError, OSError) as exc:
+    except (MeshError, LineError, CageError, ValueError, OSError, ImportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 

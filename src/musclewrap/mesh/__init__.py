@@ -3,6 +3,7 @@
 from ._checks import MeshCheck, MeshError, check_mesh, clean_mesh, merge_duplicate_vertices
 from ._geometry import face_areas, half_edges, mean_edge_length, umbrella_laplacian
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
+from ._repair import repair_mesh
 from ._volume import combine_pair, volume, volume_cubic, volume_cubic_pair, volume_gradient
 
 __all__ = [
@@ -19,6 +20,7 @@ __all__ = [
     "clean_mesh",
     "merge_duplicate_vertices",
     "read_mesh",
+    "repair_mesh",
     "volume",
     "volume_cubic",
     "volume_cubic_pair",

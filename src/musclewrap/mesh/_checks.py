@@ -182,7 +182,7 @@ def merge_duplicate_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, In
 
 
 def clean_mesh(
-    V: FloatArray, F: IntArray, *, source: str = "mesh"
+    V: FloatArray, F: IntArray, *, source: str = "mesh", repair: bool = False
 ) -> tuple[FloatArray, IntArray, list[str]]:
     """Make a mesh usable or refuse it with a message naming the problem.
 
@@ -198,6 +198,10 @@ def clean_mesh(
         Triangles.
     source : str, optional
         File name or label quoted in messages.
+    repair : bool, optional
+        Repair a non-manifold, open or multi-component mesh automatically
+        (`musclewrap.mesh.repair_mesh`, PyMeshFix) instead of refusing it; the
+        notes then say what changed.
 
     Returns
     -------
@@ -224,9 +228,17 @@ def clean_mesh(
     problems = chk.problems(repairable=False)
     if chk.degenerate_faces:
         notes.append(f"kept {chk.degenerate_faces} zero-area face(s) (they add no volume)")
+    if problems and repair:
+        from ._repair import repair_mesh
+
+        V, F, more = repair_mesh(V, F, source=source)
+        notes += more
+        chk = check_mesh(V, F)
+        problems = chk.problems(repairable=False)
     if problems:
         hint = (
-            "repair it first (e.g. PyMeshFix, or MeshLab's 'remove non-manifold edges' and "
+            "repair it first (musclewrap repairs automatically with repair=True / the scene's "
+            "'repair = true'; or PyMeshFix, or MeshLab's 'remove non-manifold edges' and "
             "'close holes'), or keep only the main component"
         )
         raise MeshError(

@@ -195,7 +195,11 @@ def _write_vtk(
         poly.GetPointData().AddArray(arr)
     if path.suffix.lower() == ".vtp":
         w = vtkXMLPolyDataWriter()
-        w.SetDataModeToBinary()
+        # raw appended data without compression: ~10x faster to write than the default
+        # zlib-compressed base64, and what ParaView reads fastest
+        w.SetDataModeToAppended()
+        w.EncodeAppendedDataOff()
+        w.SetCompressorTypeToNone()
     else:
         w = vtkPolyDataWriter()
         w.SetFileTypeToBinary()

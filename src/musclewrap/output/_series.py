@@ -10,7 +10,7 @@ from xml.sax.saxutils import quoteattr
 from .._typing import PathLike
 from ..mesh import atomic_path
 
-__all__ = ["plot_volume_error", "write_csv", "write_pvd"]
+__all__ = ["plot_convergence", "plot_volume_error", "write_csv", "write_pvd"]
 
 
 def write_pvd(path: PathLike, entries: Sequence[tuple[float, str]]) -> Path:
@@ -55,7 +55,11 @@ def write_csv(path: PathLike, rows: Sequence[Mapping[str, object]], fields: Sequ
 
 
 def plot_volume_error(
-    path: PathLike, series: Mapping[str, tuple[Sequence[float], Sequence[float]]], *, title: str
+    path: PathLike,
+    series: Mapping[str, tuple[Sequence[float], Sequence[float]]],
+    *,
+    title: str,
+    markers: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
 ) -> Path:
     """Plot |relative volume error| per frame on a log scale, one curve per label.
 
@@ -67,6 +71,9 @@ def plot_volume_error(
         Curves to draw.
     title : str
         Plot title.
+    markers : mapping of str to (frames, errors), optional
+        Values on a few frames only (e.g. the paper's iteration), drawn as
+        markers without lines.
 
     Returns
     -------
@@ -80,12 +87,68 @@ def plot_volume_error(
     fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
     for label, (x, y) in series.items():
         ax.semilogy(list(x), [max(abs(v), 1e-17) for v in y], marker=".", label=label)
+    for label, (x, y) in (markers or {}).items():
+        ax.semilogy(
+            list(x), [max(abs(v), 1e-17) for v in y], ls="none", marker="s", mfc="none", label=label
+        )
     ax.axhline(1e-9, color="k", ls="--", lw=0.8, label="target 1e-9")
     ax.set_xlabel("frame")
     ax.set_ylabel("|relative volume error|")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize="small", ncol=2 if len(series) + len(markers or {}) > 4 else 1)
+    fig.tight_layout()
+    p = Path(path)
+    with atomic_path(p) as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+    return p
+
+
+def plot_convergence(
+    path: PathLike,
+    runs: Mapping[str, tuple[int | None, Mapping[str, Sequence[tuple[float, float]]]]],
+    *,
+    title: str,
+) -> Path:
+    """Energy and |volume error| against iteration, one panel pair per muscle (paper's Fig. 6).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination PNG.
+    runs : mapping of str to (frame, {method: [(energy, volume error), ...]})
+        Iteration histories per muscle and method (e.g. ``"exact"`` and ``"paper"``).
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(runs)
+    fig, axes = plt.subplots(2, n, figsize=(3.2 * n + 1, 5.5), dpi=110, squeeze=False)
+    for j, (muscle, (frame, hist)) in enumerate(runs.items()):
+        for method, h in hist.items():
+            if not h:
+                continue
+            it = range(1, len(h) + 1)
+            axes[0, j].semilogy(it, [max(e, 1e-30) for e, _ in h], marker=".", label=method)
+            axes[1, j].semilogy(it, [max(abs(v), 1e-17) for _, v in h], marker=".", label=method)
+        axes[0, j].set_title(f"{muscle}, frame {frame}", fontsize="small")
+        axes[1, j].axhline(1e-9, color="k", ls="--", lw=0.8)
+        axes[1, j].set_xlabel("iteration")
+        for ax in axes[:, j]:
+            ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].set_ylabel("energy")
+    axes[1, 0].set_ylabel("|relative volume error|")
+    axes[0, 0].legend(fontsize="small")
+    fig.suptitle(title, fontsize="medium")
     fig.tight_layout()
     p = Path(path)
     with atomic_path(p) as tmp:

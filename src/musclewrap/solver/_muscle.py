@@ -44,7 +44,7 @@ from ._result import DeformationResult
 __all__ = ["METHODS", "Deformer", "Muscle", "deform"]
 
 METHODS = ("sqp", "exact", "paper")
-_FORMAT = 2
+_FORMAT = 3
 
 
 def _point_polyline_distance(Q: FloatArray, P: FloatArray) -> FloatArray:
@@ -239,6 +239,28 @@ class Muscle:
         h.update(np.ascontiguousarray(self.F).tobytes())
         return h.hexdigest()
 
+    def _content_hash(self, arrays: Mapping[str, np.ndarray]) -> str:
+        h = hashlib.sha256()
+        for k in sorted(arrays):
+            a = np.ascontiguousarray(arrays[k])
+            h.update(k.encode())
+            h.update(str(a.dtype).encode() + str(a.shape).encode())
+            h.update(a.tobytes())
+        return h.hexdigest()
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        c = self.cage
+        return {
+            "V": self.V,
+            "F": self.F,
+            "C": c.C,
+            "CF": c.CF,
+            "W": self.W,
+            "L": self.L,
+            "proxy_F": self.proxy_F,
+            "proxy_W": self.proxy_W,
+        }
+
     def save(self, path: PathLike) -> Path:
         """Save the preparation to an ``.npz`` file (written atomically)."""
         c = self.cage
@@ -248,6 +270,7 @@ class Muscle:
             "source": self.source,
             "seconds_prepare": self.seconds_prepare,
             "mesh_sha256": self.mesh_hash(),
+            "content_sha256": self._content_hash(self._arrays()),
             "cage": {
                 k: getattr(c, k)
                 for k in (
@@ -263,18 +286,7 @@ class Muscle:
         }
         p = Path(path)
         with atomic_path(p) as tmp, open(tmp, "wb") as fh:
-            np.savez(
-                fh,
-                V=self.V,
-                F=self.F,
-                C=c.C,
-                CF=c.CF,
-                W=self.W,
-                L=self.L,
-                proxy_F=self.proxy_F,
-                proxy_W=self.proxy_W,
-                meta=np.array(json.dumps(meta)),
-            )
+            np.savez(fh, **self._arrays(), meta=np.array(json.dumps(meta)))
         return p
 
     @classmethod
@@ -314,7 +326,7 @@ class Muscle:
             seconds_prepare=float(meta["seconds_prepare"]),
             source=meta["source"],
         )
-        if m.mesh_hash() != meta["mesh_sha256"]:
+        if m._content_hash(m._arrays()) != meta.get("content_sha256"):
             raise ValueError(
                 f"{p}: content does not match its stored hash (corrupted); run prepare again"
             )

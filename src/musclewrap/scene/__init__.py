@@ -1,0 +1,28 @@
+"""Scenes: an OpenSim model and motion (or per-frame lines) driving many muscles."""
+
+from ._config import BoneSpec, MuscleSpec, Registration, Scene, load_scene
+from ._drive import Drive, drive_scene, parse_frames
+from ._motion import Motion, SceneError, read_motion
+from ._opensim import OpenSimModel
+from ._penetration import BoneProbe
+from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_scene
+
+__all__ = [
+    "REPORT_FIELDS",
+    "BoneProbe",
+    "BoneSpec",
+    "Drive",
+    "Motion",
+    "MuscleSpec",
+    "OpenSimModel",
+    "Registration",
+    "RunSummary",
+    "Scene",
+    "SceneError",
+    "default_cache_dir",
+    "drive_scene",
+    "load_scene",
+    "parse_frames",
+    "read_motion",
+    "run_scene",
+]

@@ -1,0 +1,450 @@
+"""Scene files (TOML): what to deform, driven by what, written where."""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray, PathLike
+from ..constants import defaults
+from ._motion import SceneError
+from ._opensim import suggest
+
+__all__ = ["BoneSpec", "MuscleSpec", "Registration", "Scene", "load_scene", "UNITS"]
+
+#: length units accepted in ``[units]``, in metres
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+_TOP = {
+    "name",
+    "units",
+    "model",
+    "lines",
+    "registration",
+    "output",
+    "muscles",
+    "bones",
+    "cache_dir",
+}
+_MODEL = {"osim", "motion", "rest_pose", "angle_unit", "coordinates", "output_frame", "mesh_frame"}
+_LINES = {"csv", "rest_frame"}
+_REG = {"landmarks", "mesh_axes", "scale"}
+_OUTPUT = {"bone_display_faces", "paper_frames", "gif", "image_size", "gif_every"}
+_MUSCLE = {
+    "mesh", "paths", "body", "reference", "cage_size", "cage_coarsening", "method",
+    "max_iterations", "repair", "frame",
+}  # fmt: skip
+_BONE = {"mesh", "body", "frame"}
+
+
+@dataclass(frozen=True)
+class MuscleSpec:
+    """One muscle of a scene (see the README's scene reference)."""
+
+    name: str
+    mesh: Path
+    paths: tuple[str, ...]
+    body: str
+    reference: str | None
+    cage_size: int
+    cage_coarsening: str
+    method: str
+    max_iterations: int | None
+    repair: bool
+    frame: str
+
+
+@dataclass(frozen=True)
+class BoneSpec:
+    """One bone carried rigidly by a body (display and penetration)."""
+
+    name: str
+    mesh: Path
+    body: str
+    frame: str
+
+
+@dataclass(frozen=True)
+class Registration:
+    """Similarity transform from mesh coordinates to the model's ground at the rest pose.
+
+    ``x_model = scale * R @ x_mesh + t`` (in mesh units: the unit conversion
+    is applied separately).
+    """
+
+    landmarks: tuple[tuple[str, str], ...]
+    mesh_axes: tuple[str, str, str] | None
+    scale: float | str
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A parsed, validated scene file (paths resolved against its folder)."""
+
+    path: Path
+    name: str
+    mesh_unit: str
+    model_unit: str
+    osim: Path | None
+    motion: Path | None
+    rest_pose: dict[str, float]
+    angle_unit: str
+    coordinates: tuple[str, ...] | None
+    output_frame: str
+    lines_csv: Path | None
+    rest_frame: int
+    registration: Registration | None
+    muscles: tuple[MuscleSpec, ...]
+    bones: tuple[BoneSpec, ...]
+    bone_display_faces: int
+    paper_frames: int
+    gif: bool
+    gif_every: int
+    image_size: tuple[int, int]
+    cache_dir: Path | None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def scale(self) -> float:
+        """Factor from model units to mesh units (1000 for a model in m and meshes in mm)."""
+        return UNITS[self.model_unit] / UNITS[self.mesh_unit]
+
+
+def _table(d: Any, where: str, src: Path) -> dict[str, Any]:
+    if not isinstance(d, Mapping):
+        raise SceneError(f"{src}: [{where}] must be a table, got {type(d).__name__}")
+    return dict(d)
+
+
+def _keys(d: Mapping[str, Any], allowed: set[str], where: str, src: Path) -> None:
+    for k in d:
+        if k not in allowed:
+            raise SceneError(f"{src}: unknown key '{k}' in {where}; " + suggest(k, sorted(allowed)))
+
+
+def _get(
+    d: Mapping[str, Any], key: str, kind: type | tuple[type, ...], where: str, src: Path
+) -> Any:
+    v = d[key]
+    if kind is float and isinstance(v, int) and not isinstance(v, bool):
+        v = float(v)
+    if not isinstance(v, kind) or (isinstance(v, bool) and kind in (int, float)):
+        name = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
+        raise SceneError(f"{src}: {where}.{key} must be {name}, got {v!r}")
+    return v
+
+
+def _file(base: Path, value: Any, where: str, src: Path) -> Path:
+    if not isinstance(value, str) or not value:
+        raise SceneError(f"{src}: {where} must be a file path (string), got {value!r}")
+    p = Path(value).expanduser()
+    p = p if p.is_absolute() else (base / p)
+    p = Path(__import__("os").path.normpath(p))
+    if not p.is_file():
+        raise SceneError(f"{src}: {where} = '{value}': no such file ({p})")
+    return p
+
+
+def _name(k: str, where: str, src: Path) -> str:
+    if not k or any(c in k for c in '/\\:*?"<>|') or k.startswith("."):
+        raise SceneError(f"{src}: {where} name '{k}' cannot be used as a folder name")
+    return k
+
+
+def load_scene(path: PathLike) -> Scene:
+    """Read and validate a scene file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.toml`` scene. Relative paths inside it are relative to its folder.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        For a missing file, TOML syntax errors (with line), unknown keys (with
+        the nearest valid key), wrong types, missing files named in the scene,
+        or an inconsistent combination (e.g. neither a model nor a line CSV).
+    """
+    src = Path(path)
+    if not src.is_file():
+        raise SceneError(f"{src}: no such scene file")
+    try:
+        raw = tomllib.loads(src.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{src}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise SceneError(f"{src}: not a text file (TOML must be UTF-8)") from None
+    base = src.resolve().parent
+    _keys(raw, _TOP, "the scene's top level", src)
+
+    units = _table(raw.get("units", {}), "units", src)
+    _keys(units, {"mesh", "model"}, "[units]", src)
+    mesh_unit, model_unit = units.get("mesh", "mm"), units.get("model", "m")
+    for k, u in (("mesh", mesh_unit), ("model", model_unit)):
+        if u not in UNITS:
+            raise SceneError(f"{src}: units.{k} = {u!r}; use one of {', '.join(UNITS)}")
+
+    model = _table(raw.get("model", {}), "model", src)
+    _keys(model, _MODEL, "[model]", src)
+    lines = _table(raw.get("lines", {}), "lines", src)
+    _keys(lines, _LINES, "[lines]", src)
+    if "csv" in lines and "motion" in model:
+        raise SceneError(f"{src}: give either [model] motion or [lines] csv, not both")
+    if "csv" not in lines and not ("osim" in model and "motion" in model):
+        raise SceneError(
+            f"{src}: the scene needs [model] osim and motion (an OpenSim model and motion), "
+            "or [lines] csv (per-frame action lines)"
+        )
+    osim = _file(base, model["osim"], "[model] osim", src) if "osim" in model else None
+    motion = _file(base, model["motion"], "[model] motion", src) if "motion" in model else None
+    rest_pose: dict[str, float] = {}
+    for k, v in _table(model.get("rest_pose", {}), "model.rest_pose", src).items():
+        rest_pose[k] = _get({k: v}, k, float, "[model] rest_pose", src)
+    angle_unit = model.get("angle_unit", "header")
+    if angle_unit not in ("header", "deg", "rad"):
+        raise SceneError(
+            f"{src}: [model] angle_unit = {angle_unit!r}; use 'header', 'deg' or 'rad'"
+        )
+    coords = None
+    if "coordinates" in model:
+        c = model["coordinates"]
+        if not isinstance(c, list) or not all(isinstance(x, str) for x in c) or not c:
+            raise SceneError(f"{src}: [model] coordinates must be a non-empty list of names")
+        coords = tuple(c)
+    mesh_frame = model.get("mesh_frame", "body")
+    if not isinstance(mesh_frame, str):
+        raise SceneError(f"{src}: [model] mesh_frame must be 'body', 'ground' or a body name")
+    output_frame = model.get("output_frame", "ground")
+    if not isinstance(output_frame, str):
+        raise SceneError(f"{src}: [model] output_frame must be a body name or 'ground'")
+    if osim is None and output_frame != "ground":
+        raise SceneError(f"{src}: [model] output_frame needs an OpenSim model ([model] osim)")
+
+    lines_csv = _file(base, lines["csv"], "[lines] csv", src) if "csv" in lines else None
+    rest_frame = _get(lines, "rest_frame", int, "[lines]", src) if "rest_frame" in lines else 0
+
+    registration = None
+    if "registration" in raw:
+        reg = _table(raw["registration"], "registration", src)
+        _keys(reg, _REG, "[registration]", src)
+        if osim is None:
+            raise SceneError(f"{src}: [registration] needs an OpenSim model ([model] osim)")
+        lms = reg.get("landmarks", [])
+        if not isinstance(lms, list) or len(lms) < 2:
+            raise SceneError(f"{src}: [registration] landmarks must list at least 2 pairs")
+        pairs = []
+        for i, lm in enumerate(lms):
+            lm = _table(lm, f"registration.landmarks[{i}]", src)
+            _keys(lm, {"mesh", "model"}, f"[registration] landmarks[{i}]", src)
+            if not {"mesh", "model"} <= set(lm):
+                raise SceneError(f"{src}: [registration] landmarks[{i}] needs 'mesh' and 'model'")
+            kind, _, f = str(lm["mesh"]).partition(":")
+            if kind not in ("centroid", "sphere_centre") or not f:
+                raise SceneError(
+                    f"{src}: [registration] landmarks[{i}].mesh = {lm['mesh']!r}; write "
+                    "'centroid:FILE' or 'sphere_centre:FILE'"
+                )
+            f = str(_file(base, f, f"[registration] landmarks[{i}].mesh", src))
+            pairs.append((f"{kind}:{f}", str(lm["model"])))
+        axes = reg.get("mesh_axes")
+        if axes is not None:
+            ok = (
+                isinstance(axes, list)
+                and len(axes) == 3
+                and sorted(a.lstrip("-") for a in axes if isinstance(a, str)) == ["x", "y", "z"]
+            )
+            if not ok:
+                raise SceneError(
+                    f"{src}: [registration] mesh_axes must name the mesh axis along each model "
+                    f"axis, e.g. ['y', 'z', 'x'] or ['-x', 'z', 'y']; got {axes!r}"
+                )
+            axes = tuple(axes)
+        scale = reg.get("scale", "landmarks")
+        if not (scale == "landmarks" or (isinstance(scale, int | float) and scale > 0)):
+            raise SceneError(
+                f"{src}: [registration] scale must be 'landmarks' or a positive number"
+            )
+        registration = Registration(tuple(pairs), axes, scale)
+
+    out = _table(raw.get("output", {}), "output", src)
+    _keys(out, _OUTPUT, "[output]", src)
+    bone_faces = (
+        _get(out, "bone_display_faces", int, "[output]", src)
+        if "bone_display_faces" in out
+        else 10000
+    )
+    paper_frames = _get(out, "paper_frames", int, "[output]", src) if "paper_frames" in out else 4
+    gif = _get(out, "gif", bool, "[output]", src) if "gif" in out else True
+    gif_every = _get(out, "gif_every", int, "[output]", src) if "gif_every" in out else 1
+    size = out.get("image_size", [800, 600])
+    if not (
+        isinstance(size, list)
+        and len(size) == 2
+        and all(isinstance(s, int) and 16 <= s <= 4096 for s in size)
+    ):
+        raise SceneError(f"{src}: [output] image_size must be [width, height] in pixels")
+    if paper_frames < 0 or gif_every < 1 or bone_faces < 0:
+        raise SceneError(
+            f"{src}: [output] paper_frames, bone_display_faces must be >= 0 and gif_every >= 1"
+        )
+
+    bones = []
+    for bname, b in _table(raw.get("bones", {}), "bones", src).items():
+        b = _table(b, f"bones.{bname}", src)
+        _keys(b, _BONE, f"[bones.{bname}]", src)
+        if "mesh" not in b:
+            raise SceneError(f"{src}: [bones.{bname}] needs 'mesh'")
+        body = b.get("body", "ground")
+        if osim is None and body != "ground":
+            raise SceneError(f"{src}: [bones.{bname}] body needs an OpenSim model ([model] osim)")
+        frame = b.get("frame", mesh_frame)
+        bones.append(
+            BoneSpec(
+                _name(bname, "bone", src),
+                _file(base, b["mesh"], f"[bones.{bname}] mesh", src),
+                body,
+                body if frame == "body" else frame,
+            )
+        )
+    bone_names = {b.name for b in bones}
+
+    muscles = []
+    table = _table(raw.get("muscles", {}), "muscles", src)
+    if not table:
+        raise SceneError(f"{src}: the scene names no muscles ([muscles.NAME] tables)")
+    for mname, m in table.items():
+        where = f"[muscles.{mname}]"
+        m = _table(m, f"muscles.{mname}", src)
+        _keys(m, _MUSCLE, where, src)
+        if "mesh" not in m:
+            raise SceneError(f"{src}: {where} needs 'mesh'")
+        paths = m.get("paths", [])
+        if osim is not None and "csv" not in lines:
+            if (
+                not isinstance(paths, list)
+                or not paths
+                or not all(isinstance(p, str) for p in paths)
+            ):
+                raise SceneError(
+                    f"{src}: {where} paths must list the OpenSim muscle path(s), e.g. ['glut_max1_r']"
+                )
+        ref = m.get("reference")
+        if ref is not None and not isinstance(ref, str):
+            raise SceneError(f"{src}: {where} reference must be a bone or body name")
+        if ref is not None and osim is None and ref not in bone_names:
+            raise SceneError(
+                f"{src}: {where} reference '{ref}' is not a bone of the scene; "
+                + suggest(ref, sorted(bone_names))
+            )
+        method = m.get("method", "sqp")
+        if method not in ("sqp", "exact", "paper"):
+            raise SceneError(f"{src}: {where} method = {method!r}; use 'sqp', 'exact' or 'paper'")
+        coarsening = m.get("cage_coarsening", "uniform")
+        if coarsening not in ("uniform", "quadric"):
+            raise SceneError(f"{src}: {where} cage_coarsening must be 'uniform' or 'quadric'")
+        cage = _get(m, "cage_size", int, where, src) if "cage_size" in m else defaults.cage_size
+        if cage < 20:
+            raise SceneError(f"{src}: {where} cage_size must be at least 20")
+        its = _get(m, "max_iterations", int, where, src) if "max_iterations" in m else None
+        body = m.get("body", "ground")
+        if osim is None and body != "ground":
+            raise SceneError(f"{src}: {where} body needs an OpenSim model ([model] osim)")
+        muscles.append(
+            MuscleSpec(
+                name=_name(mname, "muscle", src),
+                mesh=_file(base, m["mesh"], f"{where} mesh", src),
+                paths=tuple(paths),
+                body=body,
+                reference=ref,
+                cage_size=cage,
+                cage_coarsening=coarsening,
+                method=method,
+                max_iterations=its,
+                repair=_get(m, "repair", bool, where, src) if "repair" in m else True,
+                frame=body if m.get("frame", mesh_frame) == "body" else m.get("frame", mesh_frame),
+            )
+        )
+    clash = bone_names & {m.name for m in muscles}
+    if clash:
+        raise SceneError(f"{src}: the names {sorted(clash)} are used for both a muscle and a bone")
+    cache = raw.get("cache_dir")
+    cache_dir = None if cache is None else (base / Path(cache).expanduser())
+    return Scene(
+        path=src,
+        name=str(raw.get("name", src.stem)),
+        mesh_unit=mesh_unit,
+        model_unit=model_unit,
+        osim=osim,
+        motion=motion,
+        rest_pose=rest_pose,
+        angle_unit=angle_unit,
+        coordinates=coords,
+        output_frame=output_frame,
+        lines_csv=lines_csv,
+        rest_frame=rest_frame,
+        registration=registration,
+        muscles=tuple(muscles),
+        bones=tuple(bones),
+        bone_display_faces=bone_faces,
+        paper_frames=paper_frames,
+        gif=gif,
+        gif_every=gif_every,
+        image_size=(size[0], size[1]),
+        cache_dir=cache_dir,
+    )
+
+
+def similarity_from_landmarks(
+    mesh_points: FloatArray,
+    model_points: FloatArray,
+    *,
+    axes: FloatArray | None,
+    scale: float | None,
+) -> tuple[float, FloatArray, FloatArray]:
+    """Scale, rotation and translation with ``model ~ s R mesh + t``.
+
+    With three or more well-spread landmarks and no axis prior, Umeyama's
+    least-squares similarity. With an axis prior ``axes`` (the rotation that
+    maps mesh axes onto model axes), the prior is kept and only the minimal
+    rotation that aligns the first-to-last landmark directions is added:
+    two landmarks then suffice and collinear ones (hip, knee, ankle) are fine.
+    """
+    P, Q = np.asarray(mesh_points, float), np.asarray(model_points, float)
+    if axes is None:
+        if len(P) < 3:
+            raise SceneError("registration without mesh_axes needs at least 3 landmarks")
+        mp, mq = P.mean(0), Q.mean(0)
+        A, B = P - mp, Q - mq
+        U, S, Vt = np.linalg.svd(B.T @ A)
+        if S[1] < 1e-6 * S[0]:
+            raise SceneError(
+                "registration landmarks are (nearly) collinear: add one off the line or give mesh_axes"
+            )
+        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+        R = U @ D @ Vt
+        s = float(np.trace(np.diag(S) @ D) / (A * A).sum()) if scale is None else scale
+        return s, R, mq - s * R @ mp
+    R0 = np.asarray(axes, float)
+    a = R0 @ (P[-1] - P[0])
+    b = Q[-1] - Q[0]
+    na, nb = np.linalg.norm(a), np.linalg.norm(b)
+    if na == 0 or nb == 0:
+        raise SceneError("registration: the first and last landmarks coincide")
+    a, b = a / na, b / nb
+    v, c = np.cross(a, b), float(a @ b)
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    Rm = np.eye(3) + K + K @ K / (1 + c) if c > -1 + 1e-12 else -np.eye(3)
+    R = Rm @ R0
+    s = nb / na if scale is None else scale
+    A = s * (R @ P.T).T
+    return s, R, (Q - A).mean(0)

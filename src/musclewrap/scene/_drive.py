@@ -1,0 +1,413 @@
+"""What drives a scene per frame: action lines, reference points and body frames."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._typing import FloatArray
+from ._config import Scene, similarity_from_landmarks
+from ._motion import SceneError, read_motion
+from ._opensim import OpenSimModel, suggest
+
+__all__ = ["Drive", "apply", "drive_scene", "parse_frames"]
+
+
+def apply(T: FloatArray, P: FloatArray) -> FloatArray:
+    """Apply a 4x4 affine transform to (n, 3) points."""
+    return P @ T[:3, :3].T + T[:3, 3]
+
+
+def _inv(T: FloatArray) -> FloatArray:
+    R = T[:3, :3]
+    out = np.eye(4)
+    out[:3, :3] = R.T
+    out[:3, 3] = -R.T @ T[:3, 3]
+    return out
+
+
+def parse_frames(text: str | None, n: int, *, source: str) -> list[int]:
+    """Frame positions from ``start:stop:step`` (Python slice rules, no negative step)."""
+    if text is None:
+        return list(range(n))
+    parts = text.split(":")
+    if not 1 <= len(parts) <= 3:
+        raise SceneError(f"--frames {text!r}: write START:STOP[:STEP], e.g. 0:211:1")
+    try:
+        vals = [int(p) if p.strip() else None for p in parts]
+    except ValueError:
+        raise SceneError(f"--frames {text!r}: START, STOP and STEP must be integers") from None
+    if len(vals) == 1:
+        vals = [vals[0], None if vals[0] is None else vals[0] + 1]
+    start, stop = vals[0], vals[1]
+    step = vals[2] if len(vals) == 3 else None
+    if step is not None and step <= 0:
+        raise SceneError(f"--frames {text!r}: STEP must be positive")
+    for v in (start, stop):
+        if v is not None and not -n <= v <= n:
+            raise SceneError(f"--frames {text!r}: out of range; {source} has frames 0..{n - 1}")
+    frames = list(range(n))[slice(start, stop, step)]
+    if not frames:
+        raise SceneError(f"--frames {text!r} selects no frame of {source} (frames 0..{n - 1})")
+    return frames
+
+
+@dataclass
+class Drive:
+    """Per-frame input of every muscle, in mesh units.
+
+    ``to_body[name]`` maps a muscle's or bone's mesh coordinates (given in
+    its ``frame`` at the rest pose, after the registration if any) into the
+    frame of the body that carries it, in which the muscle is deformed;
+    ``to_output[body][k]`` maps that body's frame to the output frame at
+    frame position ``k``.
+    """
+
+    frames: list[int]
+    times: FloatArray
+    rest_lines: dict[str, dict[str, FloatArray]]
+    lines: dict[str, list[dict[str, FloatArray]]]
+    rest_reference: dict[str, FloatArray | None]
+    references: dict[str, list[FloatArray | None]]
+    to_body: dict[str, FloatArray]
+    to_output: dict[str, FloatArray]
+    notes: list[str] = field(default_factory=list)
+
+
+def _angle_in_degrees(scene: Scene, motion, model: OpenSimModel, coords) -> tuple[bool, str]:  # noqa: ANN001
+    rot = [c for c in coords if model.is_rotational(c)]
+    peak = max((float(np.abs(motion.columns[c]).max()) for c in rot), default=0.0)
+    worst = max(rot, key=lambda c: float(np.abs(motion.columns[c]).max())) if rot else ""
+    if scene.angle_unit != "header":
+        deg = scene.angle_unit == "deg"
+        how = f"angles in {'degrees' if deg else 'radians'} ([model] angle_unit)"
+    elif motion.degrees_declared:
+        deg = motion.in_degrees
+        how = f"angles in {'degrees' if deg else 'radians'} (header inDegrees)"
+    else:
+        deg = peak > 2 * np.pi
+        how = (
+            f"no inDegrees line in the header: angles taken as {'degrees' if deg else 'radians'} "
+            f"(largest |value| {peak:.3g} in '{worst}'); set [model] angle_unit to be explicit"
+        )
+    if not deg and peak > 2 * np.pi + 1e-9:
+        raise SceneError(
+            f"{motion.path}: angles are read as radians but '{worst}' reaches {peak:.4g} "
+            f"(more than a full turn): the motion looks like degrees; fix its header "
+            f"(inDegrees=yes) or set [model] angle_unit = 'deg'"
+        )
+    return deg, how
+
+
+def _landmark_point(spec: str) -> FloatArray:
+    from ..mesh import read_mesh
+
+    kind, _, f = spec.partition(":")
+    V, _ = read_mesh(f)
+    if kind == "centroid":
+        return V.mean(axis=0)
+    # algebraic sphere fit: |x|^2 = 2 c.x + (r^2 - |c|^2)
+    A = np.hstack([2 * V, np.ones((len(V), 1))])
+    sol, *_ = np.linalg.lstsq(A, (V * V).sum(1), rcond=None)
+    return sol[:3]
+
+
+def _axes_matrix(axes: tuple[str, str, str]) -> FloatArray:
+    R = np.zeros((3, 3))
+    for i, a in enumerate(axes):
+        R[i, "xyz".index(a.lstrip("-"))] = -1.0 if a.startswith("-") else 1.0
+    if np.linalg.det(R) < 0:
+        raise SceneError(
+            f"[registration] mesh_axes {list(axes)} is a reflection (left-handed); "
+            "flip the sign of one axis"
+        )
+    return R
+
+
+def drive_scene(scene: Scene, frames: str | None, bone_centroids: dict[str, FloatArray]) -> Drive:
+    """Compute every muscle's action lines (and reference point) for the selected frames.
+
+    Parameters
+    ----------
+    scene : Scene
+        The parsed scene.
+    frames : str or None
+        ``start:stop:step`` over the motion's rows (or the CSV's frames).
+    bone_centroids : dict of str to (3,) array
+        Centroid of each bone mesh in mesh coordinates (before registration).
+    """
+    if scene.osim is not None and scene.motion is not None:
+        return _drive_opensim(scene, frames, bone_centroids)
+    if scene.lines_csv is not None:
+        return _drive_csv(scene, frames, bone_centroids)
+    raise SceneError(f"{scene.path}: nothing drives the scene (no motion, no line CSV)")
+
+
+def _drive_opensim(
+    scene: Scene, frames_text: str | None, centroids: dict[str, FloatArray]
+) -> Drive:
+    model = OpenSimModel(scene.osim)
+    motion = read_motion(scene.motion)
+    names = model.coordinate_names
+    if scene.coordinates is not None:
+        coords = list(scene.coordinates)
+        for c in coords:
+            if c not in names:
+                raise SceneError(
+                    f"{scene.path}: [model] coordinates: the model has no coordinate '{c}'; "
+                    + suggest(c, names)
+                )
+            if c in motion.repeated:
+                raise SceneError(f"{motion.path}: the column '{c}' occurs more than once")
+            if c not in motion.columns:
+                raise SceneError(
+                    f"{motion.path}: the motion has no column '{c}'; "
+                    + suggest(c, list(motion.columns))
+                )
+    else:
+        coords = [c for c in motion.columns if c in names]
+        if not coords:
+            raise SceneError(
+                f"{motion.path}: none of its columns is a coordinate of {model.path.name} "
+                f"(model coordinates: {', '.join(names)})"
+            )
+    notes = []
+    ignored = [c for c in motion.columns if c not in coords]
+    if ignored:
+        notes.append(
+            f"motion columns not used ({len(ignored)}): {', '.join(ignored[:6])}"
+            + (" ..." if len(ignored) > 6 else "")
+        )
+    deg, how = _angle_in_degrees(scene, motion, model, coords)
+    notes.append(how)
+    rest = model.default_pose()
+    for c, v in scene.rest_pose.items():
+        if c not in names:
+            raise SceneError(
+                f"{scene.path}: [model] rest_pose names '{c}', not a coordinate of "
+                f"{model.path.name}; " + suggest(c, names)
+            )
+        rest[c] = np.radians(v) if model.is_rotational(c) else v
+    pos = parse_frames(frames_text, motion.n_frames, source=str(motion.path))
+    s = scene.scale
+    for spec in scene.muscles:
+        model.check_body(spec.body)
+        for p in spec.paths:
+            model.check_path(p)
+    for b in scene.bones:
+        model.check_body(b.body)
+    model.check_body(scene.output_frame)
+    bone_names = {b.name: b for b in scene.bones}
+    for spec in scene.muscles:
+        if spec.reference is not None and spec.reference not in bone_names:
+            if spec.reference not in (*model.body_names,):
+                raise SceneError(
+                    f"{scene.path}: [muscles.{spec.name}] reference '{spec.reference}' is neither "
+                    "a bone of the scene nor a body of the model; "
+                    + suggest(spec.reference, sorted(bone_names) + list(model.body_names))
+                )
+
+    def transform(body: str, frame: str) -> FloatArray:
+        T = model.transform(body, frame)
+        T[:3, 3] *= s
+        return T
+
+    bodies = sorted({m.body for m in scene.muscles} | {b.body for b in scene.bones} | {
+        x.frame for x in (*scene.muscles, *scene.bones)} | {
+        bone_names[m.reference].body if m.reference in bone_names else m.reference
+        for m in scene.muscles if m.reference is not None
+    } | {"ground"})  # fmt: skip
+    model.set_pose(rest)
+    mesh_T = np.eye(4)
+    if scene.registration is not None:
+        reg = scene.registration
+        P = np.array([_landmark_point(m) for m, _ in reg.landmarks])
+        Q = []
+        for _, body in reg.landmarks:
+            model.check_body(body)
+            Q.append(transform(body, "ground")[:3, 3])
+        axes = None if reg.mesh_axes is None else _axes_matrix(reg.mesh_axes)
+        scale = None if reg.scale == "landmarks" else float(reg.scale)
+        k, R, t = similarity_from_landmarks(P, np.array(Q), axes=axes, scale=scale)
+        mesh_T = np.eye(4)
+        mesh_T[:3, :3], mesh_T[:3, 3] = k * R, t
+        res = np.linalg.norm(apply(mesh_T, P) - np.array(Q), axis=1)
+        notes.append(
+            f"registration: scale {k:.4f}, landmark residuals {', '.join(f'{r:.1f}' for r in res)} "
+            f"{scene.mesh_unit}"
+        )
+    for x in (*scene.muscles, *scene.bones):
+        model.check_body(x.frame)
+    g = {b: transform(b, "ground") for b in bodies}
+    to_body = {
+        x.name: _inv(g[x.body]) @ g[x.frame] @ mesh_T for x in (*scene.muscles, *scene.bones)
+    }
+    # reference points as fixed points of their bodies
+    ref_local: dict[str, tuple[str, FloatArray] | None] = {}
+    for m in scene.muscles:
+        if m.reference is None:
+            ref_local[m.name] = None
+        elif m.reference in bone_names:
+            b = bone_names[m.reference]
+            c = apply(to_body[b.name], centroids[b.name][None])[0]
+            ref_local[m.name] = (b.body, c)
+        else:
+            ref_local[m.name] = (m.reference, model.mass_center(m.reference) * s)
+
+    def lines_now() -> tuple[
+        dict[str, dict[str, FloatArray]], dict[str, FloatArray | None], dict[str, FloatArray]
+    ]:
+        to_g = {b: transform(b, "ground") for b in bodies}
+        L, R = {}, {}
+        for m in scene.muscles:
+            L[m.name] = {p: model.path_points(p, m.body) * s for p in m.paths}
+            r = ref_local[m.name]
+            R[m.name] = None if r is None else apply(_inv(to_g[m.body]) @ to_g[r[0]], r[1][None])[0]
+        return L, R, to_g
+
+    rest_lines, rest_ref, _ = lines_now()
+    lines = {m.name: [] for m in scene.muscles}
+    refs = {m.name: [] for m in scene.muscles}
+    out_T = {b: np.empty((len(pos), 4, 4)) for b in bodies}
+    values = {c: motion.columns[c] for c in coords}
+    for k, i in enumerate(pos):
+        pose = dict(rest)
+        for c in coords:
+            v = values[c][i]
+            pose[c] = np.radians(v) if (deg and model.is_rotational(c)) else v
+        model.set_pose(pose)
+        L, R, to_g = lines_now()
+        out_inv = _inv(to_g[scene.output_frame]) if scene.output_frame != "ground" else np.eye(4)
+        for m in scene.muscles:
+            lines[m.name].append(L[m.name])
+            refs[m.name].append(R[m.name])
+        for b in bodies:
+            out_T[b][k] = out_inv @ to_g[b]
+    return Drive(
+        frames=pos,
+        times=motion.time[pos],
+        rest_lines=rest_lines,
+        lines=lines,
+        rest_reference=rest_ref,
+        references=refs,
+        to_body=to_body,
+        to_output=out_T,
+        notes=notes,
+    )
+
+
+_CSV_HEADER = ["frame", "time", "muscle", "line", "point", "x", "y", "z"]
+
+
+def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, FloatArray]) -> Drive:
+    p = scene.lines_csv
+    data: dict[int, dict[str, dict[str, list[tuple[int, list[float]]]]]] = {}
+    times: dict[int, float] = {}
+    muscles = {m.name for m in scene.muscles}
+    with open(p, newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh)
+        header = [h.strip().lower() for h in next(reader, [])]
+        if header != _CSV_HEADER:
+            raise SceneError(
+                f"{p}: header must be '{','.join(_CSV_HEADER)}', got '{','.join(header)}'"
+            )
+        for row_no, row in enumerate(reader, start=2):
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != 8:
+                raise SceneError(f"{p}: row {row_no} has {len(row)} fields, expected 8")
+            try:
+                frame, point = int(row[0]), int(row[4])
+                t = float(row[1])
+                xyz = [float(v) for v in row[5:]]
+            except ValueError:
+                raise SceneError(
+                    f"{p}: row {row_no} has a non-numeric frame, time, point or coordinate"
+                ) from None
+            if not np.isfinite(xyz).all() or not np.isfinite(t):
+                raise SceneError(f"{p}: row {row_no} has a NaN or infinite value")
+            muscle, line = row[2].strip(), row[3].strip()
+            if muscle not in muscles:
+                raise SceneError(
+                    f"{p}: row {row_no} names muscle '{muscle}', not in the scene; "
+                    + suggest(muscle, sorted(muscles))
+                )
+            if times.setdefault(frame, t) != t:
+                raise SceneError(f"{p}: frame {frame} has two different times")
+            data.setdefault(frame, {}).setdefault(muscle, {}).setdefault(line, []).append(
+                (point, xyz)
+            )
+    if not data:
+        raise SceneError(f"{p}: no action-line rows")
+    order = sorted(data)
+    if scene.rest_frame not in data:
+        raise SceneError(
+            f"{scene.path}: [lines] rest_frame = {scene.rest_frame} is not a frame of {p} (frames {order[0]}..{order[-1]})"
+        )
+
+    def frame_lines(
+        f: int,
+    ) -> tuple[dict[str, dict[str, FloatArray]], dict[str, FloatArray | None]]:
+        L, R = {}, {}
+        for m in scene.muscles:
+            got = data[f].get(m.name)
+            if not got:
+                raise SceneError(f"{p}: frame {f} has no lines for muscle '{m.name}'")
+            lines = {}
+            for name, pts in got.items():
+                pts = sorted(pts)
+                idx = [q for q, _ in pts]
+                if len(set(idx)) != len(idx):
+                    raise SceneError(
+                        f"{p}: frame {f}, muscle '{m.name}', line '{name}' repeats a point number"
+                    )
+                lines[name] = np.array([xyz for _, xyz in pts])
+            ref = lines.pop("reference", None)
+            if ref is not None and len(ref) != 1:
+                raise SceneError(
+                    f"{p}: frame {f}, muscle '{m.name}': 'reference' must be one point"
+                )
+            R[m.name] = None if ref is None else ref[0]
+            if not lines:
+                raise SceneError(f"{p}: frame {f} has no action line for muscle '{m.name}'")
+            L[m.name] = lines
+        return L, R
+
+    rest_lines, rest_ref = frame_lines(scene.rest_frame)
+    for m in scene.muscles:
+        if m.reference is not None and rest_ref[m.name] is None:
+            rest_ref[m.name] = centroids[m.reference]
+    pos = parse_frames(frames_text, len(order), source=str(p))
+    lines = {m.name: [] for m in scene.muscles}
+    refs = {m.name: [] for m in scene.muscles}
+    for k in pos:
+        L, R = frame_lines(order[k])
+        for m in scene.muscles:
+            if set(L[m.name]) != set(rest_lines[m.name]):
+                raise SceneError(
+                    f"{p}: frame {order[k]} names lines {sorted(L[m.name])} for '{m.name}', the rest "
+                    f"frame {sorted(rest_lines[m.name])}"
+                )
+            lines[m.name].append(L[m.name])
+            ref = R[m.name]
+            if ref is None and m.reference is not None:
+                ref = centroids[m.reference]  # a bone without a model does not move
+            if (ref is None) != (rest_ref[m.name] is None):
+                raise SceneError(
+                    f"{p}: muscle '{m.name}' has a reference point in some frames only"
+                )
+            refs[m.name].append(ref)
+    eye = np.broadcast_to(np.eye(4), (len(pos), 4, 4)).copy()
+    return Drive(
+        frames=[order[k] for k in pos],
+        times=np.array([times[order[k]] for k in pos]),
+        rest_lines=rest_lines,
+        lines=lines,
+        rest_reference=rest_ref,
+        references=refs,
+        to_body={x.name: np.eye(4) for x in (*scene.muscles, *scene.bones)},
+        to_output={"ground": eye},
+        notes=[f"action lines from {p.name} (rest frame {scene.rest_frame})"],
+    )

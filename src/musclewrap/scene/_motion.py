@@ -1,0 +1,137 @@
+"""OpenSim motion files (.mot / .sto): coordinate values per frame."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._typing import FloatArray, PathLike
+
+__all__ = ["Motion", "SceneError", "read_motion"]
+
+
+class SceneError(ValueError):
+    """A scene, model, motion or line file that cannot be used (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Coordinate values per frame, as stored in an OpenSim motion file.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The file read.
+    time : (k,) float64 array
+        Time of each frame (s).
+    columns : dict of str to (k,) float64 array
+        Values per column label, in the file's units.
+    in_degrees : bool
+        Whether rotational values are in degrees (the header's ``inDegrees``).
+    degrees_declared : bool
+        Whether the header has an ``inDegrees`` line at all.
+    repeated : frozenset of str
+        Column labels that occur more than once (not in `columns`).
+    """
+
+    path: Path
+    time: FloatArray
+    columns: dict[str, FloatArray]
+    in_degrees: bool
+    degrees_declared: bool = True
+    repeated: frozenset[str] = frozenset()
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames (rows)."""
+        return len(self.time)
+
+
+def read_motion(path: PathLike) -> Motion:
+    """Read an OpenSim ``.mot`` or ``.sto`` file (header up to ``endheader``, then a table).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Tab- or space-separated table with a ``time`` column.
+
+    Returns
+    -------
+    Motion
+
+    Raises
+    ------
+    SceneError
+        If the file is missing, has no ``endheader``, no (or two) ``time`` columns, rows
+        of the wrong length, non-numeric or non-finite values, or times that
+        do not increase.
+
+    Notes
+    -----
+    Angles are in degrees when the header says ``inDegrees=yes`` (OpenSim's
+    convention for IK results and the LHDL sweeps). For a file without that
+    line (old SIMM headers) `degrees_declared` is False and the scene decides
+    (see `musclewrap.scene.angle_unit`).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise SceneError(f"{p}: no such motion file")
+    try:
+        text = p.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise SceneError(f"{p}: cannot read the motion file ({exc.strerror})") from None
+    lines = text.splitlines()
+    end = next((i for i, ln in enumerate(lines) if ln.strip().lower() == "endheader"), None)
+    if end is None:
+        raise SceneError(f"{p}: not an OpenSim motion file (no 'endheader' line)")
+    in_degrees, declared = False, False
+    for ln in lines[:end]:
+        key, _, value = ln.partition("=")
+        if key.strip().lower() == "indegrees":
+            in_degrees = value.strip().lower() in ("yes", "true", "1")
+            declared = True
+    body = [ln for ln in lines[end + 1 :] if ln.strip()]
+    if not body:
+        raise SceneError(f"{p}: no column labels after 'endheader'")
+    labels = body[0].split("\t") if "\t" in body[0] else body[0].split()
+    labels = [lb.strip() for lb in labels]
+    if "time" not in labels:
+        raise SceneError(f"{p}: no 'time' column (labels: {', '.join(labels[:8])}...)")
+    if labels.count("time") > 1:
+        raise SceneError(f"{p}: more than one 'time' column")
+    rows = []
+    for k, ln in enumerate(body[1:], start=1):
+        fields = ln.split()
+        if len(fields) != len(labels):
+            raise SceneError(
+                f"{p}: data row {k} has {len(fields)} values, the header has {len(labels)} labels"
+            )
+        try:
+            rows.append([float(v) for v in fields])
+        except ValueError:
+            raise SceneError(f"{p}: data row {k} has a non-numeric value") from None
+    if not rows:
+        raise SceneError(f"{p}: the motion has no frames")
+    table = np.array(rows, dtype=np.float64)
+    if not np.isfinite(table).all():
+        r = int(np.argwhere(~np.isfinite(table))[0, 0]) + 1
+        raise SceneError(f"{p}: data row {r} has a NaN or infinite value")
+    time = table[:, labels.index("time")]
+    if len(time) > 1 and not (np.diff(time) > 0).all():
+        raise SceneError(f"{p}: time values do not increase")
+    # Columns whose label repeats (e.g. ground forces of both feet) are ambiguous: kept aside
+    # and refused only if a scene asks for one of them.
+    repeated = frozenset(lb for lb in labels if labels.count(lb) > 1)
+    cols = {
+        lb: table[:, i].copy() for i, lb in enumerate(labels) if lb != "time" and lb not in repeated
+    }
+    return Motion(
+        path=p,
+        time=time.copy(),
+        columns=cols,
+        in_degrees=in_degrees,
+        degrees_declared=declared,
+        repeated=repeated,
+    )

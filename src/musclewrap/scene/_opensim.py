@@ -1,0 +1,180 @@
+"""The OpenSim side of a scene: poses, muscle paths and body frames (optional extra)."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray, PathLike
+from ._motion import SceneError
+
+__all__ = ["OpenSimModel", "import_opensim", "suggest"]
+
+
+def suggest(name: str, valid: Sequence[str]) -> str:
+    """A hint naming the nearest valid names (or listing them when few)."""
+    close = difflib.get_close_matches(name, list(valid), n=3, cutoff=0.5)
+    if close:
+        return f"did you mean {' or '.join(repr(c) for c in close)}?"
+    shown = ", ".join(list(valid)[:30])
+    more = f" (and {len(valid) - 30} more)" if len(valid) > 30 else ""
+    return f"valid names: {shown}{more}"
+
+
+def import_opensim() -> Any:
+    """Import the ``opensim`` package quietly, or explain how to install it.
+
+    Raises
+    ------
+    ImportError
+        Naming the extra: ``pip install 'musclewrap[opensim]'``.
+    """
+    try:
+        import opensim
+    except ImportError as exc:
+        raise ImportError(
+            "OpenSim scenes need the 'opensim' package: pip install 'musclewrap[opensim]' "
+            f"(or give per-frame action lines in a CSV instead; import failed: {exc})"
+        ) from None
+    # OpenSim logs to stdout and, by default, to ./opensim.log: keep both quiet.
+    opensim.Logger.setLevelString("error")
+    try:
+        opensim.Logger.removeFileSink()
+    except Exception:  # pragma: no cover - older bindings without file sinks  # noqa: BLE001
+        pass
+    return opensim
+
+
+class OpenSimModel:
+    """An OpenSim model with one working state.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.osim`` file.
+
+    Raises
+    ------
+    SceneError
+        If the file is missing or OpenSim cannot load it (its message is quoted).
+    ImportError
+        If the ``opensim`` extra is not installed.
+    """
+
+    def __init__(self, path: PathLike) -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise SceneError(f"{self.path}: no such OpenSim model file")
+        osim = import_opensim()
+        self._osim = osim
+        try:
+            self.model = osim.Model(str(self.path))
+            self.state = self.model.initSystem()
+        except Exception as exc:  # OpenSim raises its own exception types  # noqa: BLE001
+            msg = " ".join(str(exc).split())
+            raise SceneError(f"{self.path}: OpenSim could not load the model: {msg}") from None
+        cs = self.model.getCoordinateSet()
+        self._coords = {cs.get(i).getName(): cs.get(i) for i in range(cs.getSize())}
+        bs = self.model.getBodySet()
+        self.body_names = tuple(bs.get(i).getName() for i in range(bs.getSize()))
+        self._paths: dict[str, Any] = {}
+        ms = self.model.getMuscles()
+        for i in range(ms.getSize()):
+            self._paths[ms.get(i).getName()] = ms.get(i).getGeometryPath()
+        self._constrained = self.model.getConstraintSet().getSize() > 0
+
+    # ------------------------------------------------------------ names
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        """Names of the model's coordinates."""
+        return tuple(self._coords)
+
+    @property
+    def path_names(self) -> tuple[str, ...]:
+        """Names of the model's muscles (each has a geometry path)."""
+        return tuple(self._paths)
+
+    def is_rotational(self, name: str) -> bool:
+        """Whether coordinate ``name`` is an angle (radians in the model)."""
+        return int(self._coords[name].getMotionType()) == 1
+
+    def default_pose(self) -> dict[str, float]:
+        """Each coordinate's default value (model units: radians or metres)."""
+        return {n: float(c.getDefaultValue()) for n, c in self._coords.items()}
+
+    def _frame(self, name: str) -> Any:
+        if name == "ground":
+            return self.model.getGround()
+        if name not in self.body_names:
+            raise SceneError(
+                f"{self.path}: the model has no body '{name}'; "
+                + suggest(name, ("ground", *self.body_names))
+            )
+        return self.model.getBodySet().get(name)
+
+    def check_path(self, name: str) -> None:
+        """Raise `SceneError` (with the nearest names) if no force has path ``name``."""
+        if name not in self._paths:
+            raise SceneError(
+                f"{self.path}: the model has no muscle '{name}'; " + suggest(name, self.path_names)
+            )
+
+    def check_body(self, name: str) -> None:
+        """Raise `SceneError` (with the nearest names) if ``name`` is not a body or 'ground'."""
+        self._frame(name)
+
+    # ------------------------------------------------------------ poses
+    def set_pose(self, values: Mapping[str, float]) -> None:
+        """Set coordinate values (radians or metres) and realize positions.
+
+        Coordinates not named keep their current values. Models with
+        constraints are assembled so that coupled coordinates follow.
+        """
+        for name, v in values.items():
+            self._coords[name].setValue(self.state, float(v), False)
+        if self._constrained:
+            self.model.assemble(self.state)
+        self.model.realizePosition(self.state)
+
+    def path_points(self, name: str, frame: str) -> FloatArray:
+        """Active points of a muscle's path (via, moving, wrap) in ``frame`` (model units).
+
+        Returns
+        -------
+        (k, 3) float64 array
+        """
+        gp = self._paths[name]
+        target = self._frame(frame)
+        arr = gp.getCurrentPath(self.state)
+        out = np.empty((arr.getSize(), 3))
+        for k in range(arr.getSize()):
+            pp = arr.get(k)
+            loc = pp.getLocation(self.state)
+            g = pp.getParentFrame().findStationLocationInAnotherFrame(self.state, loc, target)
+            out[k] = (g.get(0), g.get(1), g.get(2))
+        return out
+
+    def transform(self, body: str, frame: str) -> FloatArray:
+        """4x4 rigid transform taking ``body``-frame coordinates to ``frame`` (model units)."""
+        src, dst = self._frame(body), self._frame(frame)
+        Vec3 = self._osim.Vec3
+        pts = []
+        for p in ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
+            g = src.findStationLocationInAnotherFrame(self.state, Vec3(*p), dst)
+            pts.append((g.get(0), g.get(1), g.get(2)))
+        P = np.array(pts)
+        T = np.eye(4)
+        T[:3, :3] = (P[1:] - P[0]).T
+        T[:3, 3] = P[0]
+        return T
+
+    def mass_center(self, body: str) -> FloatArray:
+        """A body's centre of mass in its own frame (model units)."""
+        if body == "ground":
+            raise SceneError("'ground' has no centre of mass: name a body or a bone mesh")
+        c = self._frame(body).getMassCenter()
+        return np.array([c.get(0), c.get(1), c.get(2)])

@@ -1,0 +1,586 @@
+"""Run a scene: every muscle for every frame, written as a ParaView series with a report."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from .._typing import FloatArray, IntArray
+from ..mesh import check_mesh, clean_mesh, merge_duplicate_vertices, read_mesh, write_mesh
+from ._config import Scene
+from ._drive import Drive, apply, drive_scene
+from ._motion import SceneError
+
+__all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_scene"]
+
+#: columns of ``report.csv`` (the first eight are the documented contract)
+REPORT_FIELDS = [
+    "frame",
+    "time",
+    "muscle",
+    "iterations",
+    "converged",
+    "relative_volume_error",
+    "skeleton_fit_mean",
+    "seconds",
+    "shape_change_max",
+    "penetration_share",
+    "penetration_depth_max",
+    "reason",
+]
+
+
+def default_cache_dir() -> Path:
+    """``$MUSCLEWRAP_CACHE``, else ``$XDG_CACHE_HOME/musclewrap``, else ``~/.cache/musclewrap``."""
+    env = os.environ.get("MUSCLEWRAP_CACHE")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return Path(xdg if xdg else Path.home() / ".cache") / "musclewrap"
+
+
+@dataclass
+class RunSummary:
+    """What a run did (printed at the end and returned to Python callers)."""
+
+    outdir: Path
+    n_frames: int
+    muscles: list[str]
+    rows: list[dict[str, Any]]
+    worst_volume_error: float
+    unconverged: int
+    seconds: float
+    seconds_prepare: dict[str, float]
+    cache_hits: list[str]
+    notes: list[str] = field(default_factory=list)
+    files: list[Path] = field(default_factory=list)
+
+    def text(self) -> str:
+        """Human-readable summary."""
+        fits = [r["skeleton_fit_mean"] for r in self.rows]
+        shape = [r["shape_change_max"] for r in self.rows]
+        pen = [r["penetration_depth_max"] for r in self.rows]
+        lines = [
+            f"{len(self.muscles)} muscle(s) x {self.n_frames} frame(s) in {self.seconds:.1f} s "
+            f"-> {self.outdir / 'scene.pvd'}",
+            f"  worst |relative volume error| {self.worst_volume_error:.2e}; "
+            f"unconverged frames {self.unconverged}; skeleton fit mean <= {max(fits):.3g}; "
+            f"shape change <= {max(shape):.3g} edge lengths; deepest bone penetration "
+            f"{max(pen):.3g}",
+            "  preparation: "
+            + ", ".join(
+                f"{m} {'cached' if m in self.cache_hits else f'{s:.2f} s'}"
+                for m, s in self.seconds_prepare.items()
+            ),
+        ]
+        lines += [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------- workers
+_progress_queue: Any = None
+_probes: dict[str, Any] = {}
+
+
+def _init_worker(queue: Any, threads: int) -> None:
+    global _progress_queue
+    _progress_queue = queue
+    try:
+        import numba
+
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    except Exception:  # pragma: no cover  # noqa: BLE001
+        pass
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(threads)
+
+
+def _tick(n: int = 1) -> None:
+    if _progress_queue is not None:
+        _progress_queue.put(n)
+
+
+def _cache_key(V: FloatArray, F: IntArray, job: dict[str, Any]) -> str:
+    from ..solver._muscle import _FORMAT
+
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(V, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(F, dtype=np.int64).tobytes())
+    h.update(f"{job['cage_size']}|{job['cage_coarsening']}|{_FORMAT}|{__version__}".encode())
+    return h.hexdigest()[:32]
+
+
+def _prepare(job: dict[str, Any]) -> tuple[Any, bool, str | None]:
+    from ..solver import Muscle
+
+    V, F, name = job["V"], job["F"], job["name"]
+    cache = job["cache_dir"]
+    path = None
+    if cache is not None:
+        path = Path(cache) / f"{name}-{_cache_key(V, F, job)}.npz"
+        if path.is_file():
+            try:
+                # the name is the hash of the input mesh and settings; load() checks the content
+                return Muscle.load(path), True, None
+            except ValueError as exc:
+                note = f"{name}: cached preparation unusable ({exc}): rebuilt"
+        else:
+            note = None
+    else:
+        note = None
+    m = Muscle.from_mesh(
+        V,
+        F,
+        cage_size=job["cage_size"],
+        cage_coarsening=job["cage_coarsening"],
+        source=job["source"],
+    )
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            m.save(path)
+        except OSError as exc:
+            note = f"{name}: could not write the cache {path} ({exc.strerror})"
+    return m, False, note
+
+
+def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
+    """Deform one muscle through all frames and write its files (runs in a worker)."""
+    from .._validation import as_points  # noqa: F401 - warms the import in spawned workers
+    from ._penetration import BoneProbe
+
+    t0 = time.perf_counter()
+    muscle, hit, note = _prepare(job)
+    seconds_prepare = time.perf_counter() - t0
+    d = muscle.bind(job["rest_lines"], reference_point=job["rest_reference"])
+    probes = []
+    for V, F, T in job["bones"]:
+        key = hashlib.sha256(V.tobytes() + F.tobytes()).hexdigest()
+        if key not in _probes:  # built once per process, shared by its muscles
+            _probes[key] = BoneProbe(V, F)
+        probes.append((_probes[key], T))
+    out = Path(job["outdir"])
+    name = job["name"]
+    rows, entries = [], []
+    kw = {"method": job["method"], "max_iterations": job["max_iterations"]}
+    results = []
+    for k, frame in enumerate(job["frames"]):
+        res = d.deform(job["lines"][k], reference_point=job["references"][k], **kw)
+        T = job["to_output"][k]
+        ok_values = np.isfinite(res.V).all()
+        shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
+        n_in, depth = 0, 0.0
+        if ok_values:
+            Vo = apply(T, res.V)
+            for probe, TB in probes:
+                Q = apply(np.linalg.inv(TB[k]), Vo)
+                n, dep = probe.measure(Q)
+                n_in += n
+                depth = max(depth, dep)
+            fname = f"{name}/{name}_{frame:04d}.vtp"
+            write_mesh(out / fname, Vo, muscle.F)
+            entries.append((k, fname))
+        lname = f"{name}/{name}_lines_{frame:04d}.vtp"
+        P, segs, o = [], [], 0
+        for pts in job["lines"][k].values():
+            Pp = apply(T, np.asarray(pts, dtype=np.float64))
+            P.append(Pp)
+            segs += [[o + i, o + i + 1] for i in range(len(Pp) - 1)]
+            o += len(Pp)
+        write_mesh(out / lname, np.vstack(P), np.zeros((0, 3), int), lines=np.array(segs))
+        entries.append((k, lname))
+        rows.append(
+            {
+                "frame": frame,
+                "time": float(job["times"][k]),
+                "muscle": name,
+                "iterations": res.iterations,
+                "converged": res.converged,
+                "relative_volume_error": res.relative_volume_error,
+                "skeleton_fit_mean": res.skeleton_fit_mean,
+                "seconds": res.seconds,
+                "shape_change_max": shape,
+                "penetration_share": n_in / len(muscle.V),
+                "penetration_depth_max": depth,
+                "reason": res.reason,
+            }
+        )
+        results.append((abs(res.relative_volume_error), res.iterations))
+        _tick()
+    # The paper's iteration beside the default on a few frames, always including the worst
+    # frame of the default (most iterations, then largest volume error), whose iteration
+    # histories (default with the fine gradient, and the paper's) go into convergence.png.
+    n = len(job["frames"])
+    worst = max(range(n), key=lambda k: (results[k][1], results[k][0]))
+    paper, conv = [], {}
+    if job["paper_frames"]:
+        picks = set(np.linspace(0, n - 1, job["paper_frames"]).round().astype(int).tolist())
+        for k in sorted(picks | {worst}):
+            r = d.deform(job["lines"][k], reference_point=job["references"][k], method="paper")
+            paper.append((int(job["frames"][k]), r.relative_volume_error, r.iterations, r.seconds))
+            if k == worst:
+                conv["paper"] = [tuple(h) for h in r.history]
+        r = d.deform(job["lines"][worst], reference_point=job["references"][worst], method="exact")
+        conv["exact"] = [tuple(h) for h in r.history]
+    return {
+        "name": name,
+        "rows": rows,
+        "entries": entries,
+        "seconds_prepare": seconds_prepare,
+        "cache_hit": hit,
+        "note": note,
+        "notes": list(muscle.notes),
+        "paper": paper,
+        "worst_frame": int(job["frames"][worst]),
+        "convergence": conv,
+    }
+
+
+# ---------------------------------------------------------------------------- progress
+class _Progress:
+    def __init__(self, total: int, stream: Any) -> None:
+        self.total, self.done, self.stream = total, 0, stream
+        self.t0 = time.perf_counter()
+        self.tty = bool(getattr(stream, "isatty", lambda: False)())
+        self._last = -1
+
+    def add(self, n: int) -> None:
+        self.done += n
+        pct = int(100 * self.done / max(self.total, 1))
+        if self.tty:
+            bar = "#" * (pct // 4)
+            self.stream.write(
+                f"\r[{bar:<25}] {self.done}/{self.total} frames x muscles "
+                f"{time.perf_counter() - self.t0:5.1f} s"
+            )
+            if self.done >= self.total:
+                self.stream.write("\n")
+        elif pct // 10 != self._last // 10:
+            self.stream.write(f"{pct:3d}% ({self.done}/{self.total} frames x muscles)\n")
+        self._last = pct
+        self.stream.flush()
+
+
+# ---------------------------------------------------------------------------- main
+def _load_mesh(path: Path, *, label: str) -> tuple[FloatArray, IntArray]:
+    V, F = read_mesh(path)
+    return V, F
+
+
+def _bone_display(V: FloatArray, F: IntArray, faces: int) -> tuple[FloatArray, IntArray]:
+    """A lighter copy of a bone for display (VTK quadric decimation; copes with defects)."""
+    if faces == 0 or len(F) <= faces:
+        return V, F
+    import pyvista as pv
+
+    cells = np.hstack([np.full((len(F), 1), 3), F]).ravel()
+    d = pv.PolyData(V, cells).decimate(1.0 - faces / len(F))
+    G = d.faces.reshape(-1, 4)[:, 1:] if d.n_cells else F
+    if not d.n_cells:
+        return V, F
+    return np.asarray(d.points, dtype=np.float64), np.ascontiguousarray(G, dtype=np.int64)
+
+
+def run_scene(
+    scene: Scene,
+    outdir: Path,
+    *,
+    frames: str | None = None,
+    workers: int = 1,
+    cache_dir: Path | None | bool = True,
+    progress: Any = sys.stderr,
+    render: bool | None = None,
+    log: Callable[[str], None] | None = None,
+) -> RunSummary:
+    """Deform every muscle of a scene for every selected frame and write all outputs.
+
+    Parameters
+    ----------
+    scene : Scene
+        From `load_scene`.
+    outdir : pathlib.Path
+        Output folder (created).
+    frames : str, optional
+        ``start:stop:step`` over the motion's rows.
+    workers : int, optional
+        Processes over muscles (1: in this process).
+    cache_dir : path, True or False, optional
+        Where preparations are cached (True: the scene's ``cache_dir`` or
+        `default_cache_dir`; False: no cache).
+    progress : file-like or None, optional
+        Where the progress bar goes.
+    render : bool, optional
+        Write ``scene.gif`` (default: the scene's ``[output] gif``).
+    log : callable, optional
+        Receives one-line messages (repairs, notes) as they happen.
+
+    Returns
+    -------
+    RunSummary
+    """
+    from ..output import write_csv, write_pvd
+
+    t0 = time.perf_counter()
+    say = log or (lambda s: None)
+    outdir = Path(outdir)
+    notes: list[str] = []
+    # meshes (mesh units, mesh coordinates)
+    muscles = {}
+    for spec in scene.muscles:
+        V, F = _load_mesh(spec.mesh, label=spec.name)
+        V, F, mnotes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
+        for n in mnotes:
+            notes.append(f"{spec.name}: {n}")
+            say(f"{spec.name}: {n}")
+        muscles[spec.name] = (V, F)
+    bones = {}
+    for b in scene.bones:
+        V, F = _load_mesh(b.mesh, label=b.name)
+        V, F, _ = merge_duplicate_vertices(V, F)
+        rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+        F = F[~rep]
+        if check_mesh(V, F).volume < 0:
+            F = F[:, ::-1].copy()
+            notes.append(f"{b.name}: faces were oriented inward: flipped")
+        bones[b.name] = (V, F)
+    centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
+    drive = drive_scene(scene, frames, centroids)
+    notes += drive.notes
+    _check_units(scene, drive, muscles)
+
+    if cache_dir is True:
+        cache = scene.cache_dir or default_cache_dir()
+    elif cache_dir is False or cache_dir is None:
+        cache = None
+    else:
+        cache = Path(cache_dir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    n = len(drive.frames)
+    bone_local = {}
+    for b in scene.bones:
+        V, F = bones[b.name]
+        bone_local[b.name] = (apply(drive.to_body[b.name], V), F, drive.to_output[b.body])
+    jobs = []
+    for spec in scene.muscles:
+        V, F = muscles[spec.name]
+        Vb = apply(drive.to_body[spec.name], V)
+        jobs.append(
+            {
+                "name": spec.name,
+                "source": str(spec.mesh),
+                "V": Vb,
+                "F": F,
+                "cage_size": spec.cage_size,
+                "cage_coarsening": spec.cage_coarsening,
+                "cache_dir": None if cache is None else str(cache),
+                "method": spec.method,
+                "max_iterations": spec.max_iterations,
+                "rest_lines": drive.rest_lines[spec.name],
+                "rest_reference": drive.rest_reference[spec.name],
+                "lines": drive.lines[spec.name],
+                "references": drive.references[spec.name],
+                "to_output": drive.to_output[spec.body],
+                "frames": drive.frames,
+                "times": drive.times,
+                "bones": list(bone_local.values()),
+                "outdir": str(outdir),
+                "paper_frames": scene.paper_frames,
+            }
+        )
+    bar = _Progress(n * len(jobs), progress) if progress is not None else None
+    entries: list[tuple[int, str]] = []
+
+    def write_bones() -> None:
+        # one file per frame where the bone moves in the output frame, else one file
+        for b in scene.bones:
+            _write_bone(b.name)
+
+    def _write_bone(bname: str) -> None:
+        V, F, T = bone_local[bname]
+        DV, DF = _bone_display(V, F, scene.bone_display_faces)
+        moving = not np.allclose(T, T[0], atol=1e-9 * (1 + np.abs(T).max()))
+        if moving:
+            for k, frame in enumerate(drive.frames):
+                fname = f"{bname}/{bname}_{frame:04d}.vtp"
+                write_mesh(outdir / fname, apply(T[k], DV), DF)
+                entries.append((k, fname))
+        else:
+            fname = f"{bname}/{bname}.vtp"
+            write_mesh(outdir / fname, apply(T[0], DV), DF)
+            entries.extend((k, fname) for k in range(n))
+
+    # largest muscles first: the pool then finishes about together
+    jobs.sort(key=lambda j: -len(j["V"]))
+    results = _execute(jobs, workers, bar, meanwhile=write_bones)
+    order = {s.name: i for i, s in enumerate(scene.muscles)}
+    results.sort(key=lambda r: order[r["name"]])
+    rows = [r for res in results for r in res["rows"]]
+    for res in results:
+        entries += res["entries"]
+        if res["note"]:
+            notes.append(res["note"])
+    entries.sort(key=lambda e: e[0])
+    files = [
+        write_pvd(outdir / "scene.pvd", [(float(drive.times[k]), f) for k, f in entries]),
+        write_csv(outdir / "report.csv", rows, REPORT_FIELDS),
+    ]
+    files += _plots(outdir, scene, results, drive)
+    worst = max(
+        (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
+        for r in rows
+    )
+    summary = RunSummary(
+        outdir=outdir,
+        n_frames=n,
+        muscles=[s.name for s in scene.muscles],
+        rows=rows,
+        worst_volume_error=float(worst),
+        unconverged=sum(not r["converged"] for r in rows),
+        seconds=0.0,
+        seconds_prepare={r["name"]: r["seconds_prepare"] for r in results},
+        cache_hits=[r["name"] for r in results if r["cache_hit"]],
+        notes=notes,
+        files=files,
+    )
+    if render if render is not None else scene.gif:
+        from ..output import render_series
+
+        try:
+            files.append(
+                render_series(
+                    outdir / "scene.pvd",
+                    outdir / "scene.gif",
+                    every=scene.gif_every,
+                    size=scene.image_size,
+                    bones=tuple(b.name for b in scene.bones),
+                )
+            )
+        except RuntimeError as exc:
+            summary.notes.append(f"scene.gif not written: {exc}")
+    summary.seconds = time.perf_counter() - t0
+    return summary
+
+
+def _execute(
+    jobs: list[dict[str, Any]],
+    workers: int,
+    bar: _Progress | None,
+    *,
+    meanwhile: Callable[[], None],
+) -> list[dict[str, Any]]:
+    if workers <= 1 or len(jobs) <= 1:
+        global _progress_queue
+        meanwhile()
+        q = _LocalQueue(bar)
+        _progress_queue = q
+        try:
+            return [_muscle_job(j) for j in jobs]
+        finally:
+            _progress_queue = None
+    import multiprocessing as mp
+    import queue as queue_mod
+    from concurrent.futures import ProcessPoolExecutor
+
+    ctx = mp.get_context("spawn")
+    q = ctx.Queue()
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    with ProcessPoolExecutor(
+        max_workers=min(workers, len(jobs)),
+        mp_context=ctx,
+        initializer=_init_worker,
+        initargs=(q, threads),
+    ) as pool:
+        futs = [pool.submit(_muscle_job, j) for j in jobs]
+        meanwhile()
+        while not all(f.done() for f in futs):
+            try:
+                k = q.get(timeout=0.1)
+                if bar is not None:
+                    bar.add(k)
+            except queue_mod.Empty:
+                pass
+        results = [f.result() for f in futs]
+    while True:
+        try:
+            k = q.get_nowait()
+        except queue_mod.Empty:
+            break
+        if bar is not None:
+            bar.add(k)
+    return results
+
+
+class _LocalQueue:
+    def __init__(self, bar: _Progress | None) -> None:
+        self.bar = bar
+
+    def put(self, n: int) -> None:
+        if self.bar is not None:
+            self.bar.add(n)
+
+
+def _check_units(
+    scene: Scene, drive: Drive, muscles: dict[str, tuple[FloatArray, IntArray]]
+) -> None:
+    for spec in scene.muscles:
+        V, _ = muscles[spec.name]
+        Vb = apply(drive.to_body[spec.name], V)
+        lo, hi = Vb.min(0), Vb.max(0)
+        diag = float(np.linalg.norm(hi - lo))
+        P = np.vstack(list(drive.rest_lines[spec.name].values()))
+        gap = np.linalg.norm(np.maximum(0, np.maximum(lo - P, P - hi)), axis=1)
+        if np.median(gap) > 0.5 * diag:
+            raise SceneError(
+                f"{spec.mesh}: the rest action lines of '{spec.name}' lie {np.median(gap):.3g} "
+                f"{scene.mesh_unit} from the mesh (mesh size {diag:.3g} {scene.mesh_unit}): check "
+                f"[units] (mesh = '{scene.mesh_unit}', model = '{scene.model_unit}'), the muscle's "
+                f"body ('{spec.body}'), the rest pose, or the registration"
+            )
+
+
+def _plots(outdir: Path, scene: Scene, results: list[dict[str, Any]], drive: Drive) -> list[Path]:
+    from ..output import plot_convergence, plot_volume_error
+
+    series = {}
+    for res in results:
+        rows = res["rows"]
+        series[f"{res['name']} (sqp)"] = (
+            [r["frame"] for r in rows],
+            [r["relative_volume_error"] for r in rows],
+        )
+    paper = {res["name"]: res["paper"] for res in results if res["paper"]}
+    files = [
+        plot_volume_error(
+            outdir / "volume_error.png",
+            series,
+            title=f"{scene.name}: relative volume error per frame",
+            markers={
+                f"{m} (paper, eq. 11)": ([p[0] for p in ps], [p[1] for p in ps])
+                for m, ps in paper.items()
+            },
+        )
+    ]
+    conv = {
+        res["name"]: (res["worst_frame"], res["convergence"])
+        for res in results
+        if res["convergence"]
+    }
+    if conv:
+        files.append(
+            plot_convergence(
+                outdir / "convergence.png",
+                conv,
+                title=f"{scene.name}: convergence on the worst frame",
+            )
+        )
+    return files
