@@ -268,6 +268,7 @@ def _cmd_demo(a: argparse.Namespace) -> int:
 
 
 def _cmd_run(a: argparse.Namespace) -> int:
+    import dataclasses
     import os
 
     from .scene import load_scene, run_scene
@@ -278,20 +279,31 @@ def _cmd_run(a: argparse.Namespace) -> int:
     if workers < 1:
         raise ValueError(f"--workers must be at least 1, got {workers}")
     cache: Path | bool = False if a.no_cache else (Path(a.cache_dir) if a.cache_dir else True)
-    summary = run_scene(
-        scene,
-        out,
-        frames=a.frames,
-        workers=workers,
-        cache_dir=cache,
-        progress=sys.stderr,
-        render=False if a.no_gif else None,
-        log=lambda m: print(m, file=sys.stderr),
+    # several motions (e.g. sweeps): one output folder each
+    runs = (
+        [(scene, out)]
+        if len(scene.motions) <= 1
+        else [(dataclasses.replace(scene, motions=(m,)), out / m.stem) for m in scene.motions]
     )
-    print(summary.text())
-    if summary.unconverged and not a.allow_unconverged:
+    unconverged = 0
+    for sc, folder in runs:
+        if len(runs) > 1:
+            print(f"motion {sc.motion.name}:")
+        summary = run_scene(
+            sc,
+            folder,
+            frames=a.frames,
+            workers=workers,
+            cache_dir=cache,
+            progress=sys.stderr,
+            render=False if a.no_gif else None,
+            log=lambda m: print(m, file=sys.stderr),
+        )
+        print(summary.text())
+        unconverged += summary.unconverged
+    if unconverged and not a.allow_unconverged:
         print(
-            f"error: {summary.unconverged} frame(s) did not converge (see report.csv, column "
+            f"error: {unconverged} frame(s) did not converge (see report.csv, column "
             "'reason'); --allow-unconverged to accept",
             file=sys.stderr,
         )

@@ -91,7 +91,7 @@ class Scene:
     mesh_unit: str
     model_unit: str
     osim: Path | None
-    motion: Path | None
+    motions: tuple[Path, ...]
     rest_pose: dict[str, float]
     angle_unit: str
     coordinates: tuple[str, ...] | None
@@ -108,6 +108,11 @@ class Scene:
     image_size: tuple[int, int]
     cache_dir: Path | None
     extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def motion(self) -> Path | None:
+        """The (first) motion file, or None for a line-CSV scene."""
+        return self.motions[0] if self.motions else None
 
     @property
     def scale(self) -> float:
@@ -206,7 +211,13 @@ def load_scene(path: PathLike) -> Scene:
             "or [lines] csv (per-frame action lines)"
         )
     osim = _file(base, model["osim"], "[model] osim", src) if "osim" in model else None
-    motion = _file(base, model["motion"], "[model] motion", src) if "motion" in model else None
+    motions: tuple[Path, ...] = ()
+    if "motion" in model:
+        mv = model["motion"]
+        items = mv if isinstance(mv, list) else [mv]
+        if not items:
+            raise SceneError(f"{src}: [model] motion is an empty list")
+        motions = tuple(_file(base, m, "[model] motion", src) for m in items)
     rest_pose: dict[str, float] = {}
     for k, v in _table(model.get("rest_pose", {}), "model.rest_pose", src).items():
         rest_pose[k] = _get({k: v}, k, float, "[model] rest_pose", src)
@@ -385,7 +396,7 @@ def load_scene(path: PathLike) -> Scene:
         mesh_unit=mesh_unit,
         model_unit=model_unit,
         osim=osim,
-        motion=motion,
+        motions=motions,
         rest_pose=rest_pose,
         angle_unit=angle_unit,
         coordinates=coords,

@@ -1,0 +1,248 @@
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from musclewrap.cli import main
+from musclewrap.mesh import write_mesh
+from musclewrap.scene import (
+    REPORT_FIELDS,
+    BoneProbe,
+    SceneError,
+    load_scene,
+    parse_frames,
+    read_motion,
+    run_scene,
+)
+from musclewrap.synthetic import capsule, demo_scene
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _rows(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+# ------------------------------------------------------------------ motion files
+def _mot(tmp_path, header, labels, rows):
+    p = tmp_path / "m.mot"
+    text = header + "endheader\n" + "\t".join(labels) + "\n"
+    text += "\n".join("\t".join(str(v) for v in r) for r in rows) + "\n"
+    p.write_text(text)
+    return p
+
+
+def test_read_motion_degrees_and_columns(tmp_path):
+    p = _mot(
+        tmp_path, "x\ninDegrees=yes\n", ["time", "a", "b", "b"], [[0, 1, 2, 3], [0.5, 4, 5, 6]]
+    )
+    m = read_motion(p)
+    assert m.in_degrees and m.degrees_declared
+    np.testing.assert_array_equal(m.time, [0, 0.5])
+    np.testing.assert_array_equal(m.columns["a"], [1, 4])
+    assert "b" in m.repeated and "b" not in m.columns
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("time\ta\n0\t1\n", "endheader"),
+        ("endheader\na\tb\n0\t1\n", "no 'time' column"),
+        ("endheader\ntime\ta\n0\t1\t2\n", "row 1 has 3 values"),
+        ("endheader\ntime\ta\n0\tx\n", "non-numeric"),
+        ("endheader\ntime\ta\n0\tnan\n", "NaN"),
+        ("endheader\ntime\ta\n1\t1\n0\t1\n", "do not increase"),
+        ("endheader\ntime\ta\n", "no frames"),
+    ],
+)
+def test_read_motion_refuses_bad_files(tmp_path, text, match):
+    p = tmp_path / "bad.mot"
+    p.write_text(text)
+    with pytest.raises(SceneError, match=match):
+        read_motion(p)
+
+
+def test_parse_frames():
+    assert parse_frames(None, 4, source="m") == [0, 1, 2, 3]
+    assert parse_frames("0:211:30", 211, source="m") == list(range(0, 211, 30))
+    assert parse_frames("5", 10, source="m") == [5]
+    for bad, match in [
+        ("0:5:0", "positive"),
+        ("a:b", "integers"),
+        ("300:400", "out of range"),
+        ("3:3", "no frame"),
+    ]:
+        with pytest.raises(SceneError, match=match):
+            parse_frames(bad, 211, source="m")
+
+
+# ------------------------------------------------------------------ scene files
+def _write_demo(tmp_path, n_frames=7):
+    """The synthetic demo as a line-CSV scene (no OpenSim needed)."""
+    sc = demo_scene(n_frames)
+    write_mesh(tmp_path / "muscle.vtp", sc.V, sc.F)
+    bV, bF = sc.bones["thigh"]
+    write_mesh(tmp_path / "thigh.vtp", bV, bF)
+    with open(tmp_path / "lines.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frame", "time", "muscle", "line", "point", "x", "y", "z"])
+        for k in range(n_frames):
+            for i, p in enumerate(sc.line(k)["main"]):
+                w.writerow([k, k * 0.1, "fusiform", "main", i, *p])
+    toml = tmp_path / "scene.toml"
+    toml.write_text(
+        'name = "demo"\n[lines]\ncsv = "lines.csv"\nrest_frame = 0\n'
+        '[muscles.fusiform]\nmesh = "muscle.vtp"\nreference = "thigh"\ncage_size = 200\n'
+        '[bones.thigh]\nmesh = "thigh.vtp"\n[output]\npaper_frames = 2\ngif = false\n'
+    )
+    return sc, toml
+
+
+def test_line_csv_scene_runs_and_writes_everything(tmp_path):
+    sc, toml = _write_demo(tmp_path)
+    scene = load_scene(toml)
+    out = tmp_path / "out"
+    s = run_scene(scene, out, workers=1, cache_dir=tmp_path / "cache", progress=None)
+    assert s.unconverged == 0 and s.worst_volume_error <= 1e-9
+    rows = _rows(out / "report.csv")
+    assert list(rows[0])[:8] == REPORT_FIELDS[:8]
+    assert len(rows) == 7
+    for r in rows:
+        assert r["converged"] == "True"
+        assert abs(float(r["relative_volume_error"])) <= 1e-9
+        assert float(r["skeleton_fit_mean"]) < 1.0
+        assert 0 <= float(r["penetration_share"]) <= 1
+    for k in range(7):
+        assert (out / "fusiform" / f"fusiform_{k:04d}.vtp").is_file()
+        assert (out / "fusiform" / f"fusiform_lines_{k:04d}.vtp").is_file()
+    assert (out / "thigh" / "thigh.vtp").is_file()  # static bone: written once
+    pvd = (out / "scene.pvd").read_text()
+    assert pvd.count("<DataSet") == 7 * 3 and 'timestep="0.6' in pvd
+    for png in ("volume_error.png", "convergence.png"):
+        assert (out / png).stat().st_size > 1000
+    # the second run takes the preparation from the cache; results are identical
+    s2 = run_scene(scene, tmp_path / "out2", workers=1, cache_dir=tmp_path / "cache", progress=None)
+    assert s2.cache_hits == ["fusiform"]
+    a = (out / "fusiform" / "fusiform_0006.vtp").read_bytes()
+    assert a == (tmp_path / "out2" / "fusiform" / "fusiform_0006.vtp").read_bytes()
+
+
+def test_corrupted_cache_is_rebuilt_not_used(tmp_path):
+    _, toml = _write_demo(tmp_path, n_frames=3)
+    scene = load_scene(toml)
+    run_scene(scene, tmp_path / "o1", cache_dir=tmp_path / "cache", progress=None)
+    (f,) = (tmp_path / "cache").glob("*.npz")
+    data = bytearray(f.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    f.write_bytes(bytes(data))
+    s = run_scene(scene, tmp_path / "o2", cache_dir=tmp_path / "cache", progress=None)
+    assert s.cache_hits == [] and any("rebuilt" in n for n in s.notes)
+    assert s.worst_volume_error <= 1e-9
+
+
+def test_scene_errors_name_the_problem(tmp_path):
+    _, toml = _write_demo(tmp_path, n_frames=2)
+    good = toml.read_text()
+    cases = [
+        (
+            good.replace("cage_size", "cage_sise"),
+            "unknown key 'cage_sise'.*did you mean 'cage_size'",
+        ),
+        (good.replace('"muscle.vtp"', '"nope.vtp"'), "no such file"),
+        (good.replace('reference = "thigh"', 'reference = "shin"'), "not a bone of the scene"),
+        (good.replace("[lines]", "[linez]"), "unknown key 'linez'"),
+        (good + "[muscles.x]\nmesh = 3\n", "must be a file path"),
+        ("name = [", "not valid TOML"),
+        ('name = "x"\n', "needs \\[model\\] osim and motion"),
+    ]
+    for text, match in cases:
+        toml.write_text(text)
+        with pytest.raises(SceneError, match=match):
+            load_scene(toml)
+    # the CLI turns them into exit status 2 with the message
+    assert main(["run", str(toml)]) == 2
+
+
+def test_unit_mismatch_is_an_error_with_a_hint(tmp_path):
+    sc, toml = _write_demo(tmp_path, n_frames=2)
+    write_mesh(tmp_path / "muscle.vtp", sc.V / 1000.0, sc.F)  # the mesh in metres
+    with pytest.raises(SceneError, match="check \\[units\\]"):
+        run_scene(load_scene(toml), tmp_path / "o", cache_dir=False, progress=None)
+
+
+# ------------------------------------------------------------------ penetration
+def test_bone_probe_matches_a_sphere():
+    V, F = capsule(radius=10.0, length=0.0, n_around=96, cap_rings=48, segments=1)
+    probe = BoneProbe(V, F)
+    rng = np.random.default_rng(1)
+    d = rng.normal(size=(400, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    r = rng.uniform(0.0, 20.0, 400)
+    centre = V.mean(axis=0)  # the capsule with no cylinder is a sphere about its middle
+    Q = centre + d * r[:, None]
+    n, depth = probe.measure(Q)
+    # the polygonal sphere's inscribed radius is within 0.02 of 10
+    inside = r < 10.0 - 0.03
+    outside = r > 10.0 + 0.03
+    amb = ~(inside | outside)
+    assert inside.sum() <= n <= inside.sum() + amb.sum()
+    assert depth == pytest.approx(10.0 - r[inside].min(), abs=0.05)
+    assert probe.measure(Q[outside]) == (0, 0.0)
+
+
+# ------------------------------------------------------------------ real data
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_lhdl_walk_subset_meets_targets(data_dir, tmp_path):
+    scene = load_scene(EXAMPLES / "lhdl_walk.toml")
+    s = run_scene(
+        scene,
+        tmp_path / "walk",
+        frames="0:211:30",
+        workers=2,
+        cache_dir=tmp_path / "c",
+        progress=None,
+        render=False,
+    )
+    # three of the four LHDL muscles are not clean manifolds: repaired with a report
+    repaired = {n.split(":")[0] for n in s.notes if "repaired with PyMeshFix" in n}
+    assert repaired == {"gluteus_medius", "iliacus", "psoas"}
+    assert len(s.rows) == 4 * 8
+    for r in s.rows:
+        assert r["converged"], r
+        assert abs(r["relative_volume_error"]) <= 1e-9, r
+        assert r["skeleton_fit_mean"] <= 1.0, r
+        assert r["shape_change_max"] <= 0.5, r
+        assert np.isfinite(r["penetration_depth_max"]) and 0 <= r["penetration_share"] < 1
+    assert (tmp_path / "walk" / "femur" / "femur_0030.vtp").is_file()  # the femur moves
+    assert (tmp_path / "walk" / "iliac" / "iliac.vtp").is_file()  # the pelvis does not
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys):
+    out = tmp_path / "sweeps"
+    rc = main(
+        [
+            "run",
+            str(EXAMPLES / "lhdl_hip_sweeps.toml"),
+            "-o",
+            str(out),
+            "--no-gif",
+            "--cache-dir",
+            str(tmp_path / "c"),
+        ]
+    )
+    assert rc == 0
+    for motion in ("hip_flexion", "hip_adduction", "hip_rotation"):
+        rows = _rows(out / motion / "report.csv")
+        n = read_motion(data_dir / "lhdl" / "motions" / f"{motion}.mot").n_frames
+        assert len(rows) == 4 * n
+        for r in rows:
+            assert r["converged"] == "True", r
+            assert abs(float(r["relative_volume_error"])) <= 1e-9, r
+            assert float(r["skeleton_fit_mean"]) <= 1.0, r
+            assert float(r["shape_change_max"]) <= 0.5, r
+    assert "unconverged frames 0" in capsys.readouterr().out
