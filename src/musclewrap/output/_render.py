@@ -39,6 +39,8 @@ def render_series(
 ) -> Path:
     """Render every ``every``-th time step of a ``.pvd`` collection into an animated GIF.
 
+    The middle picture is also written as a PNG beside it (same name).
+
     Parameters
     ----------
     pvd : str or os.PathLike
@@ -69,17 +71,19 @@ def render_series(
     env = dict(os.environ)
     if not env.get("DISPLAY"):
         env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    with atomic_path(out) as tmp:
+    png = out.with_suffix(".png")
+    with atomic_path(out) as tmp, atomic_path(png) as tmp_png:
         cmd = [
             sys.executable,
-            "-m",
-            "musclewrap.output._render",
+            "-c",
+            "import sys; from musclewrap.output._render import _main; sys.exit(_main(sys.argv[1:]))",
             str(pvd),
             str(tmp),
             str(every),
             str(size[0]),
             str(size[1]),
             ",".join(bones),
+            str(tmp_png),
         ]
         try:
             r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
@@ -87,7 +91,7 @@ def render_series(
             raise RuntimeError(
                 f"rendering took more than {timeout:.0f} s and was stopped"
             ) from None
-        if r.returncode != 0 or not Path(tmp).is_file():
+        if r.returncode != 0 or Path(tmp).stat().st_size == 0 or Path(tmp_png).stat().st_size == 0:
             why = (r.stderr or "").strip().splitlines()[-1:] or [f"exit status {r.returncode}"]
             if r.returncode < 0:
                 why = [f"the renderer crashed (signal {-r.returncode})"]
@@ -159,6 +163,8 @@ def _main(argv: list[str]) -> int:  # pragma: no cover - runs in a child process
         frames.append(Image.fromarray(pl.screenshot(return_img=True)))
     pl.close()
     frames[0].save(gif, format="GIF", save_all=True, append_images=frames[1:], duration=50, loop=0)
+    if len(argv) > 6 and argv[6]:
+        frames[len(frames) // 2].save(argv[6], format="PNG")
     return 0
 
 
