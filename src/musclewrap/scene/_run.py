@@ -94,15 +94,16 @@ _probes: dict[str, Any] = {}
 def _init_worker(queue: Any, threads: int) -> None:
     global _progress_queue
     _progress_queue = queue
+    # A failing initializer breaks the whole pool: thread limits are best effort.
     try:
         import numba
 
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(threads)
     except Exception:  # pragma: no cover  # noqa: BLE001
         pass
-    from threadpoolctl import threadpool_limits
-
-    threadpool_limits(threads)
 
 
 def _tick(n: int = 1) -> None:
