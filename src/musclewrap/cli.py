@@ -340,7 +340,11 @@ def _cmd_bench(a: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 bad input, 3 not converged)."""
+    """Run the command line; returns the exit status.
+
+    0 ok, 2 bad input (the message names the file and the problem), 3 not converged,
+    4 a failure of the machine or a worker process.
+    """
     from .cage import CageError
     from .conditions import LineError
     from .mesh import MeshError
@@ -358,6 +362,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (MeshError, LineError, CageError, ValueError, OSError, ImportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 4
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -491,6 +491,7 @@ def _execute(
     import multiprocessing as mp
     import queue as queue_mod
     from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
 
     ctx = mp.get_context("spawn")
     q = ctx.Queue()
@@ -510,7 +511,13 @@ def _execute(
                     bar.add(k)
             except queue_mod.Empty:
                 pass
-        results = [f.result() for f in futs]
+        try:
+            results = [f.result() for f in futs]
+        except BrokenProcessPool:
+            raise RuntimeError(
+                "a worker process died without a Python error (out of memory, or a crash in a "
+                "compiled library); rerun with --workers 1 to see where"
+            ) from None
     while True:
         try:
             k = q.get_nowait()
