@@ -1,7 +1,15 @@
 """Soft conditions of the deformation: shape (Laplacian) and skeleton (action lines)."""
 
 from ._laplacian import cotangent_laplacian
-from ._lines import LineError, LineSampling, check_lines, polyline_at, read_lines_csv, sample_lines
+from ._lines import (
+    LineError,
+    LineSampling,
+    check_lines,
+    csv_rows,
+    polyline_at,
+    read_lines_csv,
+    sample_lines,
+)
 from ._rotation import (
     RotationField,
     SampleRotations,
@@ -18,6 +26,7 @@ __all__ = [
     "SampleRotations",
     "check_lines",
     "cotangent_laplacian",
+    "csv_rows",
     "kabsch",
     "matrix_to_quaternion",
     "polyline_at",

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import csv
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +17,7 @@ __all__ = [
     "LineError",
     "LineSampling",
     "check_lines",
+    "csv_rows",
     "polyline_at",
     "read_lines_csv",
     "sample_lines",
@@ -181,6 +182,36 @@ def sample_lines(
     return LineSampling(names=names, params=tuple(params))
 
 
+def csv_rows(
+    path: Path, header: list[str], *, error: type[ValueError]
+) -> Iterator[tuple[int, list[str]]]:
+    """Rows of a CSV file with a fixed header, as (row number, fields); blank rows skipped.
+
+    Raises
+    ------
+    ValueError
+        Of class ``error``, naming the file: a header other than ``header``
+        (compared case-insensitively), a row with another number of fields,
+        or a file that is not UTF-8 text.
+    """
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh)
+            got = [h.strip().lower() for h in next(reader, [])]
+            if got != header:
+                raise error(f"{path}: header must be '{','.join(header)}', got '{','.join(got)}'")
+            for row_no, row in enumerate(reader, start=2):
+                if not row or all(not c.strip() for c in row):
+                    continue
+                if len(row) != len(header):
+                    raise error(
+                        f"{path}: row {row_no} has {len(row)} fields, expected {len(header)}"
+                    )
+                yield row_no, row
+    except UnicodeDecodeError:
+        raise error(f"{path}: not a text CSV file") from None
+
+
 def read_lines_csv(path: PathLike) -> dict[str, FloatArray]:
     """Read action lines from a CSV file with header ``line,x,y,z``.
 
@@ -205,26 +236,12 @@ def read_lines_csv(path: PathLike) -> dict[str, FloatArray]:
     if not p.is_file():
         raise LineError(f"{p}: no such action-line file")
     pts: dict[str, list[list[float]]] = {}
-    try:
-        with open(p, newline="", encoding="utf-8-sig") as fh:
-            reader = csv.reader(fh)
-            header = [h.strip().lower() for h in next(reader, [])]
-            if header != ["line", "x", "y", "z"]:
-                raise LineError(f"{p}: header must be 'line,x,y,z', got '{','.join(header)}'")
-            for row_no, row in enumerate(reader, start=2):
-                if not row or all(not c.strip() for c in row):
-                    continue
-                if len(row) != 4:
-                    raise LineError(f"{p}: row {row_no} has {len(row)} fields, expected 4")
-                try:
-                    xyz = [float(c) for c in row[1:]]
-                except ValueError:
-                    raise LineError(
-                        f"{p}: row {row_no} has a non-numeric coordinate: {row}"
-                    ) from None
-                pts.setdefault(row[0].strip(), []).append(xyz)
-    except UnicodeDecodeError:
-        raise LineError(f"{p}: not a text CSV file") from None
+    for row_no, row in csv_rows(p, ["line", "x", "y", "z"], error=LineError):
+        try:
+            xyz = [float(c) for c in row[1:]]
+        except ValueError:
+            raise LineError(f"{p}: row {row_no} has a non-numeric coordinate: {row}") from None
+        pts.setdefault(row[0].strip(), []).append(xyz)
     if not pts:
         raise LineError(f"{p}: no action-line points found")
     return check_lines(pts, name=str(p))

@@ -1,6 +1,13 @@
 """Mesh input/output, checks and volume."""
 
-from ._checks import MeshCheck, MeshError, check_mesh, clean_mesh, merge_duplicate_vertices
+from ._checks import (
+    MeshCheck,
+    MeshError,
+    check_mesh,
+    clean_mesh,
+    merge_duplicate_vertices,
+    tidy_mesh,
+)
 from ._geometry import face_areas, half_edges, mean_edge_length, umbrella_laplacian
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
 from ._repair import repair_mesh
@@ -21,6 +28,7 @@ __all__ = [
     "merge_duplicate_vertices",
     "read_mesh",
     "repair_mesh",
+    "tidy_mesh",
     "volume",
     "volume_cubic",
     "volume_cubic_pair",

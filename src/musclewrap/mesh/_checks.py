@@ -181,6 +181,26 @@ def merge_duplicate_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, In
     return np.ascontiguousarray(uniq[used]), remap[F2], len(V) - len(used)
 
 
+def tidy_mesh(V: FloatArray, F: IntArray) -> tuple[FloatArray, IntArray, list[str]]:
+    """Merge duplicate vertices and drop faces with a repeated vertex (no other change).
+
+    Returns
+    -------
+    V, F : arrays
+    notes : list of str
+        What was changed.
+    """
+    notes: list[str] = []
+    V, F, merged = merge_duplicate_vertices(V, F)
+    if merged:
+        notes.append(f"merged {merged} duplicate vertices")
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    if rep.any():
+        F = F[~rep]
+        notes.append(f"removed {int(rep.sum())} faces with repeated vertices")
+    return V, F, notes
+
+
 def clean_mesh(
     V: FloatArray, F: IntArray, *, source: str = "mesh", repair: bool = False
 ) -> tuple[FloatArray, IntArray, list[str]]:
@@ -216,14 +236,7 @@ def clean_mesh(
         If the mesh is open, non-manifold, inconsistently oriented, has several
         components, or encloses no volume.
     """
-    notes: list[str] = []
-    V, F, merged = merge_duplicate_vertices(V, F)
-    if merged:
-        notes.append(f"merged {merged} duplicate vertices")
-    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
-    if rep.any():
-        F = F[~rep]
-        notes.append(f"removed {int(rep.sum())} faces with repeated vertices")
+    V, F, notes = tidy_mesh(V, F)
     chk = check_mesh(V, F)
     problems = chk.problems(repairable=False)
     if chk.degenerate_faces:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 from xml.sax.saxutils import quoteattr
 
 from .._typing import PathLike
@@ -54,6 +55,18 @@ def write_csv(path: PathLike, rows: Sequence[Mapping[str, object]], fields: Sequ
     return p
 
 
+def _save_png(fig: Any, path: PathLike) -> Path:
+    """Lay out, write atomically and close a matplotlib figure."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    p = Path(path)
+    with atomic_path(p) as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+    return p
+
+
 def plot_volume_error(
     path: PathLike,
     series: Mapping[str, tuple[Sequence[float], Sequence[float]]],
@@ -97,12 +110,7 @@ def plot_volume_error(
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small", ncol=2 if len(series) + len(markers or {}) > 4 else 1)
-    fig.tight_layout()
-    p = Path(path)
-    with atomic_path(p) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return p
+    return _save_png(fig, path)
 
 
 def plot_convergence(
@@ -149,9 +157,4 @@ def plot_convergence(
     axes[1, 0].set_ylabel("|relative volume error|")
     axes[0, 0].legend(fontsize="small")
     fig.suptitle(title, fontsize="medium")
-    fig.tight_layout()
-    p = Path(path)
-    with atomic_path(p) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return p
+    return _save_png(fig, path)

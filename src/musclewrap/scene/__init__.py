@@ -1,8 +1,9 @@
 """Scenes: an OpenSim model and motion (or per-frame lines) driving many muscles."""
 
-from ._config import BoneSpec, MuscleSpec, Registration, Scene, load_scene
+from ._config import BoneSpec, MuscleSpec, Scene, load_scene
 from ._drive import Drive, drive_scene, parse_frames
-from ._motion import Motion, SceneError, read_motion
+from ._errors import SceneError
+from ._motion import Motion, read_motion
 from ._opensim import OpenSimModel
 from ._penetration import BoneProbe
 from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_scene
@@ -15,7 +16,6 @@ __all__ = [
     "Motion",
     "MuscleSpec",
     "OpenSimModel",
-    "Registration",
     "RunSummary",
     "Scene",
     "SceneError",

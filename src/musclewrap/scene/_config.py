@@ -2,20 +2,18 @@
 
 from __future__ import annotations
 
+import os
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from .._typing import FloatArray, PathLike
+from .._typing import PathLike
 from ..constants import defaults
-from ._motion import SceneError
-from ._opensim import suggest
+from ._errors import SceneError, suggest
 
-__all__ = ["BoneSpec", "MuscleSpec", "Registration", "Scene", "load_scene", "UNITS"]
+__all__ = ["UNITS", "BoneSpec", "MuscleSpec", "Scene", "load_scene"]
 
 #: length units accepted in ``[units]``, in metres
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -25,7 +23,6 @@ _TOP = {
     "units",
     "model",
     "lines",
-    "registration",
     "output",
     "muscles",
     "bones",
@@ -33,7 +30,6 @@ _TOP = {
 }
 _MODEL = {"osim", "motion", "rest_pose", "angle_unit", "coordinates", "output_frame", "mesh_frame"}
 _LINES = {"csv", "rest_frame"}
-_REG = {"landmarks", "mesh_axes", "scale"}
 _OUTPUT = {"bone_display_faces", "paper_frames", "gif", "image_size", "gif_every"}
 _MUSCLE = {
     "mesh", "paths", "body", "reference", "cage_size", "cage_coarsening", "method",
@@ -70,19 +66,6 @@ class BoneSpec:
 
 
 @dataclass(frozen=True)
-class Registration:
-    """Similarity transform from mesh coordinates to the model's ground at the rest pose.
-
-    ``x_model = scale * R @ x_mesh + t`` (in mesh units: the unit conversion
-    is applied separately).
-    """
-
-    landmarks: tuple[tuple[str, str], ...]
-    mesh_axes: tuple[str, str, str] | None
-    scale: float | str
-
-
-@dataclass(frozen=True)
 class Scene:
     """A parsed, validated scene file (paths resolved against its folder)."""
 
@@ -98,7 +81,6 @@ class Scene:
     output_frame: str
     lines_csv: Path | None
     rest_frame: int
-    registration: Registration | None
     muscles: tuple[MuscleSpec, ...]
     bones: tuple[BoneSpec, ...]
     bone_display_faces: int
@@ -148,8 +130,7 @@ def _file(base: Path, value: Any, where: str, src: Path) -> Path:
     if not isinstance(value, str) or not value:
         raise SceneError(f"{src}: {where} must be a file path (string), got {value!r}")
     p = Path(value).expanduser()
-    p = p if p.is_absolute() else (base / p)
-    p = Path(__import__("os").path.normpath(p))
+    p = Path(os.path.normpath(p if p.is_absolute() else base / p))
     if not p.is_file():
         raise SceneError(f"{src}: {where} = '{value}': no such file ({p})")
     return p
@@ -243,49 +224,6 @@ def load_scene(path: PathLike) -> Scene:
 
     lines_csv = _file(base, lines["csv"], "[lines] csv", src) if "csv" in lines else None
     rest_frame = _get(lines, "rest_frame", int, "[lines]", src) if "rest_frame" in lines else 0
-
-    registration = None
-    if "registration" in raw:
-        reg = _table(raw["registration"], "registration", src)
-        _keys(reg, _REG, "[registration]", src)
-        if osim is None:
-            raise SceneError(f"{src}: [registration] needs an OpenSim model ([model] osim)")
-        lms = reg.get("landmarks", [])
-        if not isinstance(lms, list) or len(lms) < 2:
-            raise SceneError(f"{src}: [registration] landmarks must list at least 2 pairs")
-        pairs = []
-        for i, lm in enumerate(lms):
-            lm = _table(lm, f"registration.landmarks[{i}]", src)
-            _keys(lm, {"mesh", "model"}, f"[registration] landmarks[{i}]", src)
-            if not {"mesh", "model"} <= set(lm):
-                raise SceneError(f"{src}: [registration] landmarks[{i}] needs 'mesh' and 'model'")
-            kind, _, f = str(lm["mesh"]).partition(":")
-            if kind not in ("centroid", "sphere_centre") or not f:
-                raise SceneError(
-                    f"{src}: [registration] landmarks[{i}].mesh = {lm['mesh']!r}; write "
-                    "'centroid:FILE' or 'sphere_centre:FILE'"
-                )
-            f = str(_file(base, f, f"[registration] landmarks[{i}].mesh", src))
-            pairs.append((f"{kind}:{f}", str(lm["model"])))
-        axes = reg.get("mesh_axes")
-        if axes is not None:
-            ok = (
-                isinstance(axes, list)
-                and len(axes) == 3
-                and sorted(a.lstrip("-") for a in axes if isinstance(a, str)) == ["x", "y", "z"]
-            )
-            if not ok:
-                raise SceneError(
-                    f"{src}: [registration] mesh_axes must name the mesh axis along each model "
-                    f"axis, e.g. ['y', 'z', 'x'] or ['-x', 'z', 'y']; got {axes!r}"
-                )
-            axes = tuple(axes)
-        scale = reg.get("scale", "landmarks")
-        if not (scale == "landmarks" or (isinstance(scale, int | float) and scale > 0)):
-            raise SceneError(
-                f"{src}: [registration] scale must be 'landmarks' or a positive number"
-            )
-        registration = Registration(tuple(pairs), axes, scale)
 
     out = _table(raw.get("output", {}), "output", src)
     _keys(out, _OUTPUT, "[output]", src)
@@ -403,7 +341,6 @@ def load_scene(path: PathLike) -> Scene:
         output_frame=output_frame,
         lines_csv=lines_csv,
         rest_frame=rest_frame,
-        registration=registration,
         muscles=tuple(muscles),
         bones=tuple(bones),
         bone_display_faces=bone_faces,
@@ -413,49 +350,3 @@ def load_scene(path: PathLike) -> Scene:
         image_size=(size[0], size[1]),
         cache_dir=cache_dir,
     )
-
-
-def similarity_from_landmarks(
-    mesh_points: FloatArray,
-    model_points: FloatArray,
-    *,
-    axes: FloatArray | None,
-    scale: float | None,
-) -> tuple[float, FloatArray, FloatArray]:
-    """Scale, rotation and translation with ``model ~ s R mesh + t``.
-
-    With three or more well-spread landmarks and no axis prior, Umeyama's
-    least-squares similarity. With an axis prior ``axes`` (the rotation that
-    maps mesh axes onto model axes), the prior is kept and only the minimal
-    rotation that aligns the first-to-last landmark directions is added:
-    two landmarks then suffice and collinear ones (hip, knee, ankle) are fine.
-    """
-    P, Q = np.asarray(mesh_points, float), np.asarray(model_points, float)
-    if axes is None:
-        if len(P) < 3:
-            raise SceneError("registration without mesh_axes needs at least 3 landmarks")
-        mp, mq = P.mean(0), Q.mean(0)
-        A, B = P - mp, Q - mq
-        U, S, Vt = np.linalg.svd(B.T @ A)
-        if S[1] < 1e-6 * S[0]:
-            raise SceneError(
-                "registration landmarks are (nearly) collinear: add one off the line or give mesh_axes"
-            )
-        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-        R = U @ D @ Vt
-        s = float(np.trace(np.diag(S) @ D) / (A * A).sum()) if scale is None else scale
-        return s, R, mq - s * R @ mp
-    R0 = np.asarray(axes, float)
-    a = R0 @ (P[-1] - P[0])
-    b = Q[-1] - Q[0]
-    na, nb = np.linalg.norm(a), np.linalg.norm(b)
-    if na == 0 or nb == 0:
-        raise SceneError("registration: the first and last landmarks coincide")
-    a, b = a / na, b / nb
-    v, c = np.cross(a, b), float(a @ b)
-    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    Rm = np.eye(3) + K + K @ K / (1 + c) if c > -1 + 1e-12 else -np.eye(3)
-    R = Rm @ R0
-    s = nb / na if scale is None else scale
-    A = s * (R @ P.T).T
-    return s, R, (Q - A).mean(0)

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .._typing import FloatArray
-from ._config import Scene, similarity_from_landmarks
-from ._motion import SceneError, read_motion
-from ._opensim import OpenSimModel, suggest
+from ..conditions import csv_rows
+from ._config import Scene
+from ._errors import SceneError, suggest
+from ._motion import read_motion
+from ._opensim import OpenSimModel
 
-__all__ = ["Drive", "apply", "drive_scene", "parse_frames"]
+__all__ = ["Drive", "apply", "drive_scene", "invert_rigid", "parse_frames"]
 
 
 def apply(T: FloatArray, P: FloatArray) -> FloatArray:
@@ -20,7 +21,8 @@ def apply(T: FloatArray, P: FloatArray) -> FloatArray:
     return P @ T[:3, :3].T + T[:3, 3]
 
 
-def _inv(T: FloatArray) -> FloatArray:
+def invert_rigid(T: FloatArray) -> FloatArray:
+    """Inverse of a 4x4 rigid transform (rotation transposed)."""
     R = T[:3, :3]
     out = np.eye(4)
     out[:3, :3] = R.T
@@ -59,7 +61,7 @@ class Drive:
     """Per-frame input of every muscle, in mesh units.
 
     ``to_body[name]`` maps a muscle's or bone's mesh coordinates (given in
-    its ``frame`` at the rest pose, after the registration if any) into the
+    its ``frame`` at the rest pose) into the
     frame of the body that carries it, in which the muscle is deformed;
     ``to_output[body][k]`` maps that body's frame to the output frame at
     frame position ``k``.
@@ -101,31 +103,6 @@ def _angle_in_degrees(scene: Scene, motion, model: OpenSimModel, coords) -> tupl
     return deg, how
 
 
-def _landmark_point(spec: str) -> FloatArray:
-    from ..mesh import read_mesh
-
-    kind, _, f = spec.partition(":")
-    V, _ = read_mesh(f)
-    if kind == "centroid":
-        return V.mean(axis=0)
-    # algebraic sphere fit: |x|^2 = 2 c.x + (r^2 - |c|^2)
-    A = np.hstack([2 * V, np.ones((len(V), 1))])
-    sol, *_ = np.linalg.lstsq(A, (V * V).sum(1), rcond=None)
-    return sol[:3]
-
-
-def _axes_matrix(axes: tuple[str, str, str]) -> FloatArray:
-    R = np.zeros((3, 3))
-    for i, a in enumerate(axes):
-        R[i, "xyz".index(a.lstrip("-"))] = -1.0 if a.startswith("-") else 1.0
-    if np.linalg.det(R) < 0:
-        raise SceneError(
-            f"[registration] mesh_axes {list(axes)} is a reflection (left-handed); "
-            "flip the sign of one axis"
-        )
-    return R
-
-
 def drive_scene(scene: Scene, frames: str | None, bone_centroids: dict[str, FloatArray]) -> Drive:
     """Compute every muscle's action lines (and reference point) for the selected frames.
 
@@ -136,7 +113,7 @@ def drive_scene(scene: Scene, frames: str | None, bone_centroids: dict[str, Floa
     frames : str or None
         ``start:stop:step`` over the motion's rows (or the CSV's frames).
     bone_centroids : dict of str to (3,) array
-        Centroid of each bone mesh in mesh coordinates (before registration).
+        Centroid of each bone mesh in mesh coordinates.
     """
     if scene.osim is not None and scene.motion is not None:
         return _drive_opensim(scene, frames, bone_centroids)
@@ -220,30 +197,10 @@ def _drive_opensim(
         for m in scene.muscles if m.reference is not None
     } | {"ground"})  # fmt: skip
     model.set_pose(rest)
-    mesh_T = np.eye(4)
-    if scene.registration is not None:
-        reg = scene.registration
-        P = np.array([_landmark_point(m) for m, _ in reg.landmarks])
-        Q = []
-        for _, body in reg.landmarks:
-            model.check_body(body)
-            Q.append(transform(body, "ground")[:3, 3])
-        axes = None if reg.mesh_axes is None else _axes_matrix(reg.mesh_axes)
-        scale = None if reg.scale == "landmarks" else float(reg.scale)
-        k, R, t = similarity_from_landmarks(P, np.array(Q), axes=axes, scale=scale)
-        mesh_T = np.eye(4)
-        mesh_T[:3, :3], mesh_T[:3, 3] = k * R, t
-        res = np.linalg.norm(apply(mesh_T, P) - np.array(Q), axis=1)
-        notes.append(
-            f"registration: scale {k:.4f}, landmark residuals {', '.join(f'{r:.1f}' for r in res)} "
-            f"{scene.mesh_unit}"
-        )
     for x in (*scene.muscles, *scene.bones):
         model.check_body(x.frame)
     g = {b: transform(b, "ground") for b in bodies}
-    to_body = {
-        x.name: _inv(g[x.body]) @ g[x.frame] @ mesh_T for x in (*scene.muscles, *scene.bones)
-    }
+    to_body = {x.name: invert_rigid(g[x.body]) @ g[x.frame] for x in (*scene.muscles, *scene.bones)}
     # reference points as fixed points of their bodies
     ref_local: dict[str, tuple[str, FloatArray] | None] = {}
     for m in scene.muscles:
@@ -264,7 +221,9 @@ def _drive_opensim(
         for m in scene.muscles:
             L[m.name] = {p: model.path_points(p, m.body) * s for p in m.paths}
             r = ref_local[m.name]
-            R[m.name] = None if r is None else apply(_inv(to_g[m.body]) @ to_g[r[0]], r[1][None])[0]
+            R[m.name] = (
+                None if r is None else apply(invert_rigid(to_g[m.body]) @ to_g[r[0]], r[1][None])[0]
+            )
         return L, R, to_g
 
     rest_lines, rest_ref, _ = lines_now()
@@ -279,7 +238,9 @@ def _drive_opensim(
             pose[c] = np.radians(v) if (deg and model.is_rotational(c)) else v
         model.set_pose(pose)
         L, R, to_g = lines_now()
-        out_inv = _inv(to_g[scene.output_frame]) if scene.output_frame != "ground" else np.eye(4)
+        out_inv = (
+            invert_rigid(to_g[scene.output_frame]) if scene.output_frame != "ground" else np.eye(4)
+        )
         for m in scene.muscles:
             lines[m.name].append(L[m.name])
             refs[m.name].append(R[m.name])
@@ -306,39 +267,26 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
     data: dict[int, dict[str, dict[str, list[tuple[int, list[float]]]]]] = {}
     times: dict[int, float] = {}
     muscles = {m.name for m in scene.muscles}
-    with open(p, newline="", encoding="utf-8-sig") as fh:
-        reader = csv.reader(fh)
-        header = [h.strip().lower() for h in next(reader, [])]
-        if header != _CSV_HEADER:
+    for row_no, row in csv_rows(p, _CSV_HEADER, error=SceneError):
+        try:
+            frame, point = int(row[0]), int(row[4])
+            t = float(row[1])
+            xyz = [float(v) for v in row[5:]]
+        except ValueError:
             raise SceneError(
-                f"{p}: header must be '{','.join(_CSV_HEADER)}', got '{','.join(header)}'"
+                f"{p}: row {row_no} has a non-numeric frame, time, point or coordinate"
+            ) from None
+        if not np.isfinite(xyz).all() or not np.isfinite(t):
+            raise SceneError(f"{p}: row {row_no} has a NaN or infinite value")
+        muscle, line = row[2].strip(), row[3].strip()
+        if muscle not in muscles:
+            raise SceneError(
+                f"{p}: row {row_no} names muscle '{muscle}', not in the scene; "
+                + suggest(muscle, sorted(muscles))
             )
-        for row_no, row in enumerate(reader, start=2):
-            if not row or all(not c.strip() for c in row):
-                continue
-            if len(row) != 8:
-                raise SceneError(f"{p}: row {row_no} has {len(row)} fields, expected 8")
-            try:
-                frame, point = int(row[0]), int(row[4])
-                t = float(row[1])
-                xyz = [float(v) for v in row[5:]]
-            except ValueError:
-                raise SceneError(
-                    f"{p}: row {row_no} has a non-numeric frame, time, point or coordinate"
-                ) from None
-            if not np.isfinite(xyz).all() or not np.isfinite(t):
-                raise SceneError(f"{p}: row {row_no} has a NaN or infinite value")
-            muscle, line = row[2].strip(), row[3].strip()
-            if muscle not in muscles:
-                raise SceneError(
-                    f"{p}: row {row_no} names muscle '{muscle}', not in the scene; "
-                    + suggest(muscle, sorted(muscles))
-                )
-            if times.setdefault(frame, t) != t:
-                raise SceneError(f"{p}: frame {frame} has two different times")
-            data.setdefault(frame, {}).setdefault(muscle, {}).setdefault(line, []).append(
-                (point, xyz)
-            )
+        if times.setdefault(frame, t) != t:
+            raise SceneError(f"{p}: frame {frame} has two different times")
+        data.setdefault(frame, {}).setdefault(muscle, {}).setdefault(line, []).append((point, xyz))
     if not data:
         raise SceneError(f"{p}: no action-line rows")
     order = sorted(data)

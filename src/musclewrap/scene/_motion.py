@@ -8,12 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from .._typing import FloatArray, PathLike
+from ._errors import SceneError
 
-__all__ = ["Motion", "SceneError", "read_motion"]
-
-
-class SceneError(ValueError):
-    """A scene, model, motion or line file that cannot be used (the message says why)."""
+__all__ = ["Motion", "read_motion"]
 
 
 @dataclass(frozen=True)

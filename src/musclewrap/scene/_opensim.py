@@ -2,27 +2,16 @@
 
 from __future__ import annotations
 
-import difflib
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .._typing import FloatArray, PathLike
-from ._motion import SceneError
+from ._errors import SceneError, suggest
 
-__all__ = ["OpenSimModel", "import_opensim", "suggest"]
-
-
-def suggest(name: str, valid: Sequence[str]) -> str:
-    """A hint naming the nearest valid names (or listing them when few)."""
-    close = difflib.get_close_matches(name, list(valid), n=3, cutoff=0.5)
-    if close:
-        return f"did you mean {' or '.join(repr(c) for c in close)}?"
-    shown = ", ".join(list(valid)[:30])
-    more = f" (and {len(valid) - 30} more)" if len(valid) > 30 else ""
-    return f"valid names: {shown}{more}"
+__all__ = ["OpenSimModel", "import_opensim"]
 
 
 def import_opensim() -> Any:

@@ -15,10 +15,10 @@ import numpy as np
 
 from .. import __version__
 from .._typing import FloatArray, IntArray
-from ..mesh import check_mesh, clean_mesh, merge_duplicate_vertices, read_mesh, write_mesh
+from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
 from ._config import Scene
-from ._drive import Drive, apply, drive_scene
-from ._motion import SceneError
+from ._drive import Drive, apply, drive_scene, invert_rigid
+from ._errors import SceneError
 
 __all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_scene"]
 
@@ -157,7 +157,6 @@ def _prepare(job: dict[str, Any]) -> tuple[Any, bool, str | None]:
 
 def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
     """Deform one muscle through all frames and write its files (runs in a worker)."""
-    from .._validation import as_points  # noqa: F401 - warms the import in spawned workers
     from ._penetration import BoneProbe
 
     t0 = time.perf_counter()
@@ -174,7 +173,6 @@ def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
     name = job["name"]
     rows, entries = [], []
     kw = {"method": job["method"], "max_iterations": job["max_iterations"]}
-    results = []
     for k, frame in enumerate(job["frames"]):
         res = d.deform(job["lines"][k], reference_point=job["references"][k], **kw)
         T = job["to_output"][k]
@@ -184,8 +182,8 @@ def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
         if ok_values:
             Vo = apply(T, res.V)
             for probe, TB in probes:
-                Q = apply(np.linalg.inv(TB[k]), Vo)
-                n, dep = probe.measure(Q)
+                # muscle's body frame -> bone's body frame in one transform
+                n, dep = probe.measure(apply(invert_rigid(TB[k]) @ T, res.V))
                 n_in += n
                 depth = max(depth, dep)
             fname = f"{name}/{name}_{frame:04d}.vtp"
@@ -216,13 +214,14 @@ def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
                 "reason": res.reason,
             }
         )
-        results.append((abs(res.relative_volume_error), res.iterations))
         _tick()
     # The paper's iteration beside the default on a few frames, always including the worst
     # frame of the default (most iterations, then largest volume error), whose iteration
     # histories (default with the fine gradient, and the paper's) go into convergence.png.
     n = len(job["frames"])
-    worst = max(range(n), key=lambda k: (results[k][1], results[k][0]))
+    worst = max(
+        range(n), key=lambda k: (rows[k]["iterations"], abs(rows[k]["relative_volume_error"]))
+    )
     paper, conv = [], {}
     if job["paper_frames"]:
         picks = set(np.linspace(0, n - 1, job["paper_frames"]).round().astype(int).tolist())
@@ -240,7 +239,6 @@ def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
         "seconds_prepare": seconds_prepare,
         "cache_hit": hit,
         "note": note,
-        "notes": list(muscle.notes),
         "paper": paper,
         "worst_frame": int(job["frames"][worst]),
         "convergence": conv,
@@ -273,11 +271,6 @@ class _Progress:
 
 
 # ---------------------------------------------------------------------------- main
-def _load_mesh(path: Path, *, label: str) -> tuple[FloatArray, IntArray]:
-    V, F = read_mesh(path)
-    return V, F
-
-
 def _bone_display(V: FloatArray, F: IntArray, faces: int) -> tuple[FloatArray, IntArray]:
     """A lighter copy of a bone for display (VTK quadric decimation; copes with defects)."""
     if faces == 0 or len(F) <= faces:
@@ -286,9 +279,9 @@ def _bone_display(V: FloatArray, F: IntArray, faces: int) -> tuple[FloatArray, I
 
     cells = np.hstack([np.full((len(F), 1), 3), F]).ravel()
     d = pv.PolyData(V, cells).decimate(1.0 - faces / len(F))
-    G = d.faces.reshape(-1, 4)[:, 1:] if d.n_cells else F
     if not d.n_cells:
         return V, F
+    G = d.faces.reshape(-1, 4)[:, 1:]
     return np.asarray(d.points, dtype=np.float64), np.ascontiguousarray(G, dtype=np.int64)
 
 
@@ -338,7 +331,7 @@ def run_scene(
     # meshes (mesh units, mesh coordinates)
     muscles = {}
     for spec in scene.muscles:
-        V, F = _load_mesh(spec.mesh, label=spec.name)
+        V, F = read_mesh(spec.mesh)
         V, F, mnotes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
         for n in mnotes:
             notes.append(f"{spec.name}: {n}")
@@ -346,10 +339,8 @@ def run_scene(
         muscles[spec.name] = (V, F)
     bones = {}
     for b in scene.bones:
-        V, F = _load_mesh(b.mesh, label=b.name)
-        V, F, _ = merge_duplicate_vertices(V, F)
-        rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
-        F = F[~rep]
+        # bones are only shown and probed: tidied and oriented, not required to be manifold
+        V, F, _ = tidy_mesh(*read_mesh(b.mesh))
         if check_mesh(V, F).volume < 0:
             F = F[:, ::-1].copy()
             notes.append(f"{b.name}: faces were oriented inward: flipped")
@@ -357,6 +348,9 @@ def run_scene(
     centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
     drive = drive_scene(scene, frames, centroids)
     notes += drive.notes
+    # every mesh in the frame of the body that carries it
+    muscles = {m: (apply(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}
+    bones = {b: (apply(drive.to_body[b], V), F) for b, (V, F) in bones.items()}
     _check_units(scene, drive, muscles)
 
     if cache_dir is True:
@@ -367,14 +361,10 @@ def run_scene(
         cache = Path(cache_dir)
     outdir.mkdir(parents=True, exist_ok=True)
     n = len(drive.frames)
-    bone_local = {}
-    for b in scene.bones:
-        V, F = bones[b.name]
-        bone_local[b.name] = (apply(drive.to_body[b.name], V), F, drive.to_output[b.body])
+    bone_local = {b.name: (*bones[b.name], drive.to_output[b.body]) for b in scene.bones}
     jobs = []
     for spec in scene.muscles:
-        V, F = muscles[spec.name]
-        Vb = apply(drive.to_body[spec.name], V)
+        Vb, F = muscles[spec.name]
         jobs.append(
             {
                 "name": spec.name,
@@ -403,22 +393,17 @@ def run_scene(
 
     def write_bones() -> None:
         # one file per frame where the bone moves in the output frame, else one file
-        for b in scene.bones:
-            _write_bone(b.name)
-
-    def _write_bone(bname: str) -> None:
-        V, F, T = bone_local[bname]
-        DV, DF = _bone_display(V, F, scene.bone_display_faces)
-        moving = not np.allclose(T, T[0], atol=1e-9 * (1 + np.abs(T).max()))
-        if moving:
+        for bname, (V, F, T) in bone_local.items():
+            DV, DF = _bone_display(V, F, scene.bone_display_faces)
+            if np.allclose(T, T[0], atol=1e-9 * (1 + np.abs(T).max())):
+                fname = f"{bname}/{bname}.vtp"
+                write_mesh(outdir / fname, apply(T[0], DV), DF)
+                entries.extend((k, fname) for k in range(n))
+                continue
             for k, frame in enumerate(drive.frames):
                 fname = f"{bname}/{bname}_{frame:04d}.vtp"
                 write_mesh(outdir / fname, apply(T[k], DV), DF)
                 entries.append((k, fname))
-        else:
-            fname = f"{bname}/{bname}.vtp"
-            write_mesh(outdir / fname, apply(T[0], DV), DF)
-            entries.extend((k, fname) for k in range(n))
 
     # largest muscles first: the pool then finishes about together
     jobs.sort(key=lambda j: -len(j["V"]))
@@ -435,7 +420,7 @@ def run_scene(
         write_pvd(outdir / "scene.pvd", [(float(drive.times[k]), f) for k, f in entries]),
         write_csv(outdir / "report.csv", rows, REPORT_FIELDS),
     ]
-    files += _plots(outdir, scene, results, drive)
+    files += _plots(outdir, scene, results)
     worst = max(
         (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
         for r in rows
@@ -540,9 +525,9 @@ class _LocalQueue:
 def _check_units(
     scene: Scene, drive: Drive, muscles: dict[str, tuple[FloatArray, IntArray]]
 ) -> None:
+    """Refuse a muscle whose rest lines lie far from its mesh (both in its body frame)."""
     for spec in scene.muscles:
-        V, _ = muscles[spec.name]
-        Vb = apply(drive.to_body[spec.name], V)
+        Vb, _ = muscles[spec.name]
         lo, hi = Vb.min(0), Vb.max(0)
         diag = float(np.linalg.norm(hi - lo))
         P = np.vstack(list(drive.rest_lines[spec.name].values()))
@@ -552,11 +537,11 @@ def _check_units(
                 f"{spec.mesh}: the rest action lines of '{spec.name}' lie {np.median(gap):.3g} "
                 f"{scene.mesh_unit} from the mesh (mesh size {diag:.3g} {scene.mesh_unit}): check "
                 f"[units] (mesh = '{scene.mesh_unit}', model = '{scene.model_unit}'), the muscle's "
-                f"body ('{spec.body}'), the rest pose, or the registration"
+                f"body ('{spec.body}'), or the rest pose"
             )
 
 
-def _plots(outdir: Path, scene: Scene, results: list[dict[str, Any]], drive: Drive) -> list[Path]:
+def _plots(outdir: Path, scene: Scene, results: list[dict[str, Any]]) -> list[Path]:
     from ..output import plot_convergence, plot_volume_error
 
     series = {}

@@ -232,14 +232,9 @@ class Muscle:
         return cls.from_mesh(V, F, source=str(path), **kwargs)  # type: ignore[arg-type]
 
     # ------------------------------------------------------------- save/load
-    def mesh_hash(self) -> str:
-        """SHA-256 of the rest mesh (vertices and faces)."""
-        h = hashlib.sha256()
-        h.update(np.ascontiguousarray(self.V).tobytes())
-        h.update(np.ascontiguousarray(self.F).tobytes())
-        return h.hexdigest()
-
-    def _content_hash(self, arrays: Mapping[str, np.ndarray]) -> str:
+    def content_hash(self) -> str:
+        """SHA-256 over every array of the preparation (names, dtypes, shapes and bytes)."""
+        arrays = self._arrays()
         h = hashlib.sha256()
         for k in sorted(arrays):
             a = np.ascontiguousarray(arrays[k])
@@ -269,8 +264,7 @@ class Muscle:
             "notes": list(self.notes),
             "source": self.source,
             "seconds_prepare": self.seconds_prepare,
-            "mesh_sha256": self.mesh_hash(),
-            "content_sha256": self._content_hash(self._arrays()),
+            "content_sha256": self.content_hash(),
             "cage": {
                 k: getattr(c, k)
                 for k in (
@@ -326,7 +320,7 @@ class Muscle:
             seconds_prepare=float(meta["seconds_prepare"]),
             source=meta["source"],
         )
-        if m._content_hash(m._arrays()) != meta.get("content_sha256"):
+        if m.content_hash() != meta.get("content_sha256"):
             raise ValueError(
                 f"{p}: content does not match its stored hash (corrupted); run prepare again"
             )

@@ -1,0 +1,22 @@
+"""The scene layer's error and its hint for misspelt names."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Sequence
+
+__all__ = ["SceneError", "suggest"]
+
+
+class SceneError(ValueError):
+    """A scene, model, motion or line file that cannot be used (the message says why)."""
+
+
+def suggest(name: str, valid: Sequence[str]) -> str:
+    """A hint naming the nearest valid names (or listing them when few)."""
+    close = difflib.get_close_matches(name, list(valid), n=3, cutoff=0.5)
+    if close:
+        return f"did you mean {' or '.join(repr(c) for c in close)}?"
+    shown = ", ".join(list(valid)[:30])
+    more = f" (and {len(valid) - 30} more)" if len(valid) > 30 else ""
+    return f"valid names: {shown}{more}"
