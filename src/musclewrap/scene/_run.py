@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import sys
@@ -15,7 +16,7 @@ import numpy as np
 
 from .. import __version__
 from .._typing import FloatArray, IntArray
-from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
+from ..mesh import atomic_path, check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
@@ -271,10 +272,7 @@ class _Progress:
 
 
 # ---------------------------------------------------------------------------- main
-def _bone_display(V: FloatArray, F: IntArray, faces: int) -> tuple[FloatArray, IntArray]:
-    """A lighter copy of a bone for display (VTK quadric decimation; copes with defects)."""
-    if faces == 0 or len(F) <= faces:
-        return V, F
+def _decimate(V: FloatArray, F: IntArray, faces: int) -> tuple[FloatArray, IntArray]:
     import pyvista as pv
 
     cells = np.hstack([np.full((len(F), 1), 3), F]).ravel()
@@ -283,6 +281,39 @@ def _bone_display(V: FloatArray, F: IntArray, faces: int) -> tuple[FloatArray, I
         return V, F
     G = d.faces.reshape(-1, 4)[:, 1:]
     return np.asarray(d.points, dtype=np.float64), np.ascontiguousarray(G, dtype=np.int64)
+
+
+def _bone_display(
+    V: FloatArray, F: IntArray, faces: int, cache: Path | None
+) -> tuple[FloatArray, IntArray]:
+    """A lighter copy of a bone for display (VTK quadric decimation; copes with defects).
+
+    Decimating a 90K-face bone takes about a second, the same every run: the result is
+    kept in the preparation cache, checked by a hash of its content when read back.
+    """
+    if faces == 0 or len(F) <= faces:
+        return V, F
+    h = hashlib.sha256(V.tobytes() + F.tobytes() + str(faces).encode()).hexdigest()[:32]
+    path = None if cache is None else cache / f"bone-{h}.npz"
+
+    def digest(DV: FloatArray, DF: IntArray) -> str:
+        return hashlib.sha256(DV.tobytes() + DF.tobytes()).hexdigest()
+
+    if path is not None and path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                DV, DF, sha = z["V"], z["F"], str(z["sha256"])
+            if sha == digest(DV, DF):
+                return DV, DF
+        except (OSError, ValueError, KeyError):
+            pass  # damaged: rebuilt below
+    DV, DF = _decimate(V, F, faces)
+    if path is not None:
+        with contextlib.suppress(OSError):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+                np.savez(fh, V=DV, F=DF, sha256=np.array(digest(DV, DF)))
+    return DV, DF
 
 
 def run_scene(
@@ -394,7 +425,7 @@ def run_scene(
     def write_bones() -> None:
         # one file per frame where the bone moves in the output frame, else one file
         for bname, (V, F, T) in bone_local.items():
-            DV, DF = _bone_display(V, F, scene.bone_display_faces)
+            DV, DF = _bone_display(V, F, scene.bone_display_faces, cache)
             if np.allclose(T, T[0], atol=1e-9 * (1 + np.abs(T).max())):
                 fname = f"{bname}/{bname}.vtp"
                 write_mesh(outdir / fname, apply(T[0], DV), DF)
