@@ -2,18 +2,30 @@
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import zipfile
+from pathlib import Path
+
 import numpy as np
 
 from .._typing import FloatArray, IntArray
 
 __all__ = ["BoneProbe"]
 
+#: version of the stored grid; part of the cache key
+_FORMAT = 1
+
 
 class BoneProbe:
     """Inside test and depth of query points against one closed bone surface.
 
-    Built once per bone (in the bone's own frame); `measure` is called per
-    frame with the muscle's vertices expressed in that frame.
+    Built once per bone (in the bone's own frame, or read back with `cached`);
+    `measure` is called per frame with the muscle's vertices expressed in that
+    frame. Its answer is exact: the count of points inside and the largest
+    distance to the surface among them, as a closest-point query with the
+    angle-weighted pseudo-normal sign (Baerentzen & Aanaes 2005) on every
+    point would give; the grid only decides which points need that query.
 
     Parameters
     ----------
@@ -22,35 +34,40 @@ class BoneProbe:
     F : (m, 3) int array
         Bone triangles, outward oriented.
     max_grid_nodes : int, optional
-        Size of the coarse occupancy grid that classifies points far from the
-        surface.
+        Size of the signed-distance grid over the bone's bounding box.
 
     Notes
     -----
-    Points that round to a grid node with no bone vertex within two nodes,
-    and outside the bone, are outside (no vertex within ``h``). Points within
-    one grid spacing ``h`` of a bone vertex are classified
-    exactly: the closest point on the surface (an AABB tree) and the sign of
-    the angle-weighted pseudo-normal of the closest feature (face, edge or
-    vertex; Baerentzen & Aanaes 2005). Points farther than ``h`` from every
-    bone vertex take the side of the nearest node of a grid of spacing ``h``
-    whose inside/outside comes from generalized winding numbers (Jacobson et
-    al. 2013), robust to the small holes of segmented bones. Since such a
-    node is within ``h*sqrt(3)/2 < h`` of the point, it lies on the same side
-    of the surface. Depths are exact distances to the surface.
+    A grid of spacing ``h`` over the bone's bounding box holds, for each node,
+    an interval for the signed distance: exact (both ends equal) near the
+    surface (the "band": nodes within ``k`` cells of a cell holding a bone
+    vertex) and inside; ``[far, inf)`` outside off the band, where ``far > 0``
+    follows from ``k`` and the longest edge (every point of a triangle is
+    within longest-edge/sqrt(3) of a vertex). The side of the regions off the
+    band comes from generalized winding numbers (Jacobson et al. 2013),
+    robust to small holes. Intervals are stored as float32, rounded outward.
+
+    The signed distance is 1-Lipschitz, so at a point ``p`` it lies within
+    each of its cell's eight corner intervals widened by ``|p - corner|``;
+    their intersection decides the side of nearly every point. Only points
+    whose interval contains 0 (a thin shell at the surface) take the exact
+    closest-point query, and of the points inside, the exact depth is taken
+    in order of their upper bound until no remaining bound can beat the
+    deepest found. Points outside the bounding box are outside.
     """
 
-    def __init__(self, V: FloatArray, F: IntArray, *, max_grid_nodes: int = 200_000) -> None:
+    def __init__(
+        self,
+        V: FloatArray,
+        F: IntArray,
+        *,
+        max_grid_nodes: int = 500_000,
+        _grid: dict[str, np.ndarray] | None = None,
+    ) -> None:
         import igl
-        from scipy.spatial import cKDTree
 
         self.V = np.ascontiguousarray(V, dtype=np.float64)
         self.F = np.ascontiguousarray(F, dtype=np.int64)
-        self.lo, self.hi = self.V.min(axis=0), self.V.max(axis=0)
-        ext = self.hi - self.lo
-        e = np.linalg.norm(self.V[self.F[:, 1]] - self.V[self.F[:, 0]], axis=1).mean()
-        self.h = float(max((np.prod(ext) / max_grid_nodes) ** (1 / 3), 2.0 * e))
-        self._kd = cKDTree(self.V)
         self._tree = igl.AABB()
         self._tree.init(self.V, self.F)
         FN = igl.per_face_normals(self.V, self.F, np.array([0.0, 0.0, 1.0]))
@@ -65,21 +82,131 @@ class BoneProbe:
         EN = np.zeros((len(uniq), 3))
         np.add.at(EN, inv, np.repeat(FN, 3, axis=0))
         self._edge_keys, self._EN = uniq, EN
-        shape = np.maximum(np.ceil(ext / self.h).astype(int) + 1, 2)
-        axes = [self.lo[i] + self.h * np.arange(shape[i]) for i in range(3)]
-        G = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        wn = igl.fast_winding_number(self.V, self.F, G)
-        self._inside = (wn > 0.5).reshape(tuple(shape))
-        self._shape = shape
-        # Nodes that may have a bone vertex within h of a point rounding to them: a vertex
-        # within h of a point is at most 2 nodes away along each axis.
-        from scipy.ndimage import binary_dilation
+        grid = _grid if _grid is not None else self._build(max_grid_nodes)
+        self.lo = np.asarray(grid["lo"], dtype=np.float64)
+        self.h = float(grid["h"])
+        self._shape = np.asarray(grid["shape"], dtype=np.int64)
+        self._lo_sd = grid["lo_sd"]
+        self._hi_sd = grid["hi_sd"]
+        self.hi = self.lo + self.h * (self._shape - 1)
+        self._strides = np.array([self._shape[1] * self._shape[2], self._shape[2], 1])
+        corners = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, 8).T
+        self._corner_offsets = corners @ self._strides
 
+    # ------------------------------------------------------------------ build
+    def _build(self, max_grid_nodes: int) -> dict[str, np.ndarray]:
+        import igl
+        from scipy import ndimage
+
+        V, F = self.V, self.F
+        lo, hi = V.min(axis=0), V.max(axis=0)
+        ext = hi - lo
+        L = np.linalg.norm(V[F[:, [1, 2, 0]]] - V[F], axis=2)
+        h = float(max((np.prod(ext) / max_grid_nodes) ** (1 / 3), 0.5 * L.mean()))
+        # every point of a triangle is within (longest edge)/sqrt(3) of one of its vertices
+        slack = float(L.max() / np.sqrt(3.0))
+        reach = h * np.sqrt(3.0) / 2.0
+        k = int(np.ceil((slack + reach) / h - 0.5 + 1e-3))
+        far = (k + 0.5) * h - slack  # non-band nodes are at least this far from the surface
+        shape = np.ceil(ext / h).astype(np.int64) + 1
         occupied = np.zeros(tuple(shape), dtype=bool)
-        idx = np.clip(np.rint((self.V - self.lo) / self.h).astype(int), 0, shape - 1)
-        occupied[idx[:, 0], idx[:, 1], idx[:, 2]] = True
-        self._candidate = binary_dilation(occupied, np.ones((5, 5, 5), bool)) | self._inside
+        iv = np.rint((V - lo) / h).astype(np.int64)
+        occupied[iv[:, 0], iv[:, 1], iv[:, 2]] = True
+        band = ndimage.binary_dilation(occupied, np.ones((3, 3, 3), bool), iterations=k)
+        lo_sd = np.empty(tuple(shape), dtype=np.float64)
+        hi_sd = np.empty(tuple(shape), dtype=np.float64)
 
+        def nodes(ii: tuple[IntArray, ...]) -> FloatArray:
+            return lo + h * np.stack(ii, axis=1).astype(np.float64)
+
+        # off the band: the side of each connected region from winding numbers at up to 32
+        # of its nodes; where they disagree (the region leaks through a hole) at every node
+        labels, _ = ndimage.label(~band)
+        regions = [
+            tuple(a + s.start for a, s in zip(np.nonzero(labels[sl] == i), sl, strict=True))
+            for i, sl in enumerate(ndimage.find_objects(labels), start=1)
+        ]
+        rng = np.random.default_rng(0)
+        picks = [rng.choice(len(ii[0]), size=min(32, len(ii[0])), replace=False) for ii in regions]
+        Gp = [nodes(tuple(a[p] for a in ii)) for ii, p in zip(regions, picks, strict=True)]
+        wp = igl.fast_winding_number(V, F, np.vstack(Gp)) > 0.5 if Gp else np.zeros(0, bool)
+        inside = np.zeros(tuple(shape), dtype=bool)
+        leaky, o = [], 0
+        for ii, p in zip(regions, picks, strict=True):
+            w = wp[o : o + len(p)]
+            o += len(p)
+            if w.all() == w.any():
+                inside[ii] = bool(w[0])
+            else:
+                leaky.append(ii)
+        if leaky:
+            jj = tuple(np.concatenate(a) for a in zip(*leaky, strict=True))
+            inside[jj] = igl.fast_winding_number(V, F, nodes(jj)) > 0.5
+        # inside and on the band: exact signed distance (pseudo-normal sign, as for the
+        # query points); outside off the band: at least `far`
+        exact = band | inside
+        ii = np.nonzero(exact)
+        G = np.ascontiguousarray(nodes(ii))
+        sq, face, C = self._tree.squared_distance(V, F, G)
+        side = self._pseudo_normal_sign(G, C, face)
+        lo_sd[ii] = hi_sd[ii] = np.where(side < 0, -1.0, 1.0) * np.sqrt(sq)
+        lo_sd[~exact], hi_sd[~exact] = far, np.inf
+        return {
+            "lo": lo,
+            "h": np.float64(h),
+            "shape": shape,
+            "lo_sd": _round(lo_sd, -1).ravel(),
+            "hi_sd": _round(hi_sd, +1).ravel(),
+        }
+
+    # ------------------------------------------------------------------ cache
+    @staticmethod
+    def cache_name(V: FloatArray, F: IntArray) -> str:
+        """File name of the bone's grid in a cache folder (a hash of its content)."""
+        V = np.ascontiguousarray(V, dtype=np.float64)
+        F = np.ascontiguousarray(F, dtype=np.int64)
+        key = hashlib.sha256(V.tobytes() + F.tobytes() + f"|{_FORMAT}".encode()).hexdigest()
+        return f"bone-probe-{key[:32]}.npz"
+
+    @classmethod
+    def cached(cls, V: FloatArray, F: IntArray, cache_dir: Path | None) -> BoneProbe:
+        """Build, or read back from ``cache_dir`` (keyed by the bone's content)."""
+        V = np.ascontiguousarray(V, dtype=np.float64)
+        F = np.ascontiguousarray(F, dtype=np.int64)
+        if cache_dir is None:
+            return cls(V, F)
+        path = Path(cache_dir) / cls.cache_name(V, F)
+        names = ("lo", "h", "shape", "lo_sd", "hi_sd")
+
+        def digest(g: dict[str, np.ndarray]) -> str:
+            return hashlib.sha256(b"".join(np.asarray(g[n]).tobytes() for n in names)).hexdigest()
+
+        if path.is_file():
+            try:
+                with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
+                    grid = {n: z[n] for n in names}
+                    ok = str(z["sha256"]) == digest(grid)
+                if ok:
+                    return cls(V, F, _grid=grid)
+            except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+                pass  # damaged: rebuilt below
+        probe = cls(V, F)
+        grid = {
+            "lo": probe.lo,
+            "h": np.float64(probe.h),
+            "shape": probe._shape,
+            "lo_sd": probe._lo_sd,
+            "hi_sd": probe._hi_sd,
+        }
+        from ..mesh import atomic_path
+
+        with contextlib.suppress(OSError):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+                np.savez(fh, sha256=np.array(digest(grid)), **grid)
+        return probe
+
+    # ------------------------------------------------------------------ exact
     def _pseudo_normal_sign(self, Q: FloatArray, C: FloatArray, face: IntArray) -> FloatArray:
         tri = self.V[self.F[face]]
         # barycentric coordinates of the closest points
@@ -110,6 +237,13 @@ class BoneProbe:
             N[at_e] = self._EN[np.searchsorted(self._edge_keys, k)]
         return np.einsum("ij,ij->i", Q - C, N)
 
+    def _distance(self, P: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Exact distance to the surface and pseudo-normal side (< 0 inside)."""
+        P = np.ascontiguousarray(P)
+        sq, face, C = self._tree.squared_distance(self.V, self.F, P)
+        return np.sqrt(sq), self._pseudo_normal_sign(P, C, face)
+
+    # ------------------------------------------------------------------ query
     def measure(self, Q: FloatArray) -> tuple[int, float]:
         """Count the points inside the bone and return the deepest one's depth.
 
@@ -124,30 +258,52 @@ class BoneProbe:
         max_depth : float
             0 when no point is inside.
         """
-        box = ((Q >= self.lo - self.h) & (Q <= self.hi + self.h)).all(axis=1)
-        if not box.any():
-            return 0, 0.0
-        P = Q[box]
-        idx = np.clip(np.rint((P - self.lo) / self.h).astype(int), 0, self._shape - 1)
-        P = P[self._candidate[idx[:, 0], idx[:, 1], idx[:, 2]]]
+        # outside the bone's bounding box is outside the bone
+        P = Q[((Q >= self.lo) & (Q <= self.hi)).all(axis=1)]
         if not len(P):
             return 0, 0.0
-        d, _ = self._kd.query(P, distance_upper_bound=self.h)
-        near = np.isfinite(d)
-        inside = np.zeros(len(P), dtype=bool)
-        if (~near).any():
-            idx = np.rint((P[~near] - self.lo) / self.h).astype(int)
-            idx = np.clip(idx, 0, self._shape - 1)
-            inside[~near] = self._inside[idx[:, 0], idx[:, 1], idx[:, 2]]
-        depth = np.zeros(0)
-        if near.any():
-            Pn = np.ascontiguousarray(P[near])
-            sq, face, C = self._tree.squared_distance(self.V, self.F, Pn)
-            s = self._pseudo_normal_sign(Pn, C, face)
-            inside[near] = s < 0
-            depth = np.sqrt(sq[s < 0])
-        far_in = inside & ~near
-        if far_in.any():
-            sq, _, _ = self._tree.squared_distance(self.V, self.F, np.ascontiguousarray(P[far_in]))
-            depth = np.concatenate([depth, np.sqrt(sq)])
-        return int(inside.sum()), float(depth.max()) if len(depth) else 0.0
+        # the signed distance at p lies within every corner's interval widened by |p - corner|
+        U = (P - self.lo) / self.h
+        base = np.minimum(U.astype(np.int64), self._shape - 2)
+        # corner-major (8, n) arrays: numpy reduces over a short last axis slowly
+        flat = self._corner_offsets[:, None] + (base @ self._strides)[None, :]
+        f = (U - base).T  # position in the cell, 0..1 per axis
+        a = np.stack([f * f, (1 - f) ** 2]) * (self.h * self.h)  # (corner bit, axis, n)
+        d = np.sqrt(
+            (a[:, None, None, 0] + a[None, :, None, 1] + a[None, None, :, 2]).reshape(8, -1)
+        )
+        lower = (self._lo_sd[flat] - d).max(axis=0)
+        upper = (self._hi_sd[flat] + d).min(axis=0)
+        inside = upper < 0
+        unsure = ~inside & (lower <= 0)
+        n_inside = int(inside.sum())
+        depths = []
+        if unsure.any():
+            dist, side = self._distance(P[unsure])
+            n_inside += int((side < 0).sum())
+            depths.append(dist[side < 0])
+        if n_inside == 0:
+            return 0, 0.0
+        if inside.any():
+            # exact depths in order of their upper bound, until none left can beat the best
+            upper_depth = -lower[inside]
+            cand = P[inside]
+            order = np.argsort(-upper_depth)
+            found = max((x.max() for x in depths if len(x)), default=0.0)
+            bar = max(found, -upper[inside].max())
+            i, batch = 0, 4  # deep points cost the most; the deepest is usually among the first
+            while i < len(order) and upper_depth[order[i]] >= bar:
+                dist, _ = self._distance(cand[order[i : i + batch]])
+                found = max(found, float(dist.max()))
+                bar = max(bar, found)
+                i, batch = i + batch, 2 * batch
+            return n_inside, found
+        return n_inside, float(max(x.max() for x in depths if len(x)))
+
+
+def _round(x: FloatArray, direction: int) -> FloatArray:
+    """float32 copy of ``x`` rounded toward -inf (direction -1) or +inf (+1)."""
+    y = x.astype(np.float32)
+    if direction < 0:
+        return np.where(y > x, np.nextafter(y, np.float32(-np.inf)), y)
+    return np.where(y < x, np.nextafter(y, np.float32(np.inf)), y)

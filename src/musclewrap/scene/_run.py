@@ -6,7 +6,9 @@ import contextlib
 import hashlib
 import os
 import sys
+import tempfile
 import time
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -122,14 +124,19 @@ def _cache_key(V: FloatArray, F: IntArray, job: dict[str, Any]) -> str:
     return h.hexdigest()[:32]
 
 
+def _prepare_path(job: dict[str, Any]) -> Path | None:
+    cache = job["cache_dir"]
+    if cache is None:
+        return None
+    return Path(cache) / f"{job['name']}-{_cache_key(job['V'], job['F'], job)}.npz"
+
+
 def _prepare(job: dict[str, Any]) -> tuple[Any, bool, str | None]:
     from ..solver import Muscle
 
     V, F, name = job["V"], job["F"], job["name"]
-    cache = job["cache_dir"]
-    path = None
-    if cache is not None:
-        path = Path(cache) / f"{name}-{_cache_key(V, F, job)}.npz"
+    path = _prepare_path(job)
+    if path is not None:
         if path.is_file():
             try:
                 # the name is the hash of the input mesh and settings; load() checks the content
@@ -156,20 +163,32 @@ def _prepare(job: dict[str, Any]) -> tuple[Any, bool, str | None]:
     return m, False, note
 
 
-def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
-    """Deform one muscle through all frames and write its files (runs in a worker)."""
+def _bone_probe(V: FloatArray, F: IntArray, cache: str | None) -> Any:
+    """The bone's probe: kept per process, read from or written to the cache."""
     from ._penetration import BoneProbe
 
+    key = BoneProbe.cache_name(V, F)
+    if key not in _probes:
+        _probes[key] = BoneProbe.cached(V, F, None if cache is None else Path(cache))
+    return _probes[key]
+
+
+def _fill_cache(task: tuple[str, Any]) -> str | None:
+    """Phase one of a run in workers: one preparation or bone probe into the cache."""
+    kind, arg = task
+    if kind == "muscle":
+        return _prepare(arg)[2]
+    _bone_probe(*arg)
+    return None
+
+
+def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
+    """Deform one muscle through all frames and write its files (runs in a worker)."""
     t0 = time.perf_counter()
     muscle, hit, note = _prepare(job)
     seconds_prepare = time.perf_counter() - t0
     d = muscle.bind(job["rest_lines"], reference_point=job["rest_reference"])
-    probes = []
-    for V, F, T in job["bones"]:
-        key = hashlib.sha256(V.tobytes() + F.tobytes()).hexdigest()
-        if key not in _probes:  # built once per process, shared by its muscles
-            _probes[key] = BoneProbe(V, F)
-        probes.append((_probes[key], T))
+    probes = [(_bone_probe(V, F, job["cache_dir"]), T) for V, F, T in job["bones"]]
     out = Path(job["outdir"])
     name = job["name"]
     rows, entries = [], []
@@ -301,11 +320,11 @@ def _bone_display(
 
     if path is not None and path.is_file():
         try:
-            with np.load(path, allow_pickle=False) as z:
+            with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
                 DV, DF, sha = z["V"], z["F"], str(z["sha256"])
             if sha == digest(DV, DF):
                 return DV, DF
-        except (OSError, ValueError, KeyError):
+        except (OSError, ValueError, KeyError, zipfile.BadZipFile):
             pass  # damaged: rebuilt below
     DV, DF = _decimate(V, F, faces)
     if path is not None:
@@ -353,8 +372,6 @@ def run_scene(
     -------
     RunSummary
     """
-    from ..output import write_csv, write_pvd
-
     t0 = time.perf_counter()
     say = log or (lambda s: None)
     outdir = Path(outdir)
@@ -390,6 +407,43 @@ def run_scene(
         cache = None
     else:
         cache = Path(cache_dir)
+    with contextlib.ExitStack() as stack:
+        if cache is None and workers > 1:
+            # the workers still share what they build, for this run only
+            cache = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="musclewrap-")))
+        summary = _run(scene, outdir, drive, muscles, bones, cache, workers, progress, notes)
+    if render if render is not None else scene.gif:
+        from ..output import render_series
+
+        try:
+            summary.files.append(
+                render_series(
+                    outdir / "scene.pvd",
+                    outdir / "scene.gif",
+                    every=scene.gif_every,
+                    size=scene.image_size,
+                    bones=tuple(b.name for b in scene.bones),
+                )
+            )
+        except RuntimeError as exc:
+            summary.notes.append(f"scene.gif not written: {exc}")
+    summary.seconds = time.perf_counter() - t0
+    return summary
+
+
+def _run(
+    scene: Scene,
+    outdir: Path,
+    drive: Drive,
+    muscles: dict[str, tuple[FloatArray, IntArray]],
+    bones: dict[str, tuple[FloatArray, IntArray]],
+    cache: Path | None,
+    workers: int,
+    progress: Any,
+    notes: list[str],
+) -> RunSummary:
+    from ..output import write_csv, write_pvd
+
     outdir.mkdir(parents=True, exist_ok=True)
     n = len(drive.frames)
     bone_local = {b.name: (*bones[b.name], drive.to_output[b.body]) for b in scene.bones}
@@ -438,7 +492,20 @@ def run_scene(
 
     # largest muscles first: the pool then finishes about together
     jobs.sort(key=lambda j: -len(j["V"]))
-    results = _execute(jobs, workers, bar, meanwhile=write_bones)
+    # what is not cached yet is built first, spread over the workers, then read back by all
+    fill: list[tuple[str, Any]] = [
+        ("muscle", j) for j in jobs if not (p := _prepare_path(j)) or not p.is_file()
+    ]
+    if cache is not None:
+        from ._penetration import BoneProbe
+
+        fill += [
+            ("bone", (V, F, str(cache)))
+            for V, F in bones.values()
+            if not (cache / BoneProbe.cache_name(V, F)).is_file()
+        ]
+    results, early = _execute(jobs, fill, workers, bar, meanwhile=write_bones)
+    notes += early
     order = {s.name: i for i, s in enumerate(scene.muscles)}
     results.sort(key=lambda r: order[r["name"]])
     rows = [r for res in results for r in res["rows"]]
@@ -469,39 +536,28 @@ def run_scene(
         notes=notes,
         files=files,
     )
-    if render if render is not None else scene.gif:
-        from ..output import render_series
-
-        try:
-            files.append(
-                render_series(
-                    outdir / "scene.pvd",
-                    outdir / "scene.gif",
-                    every=scene.gif_every,
-                    size=scene.image_size,
-                    bones=tuple(b.name for b in scene.bones),
-                )
-            )
-        except RuntimeError as exc:
-            summary.notes.append(f"scene.gif not written: {exc}")
-    summary.seconds = time.perf_counter() - t0
     return summary
 
 
 def _execute(
     jobs: list[dict[str, Any]],
+    fill: list[tuple[str, Any]],
     workers: int,
     bar: _Progress | None,
     *,
     meanwhile: Callable[[], None],
-) -> list[dict[str, Any]]:
+) -> tuple[list[dict[str, Any]], list[str]]:
+    """Run the jobs; in worker processes, first whatever `fill` puts into the cache.
+
+    Returns the jobs' results and the notes of the cache filling.
+    """
     if workers <= 1 or len(jobs) <= 1:
         global _progress_queue
         meanwhile()
         q = _LocalQueue(bar)
         _progress_queue = q
         try:
-            return [_muscle_job(j) for j in jobs]
+            return [_muscle_job(j) for j in jobs], []
         finally:
             _progress_queue = None
     import multiprocessing as mp
@@ -518,16 +574,18 @@ def _execute(
         initializer=_init_worker,
         initargs=(q, threads),
     ) as pool:
-        futs = [pool.submit(_muscle_job, j) for j in jobs]
+        filled = [pool.submit(_fill_cache, t) for t in fill]
         meanwhile()
-        while not all(f.done() for f in futs):
-            try:
-                k = q.get(timeout=0.1)
-                if bar is not None:
-                    bar.add(k)
-            except queue_mod.Empty:
-                pass
         try:
+            early = [n for f in filled if (n := f.result())]
+            futs = [pool.submit(_muscle_job, j) for j in jobs]
+            while not all(f.done() for f in futs):
+                try:
+                    k = q.get(timeout=0.1)
+                    if bar is not None:
+                        bar.add(k)
+                except queue_mod.Empty:
+                    pass
             results = [f.result() for f in futs]
         except BrokenProcessPool:
             raise RuntimeError(
@@ -541,7 +599,7 @@ def _execute(
             break
         if bar is not None:
             bar.add(k)
-    return results
+    return results, early
 
 
 class _LocalQueue:

@@ -297,7 +297,7 @@ class Muscle:
         if not p.is_file():
             raise ValueError(f"{p}: no such prepared-muscle file")
         try:
-            with np.load(p, allow_pickle=False) as z:
+            with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
             meta = json.loads(str(data["meta"]))
         except Exception as exc:  # noqa: BLE001 - any damage is reported the same way
