@@ -376,6 +376,42 @@ def run_scene(
     say = log or (lambda s: None)
     outdir = Path(outdir)
     notes: list[str] = []
+    with contextlib.ExitStack() as stack:
+        pool = None
+        if workers > 1 and len(scene.muscles) > 1:
+            # started first: the workers import while this process reads meshes and OpenSim
+            pool = stack.enter_context(_Pool(min(workers, len(scene.muscles))))
+        summary = _run_scene(scene, outdir, frames, pool, cache_dir, progress, say, notes, stack)
+    if render if render is not None else scene.gif:
+        from ..output import render_series
+
+        try:
+            summary.files.append(
+                render_series(
+                    outdir / "scene.pvd",
+                    outdir / "scene.gif",
+                    every=scene.gif_every,
+                    size=scene.image_size,
+                    bones=tuple(b.name for b in scene.bones),
+                )
+            )
+        except RuntimeError as exc:
+            summary.notes.append(f"scene.gif not written: {exc}")
+    summary.seconds = time.perf_counter() - t0
+    return summary
+
+
+def _run_scene(
+    scene: Scene,
+    outdir: Path,
+    frames: str | None,
+    pool: _Pool | None,
+    cache_dir: Path | None | bool,
+    progress: Any,
+    say: Callable[[str], None],
+    notes: list[str],
+    stack: contextlib.ExitStack,
+) -> RunSummary:
     # meshes (mesh units, mesh coordinates)
     muscles = {}
     for spec in scene.muscles:
@@ -407,28 +443,10 @@ def run_scene(
         cache = None
     else:
         cache = Path(cache_dir)
-    with contextlib.ExitStack() as stack:
-        if cache is None and workers > 1:
-            # the workers still share what they build, for this run only
-            cache = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="musclewrap-")))
-        summary = _run(scene, outdir, drive, muscles, bones, cache, workers, progress, notes)
-    if render if render is not None else scene.gif:
-        from ..output import render_series
-
-        try:
-            summary.files.append(
-                render_series(
-                    outdir / "scene.pvd",
-                    outdir / "scene.gif",
-                    every=scene.gif_every,
-                    size=scene.image_size,
-                    bones=tuple(b.name for b in scene.bones),
-                )
-            )
-        except RuntimeError as exc:
-            summary.notes.append(f"scene.gif not written: {exc}")
-    summary.seconds = time.perf_counter() - t0
-    return summary
+    if cache is None and pool is not None:
+        # the workers still share what they build, for this run only
+        cache = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="musclewrap-")))
+    return _run(scene, outdir, drive, muscles, bones, cache, pool, progress, notes)
 
 
 def _run(
@@ -438,7 +456,7 @@ def _run(
     muscles: dict[str, tuple[FloatArray, IntArray]],
     bones: dict[str, tuple[FloatArray, IntArray]],
     cache: Path | None,
-    workers: int,
+    pool: _Pool | None,
     progress: Any,
     notes: list[str],
 ) -> RunSummary:
@@ -504,7 +522,7 @@ def _run(
             for V, F in bones.values()
             if not (cache / BoneProbe.cache_name(V, F)).is_file()
         ]
-    results, early = _execute(jobs, fill, workers, bar, meanwhile=write_bones)
+    results, early = _execute(jobs, fill, pool, bar, meanwhile=write_bones)
     notes += early
     order = {s.name: i for i, s in enumerate(scene.muscles)}
     results.sort(key=lambda r: order[r["name"]])
@@ -539,10 +557,41 @@ def _run(
     return summary
 
 
+class _Pool:
+    """Worker processes (spawned), with a queue that carries progress ticks back."""
+
+    def __init__(self, n: int) -> None:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        ctx = mp.get_context("spawn")
+        self.queue = ctx.Queue()
+        threads = max(1, (os.cpu_count() or 1) // n)
+        self.executor = ProcessPoolExecutor(
+            max_workers=n, mp_context=ctx, initializer=_init_worker, initargs=(self.queue, threads)
+        )
+        # one task per worker starts them all now, each importing what the jobs need
+        self._warm = [self.executor.submit(_warm_up) for _ in range(n)]
+
+    def __enter__(self) -> _Pool:
+        return self
+
+    def __exit__(self, kind: object, *_: object) -> None:
+        # on an error, do not wait for queued work
+        self.executor.shutdown(wait=kind is None, cancel_futures=True)
+
+
+def _warm_up() -> None:
+    import igl  # noqa: F401
+
+    from ..solver import Muscle  # noqa: F401
+    from . import _penetration  # noqa: F401
+
+
 def _execute(
     jobs: list[dict[str, Any]],
     fill: list[tuple[str, Any]],
-    workers: int,
+    pool: _Pool | None,
     bar: _Progress | None,
     *,
     meanwhile: Callable[[], None],
@@ -551,7 +600,7 @@ def _execute(
 
     Returns the jobs' results and the notes of the cache filling.
     """
-    if workers <= 1 or len(jobs) <= 1:
+    if pool is None:
         global _progress_queue
         meanwhile()
         q = _LocalQueue(bar)
@@ -560,45 +609,35 @@ def _execute(
             return [_muscle_job(j) for j in jobs], []
         finally:
             _progress_queue = None
-    import multiprocessing as mp
     import queue as queue_mod
-    from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
-    ctx = mp.get_context("spawn")
-    q = ctx.Queue()
-    threads = max(1, (os.cpu_count() or 1) // workers)
-    with ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)),
-        mp_context=ctx,
-        initializer=_init_worker,
-        initargs=(q, threads),
-    ) as pool:
-        filled = [pool.submit(_fill_cache, t) for t in fill]
+    def ticks(timeout: float | None) -> None:
+        while True:
+            try:
+                k = pool.queue.get(timeout=timeout) if timeout else pool.queue.get_nowait()
+            except queue_mod.Empty:
+                return
+            if bar is not None:
+                bar.add(k)
+            if timeout:
+                return
+
+    try:
+        filled = [pool.executor.submit(_fill_cache, t) for t in fill]
         meanwhile()
-        try:
-            early = [n for f in filled if (n := f.result())]
-            futs = [pool.submit(_muscle_job, j) for j in jobs]
-            while not all(f.done() for f in futs):
-                try:
-                    k = q.get(timeout=0.1)
-                    if bar is not None:
-                        bar.add(k)
-                except queue_mod.Empty:
-                    pass
-            results = [f.result() for f in futs]
-        except BrokenProcessPool:
-            raise RuntimeError(
-                "a worker process died without a Python error (out of memory, or a crash in a "
-                "compiled library); rerun with --workers 1 to see where"
-            ) from None
-    while True:
-        try:
-            k = q.get_nowait()
-        except queue_mod.Empty:
-            break
-        if bar is not None:
-            bar.add(k)
+        early = [n for f in filled if (n := f.result())]
+        futs = [pool.executor.submit(_muscle_job, j) for j in jobs]
+        while not all(f.done() for f in futs):
+            ticks(0.1)
+        results = [f.result() for f in futs]
+    except BrokenProcessPool:
+        raise RuntimeError(
+            "a worker process died without a Python error (out of memory, a crash in a compiled "
+            "library, or, from a Python script, run_scene called outside an `if __name__ == "
+            "'__main__':` block); rerun with --workers 1 to see where"
+        ) from None
+    ticks(None)
     return results, early
 
 
