@@ -88,6 +88,35 @@ def test_roundtrip_formats(tmp_path, ext):
     assert not list(tmp_path.glob(".*part*")), "no temporary file may be left behind"
 
 
+@pytest.mark.parametrize("ext", [".vtp", ".vtk"])
+def test_vtk_lines_and_point_data_read_back_by_vtk(tmp_path, ext):
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOLegacy import vtkPolyDataReader
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    V, F = capsule(n_around=8, cap_rings=2, segments=2)
+    seg = np.array([[0, 1], [1, 2], [5, 6]])
+    data = {
+        "depth": np.linspace(-1, 1, len(V)),
+        "normal": np.ones((len(V), 3), np.float32),
+        "label": np.arange(len(V), dtype=np.int32),
+        "a \"quoted\" <name>": np.zeros(len(V), np.uint8),
+    }
+    p = write_mesh(tmp_path / f"m{ext}", V, F, point_data=data, lines=seg)
+    r = vtkXMLPolyDataReader() if ext == ".vtp" else vtkPolyDataReader()
+    r.SetFileName(str(p))
+    r.Update()
+    poly = r.GetOutput()
+    assert np.array_equal(vtk_to_numpy(poly.GetPoints().GetData()), V)
+    polys = vtk_to_numpy(poly.GetPolys().GetConnectivityArray())
+    assert np.array_equal(polys.reshape(-1, 3), F)
+    lines = vtk_to_numpy(poly.GetLines().GetConnectivityArray())
+    assert np.array_equal(lines.reshape(-1, 2), seg)
+    for name, values in data.items():
+        got = vtk_to_numpy(poly.GetPointData().GetArray(name))
+        assert np.array_equal(got.reshape(values.shape), values), name
+
+
 @pytest.mark.parametrize("content", [b"", b"solid x\nfacet garbage", b"\x00\x01\x02" * 50])
 @pytest.mark.parametrize("ext", [".stl", ".vtk", ".vtp", ".ply", ".obj"])
 def test_bad_files_named_in_error(tmp_path, content, ext):

@@ -85,8 +85,9 @@ def solve_paper(
     V = mu.W @ x
     for its in range(1, max_iterations + 1):
         if fine:
+            # mean value coordinates sum to one: W (x - c) = W x - c, and V = W x is current
             c = x.mean(axis=0)
-            P = mu.W @ (x - c)
+            P = V - c
             dv = volume(P, mu.F, center=np.zeros(3)) - mu.volume_rest
             g = mu.W_T @ volume_gradient(P, mu.F)
         else:
