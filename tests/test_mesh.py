@@ -100,7 +100,7 @@ def test_vtk_lines_and_point_data_read_back_by_vtk(tmp_path, ext):
         "depth": np.linspace(-1, 1, len(V)),
         "normal": np.ones((len(V), 3), np.float32),
         "label": np.arange(len(V), dtype=np.int32),
-        "a \"quoted\" <name>": np.zeros(len(V), np.uint8),
+        'a "quoted" <name>': np.zeros(len(V), np.uint8),
     }
     p = write_mesh(tmp_path / f"m{ext}", V, F, point_data=data, lines=seg)
     r = vtkXMLPolyDataReader() if ext == ".vtp" else vtkPolyDataReader()
