@@ -133,13 +133,22 @@ def test_corrupted_cache_is_rebuilt_not_used(tmp_path):
     _, toml = _write_demo(tmp_path, n_frames=3)
     scene = load_scene(toml)
     run_scene(scene, tmp_path / "o1", cache_dir=tmp_path / "cache", progress=None)
-    (f,) = (tmp_path / "cache").glob("*.npz")
-    data = bytearray(f.read_bytes())
-    data[len(data) // 2] ^= 0xFF
-    f.write_bytes(bytes(data))
+    # preparation, cleaned meshes, bone probe grid: every one damaged
+    files = sorted((tmp_path / "cache").glob("*.npz"))
+    assert {f.name.split("-")[0] for f in files} == {"fusiform", "mesh", "bone"}
+    for f in files:
+        data = bytearray(f.read_bytes())
+        data[len(data) // 2] ^= 0xFF
+        f.write_bytes(bytes(data))
     s = run_scene(scene, tmp_path / "o2", cache_dir=tmp_path / "cache", progress=None)
     assert s.cache_hits == [] and any("rebuilt" in n for n in s.notes)
     assert s.worst_volume_error <= 1e-9
+    assert _rows(tmp_path / "o1" / "report.csv") == [
+        {**r, "seconds": a["seconds"]}
+        for r, a in zip(
+            _rows(tmp_path / "o2" / "report.csv"), _rows(tmp_path / "o1" / "report.csv")
+        )
+    ]
 
 
 def test_scene_errors_name_the_problem(tmp_path):

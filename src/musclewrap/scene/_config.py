@@ -232,7 +232,7 @@ def load_scene(path: PathLike) -> Scene:
         if "bone_display_faces" in out
         else 10000
     )
-    paper_frames = _get(out, "paper_frames", int, "[output]", src) if "paper_frames" in out else 4
+    paper_frames = _get(out, "paper_frames", int, "[output]", src) if "paper_frames" in out else 2
     gif = _get(out, "gif", bool, "[output]", src) if "gif" in out else True
     gif_every = _get(out, "gif_every", int, "[output]", src) if "gif_every" in out else 1
     size = out.get("image_size", [800, 600])

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +83,7 @@ class BoneProbe:
         self.lo = np.asarray(grid["lo"], dtype=np.float64)
         self.h = float(grid["h"])
         self._shape = np.asarray(grid["shape"], dtype=np.int64)
+        self._grid = grid
         self._lo_sd = grid["lo_sd"]
         self._hi_sd = grid["hi_sd"]
         self.hi = self.lo + self.h * (self._shape - 1)
@@ -163,48 +161,28 @@ class BoneProbe:
     @staticmethod
     def cache_name(V: FloatArray, F: IntArray) -> str:
         """File name of the bone's grid in a cache folder (a hash of its content)."""
+        from ._cache import digest
+
         V = np.ascontiguousarray(V, dtype=np.float64)
         F = np.ascontiguousarray(F, dtype=np.int64)
-        key = hashlib.sha256(V.tobytes() + F.tobytes() + f"|{_FORMAT}".encode()).hexdigest()
-        return f"bone-probe-{key[:32]}.npz"
+        return f"bone-probe-{digest(V, F, str(_FORMAT))[:32]}.npz"
 
     @classmethod
     def cached(cls, V: FloatArray, F: IntArray, cache_dir: Path | None) -> BoneProbe:
         """Build, or read back from ``cache_dir`` (keyed by the bone's content)."""
+        from ._cache import cached_arrays
+
         V = np.ascontiguousarray(V, dtype=np.float64)
         F = np.ascontiguousarray(F, dtype=np.int64)
-        if cache_dir is None:
-            return cls(V, F)
-        path = Path(cache_dir) / cls.cache_name(V, F)
-        names = ("lo", "h", "shape", "lo_sd", "hi_sd")
+        path = None if cache_dir is None else Path(cache_dir) / cls.cache_name(V, F)
+        built: list[BoneProbe] = []
 
-        def digest(g: dict[str, np.ndarray]) -> str:
-            return hashlib.sha256(b"".join(np.asarray(g[n]).tobytes() for n in names)).hexdigest()
+        def build() -> dict[str, np.ndarray]:
+            built.append(cls(V, F))
+            return built[0]._grid
 
-        if path.is_file():
-            try:
-                with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-                    grid = {n: z[n] for n in names}
-                    ok = str(z["sha256"]) == digest(grid)
-                if ok:
-                    return cls(V, F, _grid=grid)
-            except (OSError, ValueError, KeyError, zipfile.BadZipFile):
-                pass  # damaged: rebuilt below
-        probe = cls(V, F)
-        grid = {
-            "lo": probe.lo,
-            "h": np.float64(probe.h),
-            "shape": probe._shape,
-            "lo_sd": probe._lo_sd,
-            "hi_sd": probe._hi_sd,
-        }
-        from ..mesh import atomic_path
-
-        with contextlib.suppress(OSError):
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-                np.savez(fh, sha256=np.array(digest(grid)), **grid)
-        return probe
+        grid = cached_arrays(path, build)
+        return built[0] if built else cls(V, F, _grid=grid)
 
     # ------------------------------------------------------------------ exact
     def _pseudo_normal_sign(self, Q: FloatArray, C: FloatArray, face: IntArray) -> FloatArray:

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import os
 import sys
 import tempfile
 import time
-import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +16,8 @@ import numpy as np
 
 from .. import __version__
 from .._typing import FloatArray, IntArray
-from ..mesh import atomic_path, check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
+from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
+from ._cache import cached_arrays, digest
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
@@ -91,7 +90,7 @@ class RunSummary:
 
 # ---------------------------------------------------------------------------- workers
 _progress_queue: Any = None
-_probes: dict[str, Any] = {}
+_probes: dict[tuple[str, str | None], Any] = {}
 
 
 def _init_worker(queue: Any, threads: int) -> None:
@@ -117,11 +116,11 @@ def _tick(n: int = 1) -> None:
 def _cache_key(V: FloatArray, F: IntArray, job: dict[str, Any]) -> str:
     from ..solver._muscle import _FORMAT
 
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(V, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(F, dtype=np.int64).tobytes())
-    h.update(f"{job['cage_size']}|{job['cage_coarsening']}|{_FORMAT}|{__version__}".encode())
-    return h.hexdigest()[:32]
+    return digest(
+        np.asarray(V, dtype=np.float64),
+        np.asarray(F, dtype=np.int64),
+        f"{job['cage_size']}|{job['cage_coarsening']}|{_FORMAT}|{__version__}",
+    )[:32]
 
 
 def _prepare_path(job: dict[str, Any]) -> Path | None:
@@ -167,7 +166,7 @@ def _bone_probe(V: FloatArray, F: IntArray, cache: str | None) -> Any:
     """The bone's probe: kept per process, read from or written to the cache."""
     from ._penetration import BoneProbe
 
-    key = BoneProbe.cache_name(V, F)
+    key = (BoneProbe.cache_name(V, F), cache)
     if key not in _probes:
         _probes[key] = BoneProbe.cached(V, F, None if cache is None else Path(cache))
     return _probes[key]
@@ -308,31 +307,44 @@ def _bone_display(
     """A lighter copy of a bone for display (VTK quadric decimation; copes with defects).
 
     Decimating a 90K-face bone takes about a second, the same every run: the result is
-    kept in the preparation cache, checked by a hash of its content when read back.
+    kept in the preparation cache.
     """
     if faces == 0 or len(F) <= faces:
         return V, F
-    h = hashlib.sha256(V.tobytes() + F.tobytes() + str(faces).encode()).hexdigest()[:32]
-    path = None if cache is None else cache / f"bone-{h}.npz"
+    path = None if cache is None else cache / f"bone-{digest(V, F, str(faces))[:32]}.npz"
 
-    def digest(DV: FloatArray, DF: IntArray) -> str:
-        return hashlib.sha256(DV.tobytes() + DF.tobytes()).hexdigest()
+    def build() -> dict[str, np.ndarray]:
+        DV, DF = _decimate(V, F, faces)
+        return {"V": DV, "F": DF}
 
-    if path is not None and path.is_file():
-        try:
-            with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-                DV, DF, sha = z["V"], z["F"], str(z["sha256"])
-            if sha == digest(DV, DF):
-                return DV, DF
-        except (OSError, ValueError, KeyError, zipfile.BadZipFile):
-            pass  # damaged: rebuilt below
-    DV, DF = _decimate(V, F, faces)
-    if path is not None:
-        with contextlib.suppress(OSError):
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-                np.savez(fh, V=DV, F=DF, sha256=np.array(digest(DV, DF)))
-    return DV, DF
+    d = cached_arrays(path, build)
+    return d["V"], d["F"]
+
+
+def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, list[str]]:
+    """Read and clean (or repair) a muscle mesh; the result is cached by the file's bytes."""
+
+    def build() -> dict[str, np.ndarray]:
+        V, F = read_mesh(spec.mesh)
+        V, F, notes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
+        return {"V": V, "F": F, "notes": np.array(notes, dtype=str)}
+
+    key = digest(spec.mesh.read_bytes(), f"muscle|{spec.repair}|{__version__}")
+    d = cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
+    return d["V"], d["F"], [str(n) for n in d["notes"]]
+
+
+def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bool]:
+    """Read, tidy and orient outward a bone mesh (not required to be manifold); cached."""
+
+    def build() -> dict[str, np.ndarray]:
+        V, F, _ = tidy_mesh(*read_mesh(path))
+        flip = check_mesh(V, F).volume < 0
+        return {"V": V, "F": F[:, ::-1].copy() if flip else F, "flipped": np.array(flip)}
+
+    key = digest(path.read_bytes(), f"bone|{__version__}")
+    d = cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
+    return d["V"], d["F"], bool(d["flipped"])
 
 
 def run_scene(
@@ -412,21 +424,24 @@ def _run_scene(
     notes: list[str],
     stack: contextlib.ExitStack,
 ) -> RunSummary:
+    if cache_dir is True:
+        cache = scene.cache_dir or default_cache_dir()
+    elif cache_dir is False or cache_dir is None:
+        cache = None
+    else:
+        cache = Path(cache_dir)
     # meshes (mesh units, mesh coordinates)
     muscles = {}
     for spec in scene.muscles:
-        V, F = read_mesh(spec.mesh)
-        V, F, mnotes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
+        V, F, mnotes = _read_muscle(spec, cache)
         for n in mnotes:
             notes.append(f"{spec.name}: {n}")
             say(f"{spec.name}: {n}")
         muscles[spec.name] = (V, F)
     bones = {}
     for b in scene.bones:
-        # bones are only shown and probed: tidied and oriented, not required to be manifold
-        V, F, _ = tidy_mesh(*read_mesh(b.mesh))
-        if check_mesh(V, F).volume < 0:
-            F = F[:, ::-1].copy()
+        V, F, flipped = _read_bone(b.mesh, cache)
+        if flipped:
             notes.append(f"{b.name}: faces were oriented inward: flipped")
         bones[b.name] = (V, F)
     centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
@@ -436,13 +451,6 @@ def _run_scene(
     muscles = {m: (apply(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}
     bones = {b: (apply(drive.to_body[b], V), F) for b, (V, F) in bones.items()}
     _check_units(scene, drive, muscles)
-
-    if cache_dir is True:
-        cache = scene.cache_dir or default_cache_dir()
-    elif cache_dir is False or cache_dir is None:
-        cache = None
-    else:
-        cache = Path(cache_dir)
     if cache is None and pool is not None:
         # the workers still share what they build, for this run only
         cache = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="musclewrap-")))

@@ -1,0 +1,71 @@
+"""Arrays kept on disk between runs, keyed by a hash of what they were made from."""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from ..mesh import atomic_path
+
+__all__ = ["cached_arrays", "digest"]
+
+
+def digest(*parts: bytes | str | np.ndarray) -> str:
+    """SHA-256 (hex) of byte strings, strings and arrays (their raw bytes) in order."""
+    h = hashlib.sha256()
+    for p in parts:
+        if isinstance(p, np.ndarray):
+            h.update(np.ascontiguousarray(p).tobytes())
+        elif isinstance(p, str):
+            h.update(p.encode())
+        else:
+            h.update(p)
+        h.update(b"|")
+    return h.hexdigest()
+
+
+def cached_arrays(
+    path: Path | None, build: Callable[[], dict[str, np.ndarray]]
+) -> dict[str, np.ndarray]:
+    """Read the arrays at ``path``, or build them and write them there.
+
+    The file holds a hash of its arrays; a file that is damaged, from another
+    version or fails that check is rebuilt. A cache that cannot be written is
+    not an error: the arrays are returned all the same.
+
+    Parameters
+    ----------
+    path : pathlib.Path or None
+        The ``.npz`` file (its name should carry the key); None: no cache.
+    build : callable
+        Makes the arrays (a dict of names to arrays) when needed.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+    """
+    if path is not None and path.is_file():
+        try:
+            with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
+                arrays = {n: z[n] for n in z.files if n != "sha256"}
+                sha = str(z["sha256"])
+            if sha == _digest_arrays(arrays):
+                return arrays
+        except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+            pass  # damaged: rebuilt below
+    arrays = {n: np.asarray(a) for n, a in build().items()}
+    if path is not None:
+        with contextlib.suppress(OSError):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+                np.savez(fh, sha256=np.array(_digest_arrays(arrays)), **arrays)
+    return arrays
+
+
+def _digest_arrays(arrays: dict[str, np.ndarray]) -> str:
+    return digest(*(x for n in sorted(arrays) for x in (n, str(arrays[n].dtype), arrays[n])))
