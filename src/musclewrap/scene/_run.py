@@ -91,6 +91,7 @@ class RunSummary:
 # ---------------------------------------------------------------------------- workers
 _progress_queue: Any = None
 _probes: dict[tuple[str, str | None], Any] = {}
+_deformers: dict[tuple[Any, ...], Any] = {}
 
 
 def _init_worker(queue: Any, threads: int) -> None:
@@ -181,18 +182,31 @@ def _fill_cache(task: tuple[str, Any]) -> str | None:
     return None
 
 
-def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
-    """Deform one muscle through all frames and write its files (runs in a worker)."""
+def _deformer(job: dict[str, Any]) -> tuple[Any, Any, bool, str | None, float]:
+    """The muscle bound to its rest lines, kept per process (a job comes in chunks)."""
+    key = (job["name"], job["run"])
+    if key in _deformers:
+        muscle, d = _deformers[key]
+        return muscle, d, True, None, 0.0
     t0 = time.perf_counter()
     muscle, hit, note = _prepare(job)
-    seconds_prepare = time.perf_counter() - t0
+    seconds = time.perf_counter() - t0
     d = muscle.bind(job["rest_lines"], reference_point=job["rest_reference"])
+    _deformers.clear()  # one muscle at a time is enough
+    _deformers[key] = (muscle, d)
+    return muscle, d, hit, note, seconds
+
+
+def _frames_job(job: dict[str, Any], ks: range) -> dict[str, Any]:
+    """Deform one muscle on frames ``ks`` (indices into the job's frames) and write them."""
+    muscle, d, hit, note, seconds_prepare = _deformer(job)
     probes = [(_bone_probe(V, F, job["cache_dir"]), T) for V, F, T in job["bones"]]
     out = Path(job["outdir"])
     name = job["name"]
     rows, entries = [], []
     kw = {"method": job["method"], "max_iterations": job["max_iterations"]}
-    for k, frame in enumerate(job["frames"]):
+    for k in ks:
+        frame = job["frames"][k]
         res = d.deform(job["lines"][k], reference_point=job["references"][k], **kw)
         T = job["to_output"][k]
         ok_values = np.isfinite(res.V).all()
@@ -234,23 +248,6 @@ def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
             }
         )
         _tick()
-    # The paper's iteration beside the default on a few frames, always including the worst
-    # frame of the default (most iterations, then largest volume error), whose iteration
-    # histories (default with the fine gradient, and the paper's) go into convergence.png.
-    n = len(job["frames"])
-    worst = max(
-        range(n), key=lambda k: (rows[k]["iterations"], abs(rows[k]["relative_volume_error"]))
-    )
-    paper, conv = [], {}
-    if job["paper_frames"]:
-        picks = set(np.linspace(0, n - 1, job["paper_frames"]).round().astype(int).tolist())
-        for k in sorted(picks | {worst}):
-            r = d.deform(job["lines"][k], reference_point=job["references"][k], method="paper")
-            paper.append((int(job["frames"][k]), r.relative_volume_error, r.iterations, r.seconds))
-            if k == worst:
-                conv["paper"] = [tuple(h) for h in r.history]
-        r = d.deform(job["lines"][worst], reference_point=job["references"][worst], method="exact")
-        conv["exact"] = [tuple(h) for h in r.history]
     return {
         "name": name,
         "rows": rows,
@@ -258,9 +255,55 @@ def _muscle_job(job: dict[str, Any]) -> dict[str, Any]:
         "seconds_prepare": seconds_prepare,
         "cache_hit": hit,
         "note": note,
+    }
+
+
+def _worst(rows: list[dict[str, Any]]) -> int:
+    """Index of the worst frame: most iterations, then largest volume error."""
+    return max(
+        range(len(rows)),
+        key=lambda k: (rows[k]["iterations"], abs(rows[k]["relative_volume_error"])),
+    )
+
+
+def _compare_job(job: dict[str, Any], worst: int) -> dict[str, Any]:
+    """The paper's iteration beside the default on a few frames and the worst one.
+
+    The worst frame's iteration histories (the default's iteration with the fine
+    gradient, method "exact", and the paper's) go into convergence.png.
+    """
+    _, d, *_ = _deformer(job)
+    n = len(job["frames"])
+    picks = set(np.linspace(0, n - 1, job["paper_frames"]).round().astype(int).tolist())
+    paper, conv = [], {}
+    for k in sorted(picks | {worst}):
+        r = d.deform(job["lines"][k], reference_point=job["references"][k], method="paper")
+        paper.append((int(job["frames"][k]), r.relative_volume_error, r.iterations, r.seconds))
+        if k == worst:
+            conv["paper"] = [tuple(h) for h in r.history]
+    r = d.deform(job["lines"][worst], reference_point=job["references"][worst], method="exact")
+    conv["exact"] = [tuple(h) for h in r.history]
+    return {
+        "name": job["name"],
         "paper": paper,
         "worst_frame": int(job["frames"][worst]),
         "convergence": conv,
+    }
+
+
+def _merge(job: dict[str, Any], parts: list[dict[str, Any]]) -> dict[str, Any]:
+    """One muscle's result from its frame chunks (in frame order)."""
+    first = parts[0]
+    return {
+        "name": job["name"],
+        "rows": [r for p in parts for r in p["rows"]],
+        "entries": [e for p in parts for e in p["entries"]],
+        "seconds_prepare": first["seconds_prepare"],
+        "cache_hit": first["cache_hit"],
+        "note": next((p["note"] for p in parts if p["note"]), None),
+        "paper": [],
+        "worst_frame": None,
+        "convergence": {},
     }
 
 
@@ -474,6 +517,7 @@ def _run(
     n = len(drive.frames)
     bone_local = {b.name: (*bones[b.name], drive.to_output[b.body]) for b in scene.bones}
     jobs = []
+    run = os.urandom(8).hex()  # tells a worker's kept muscle from another run's
     for spec in scene.muscles:
         Vb, F = muscles[spec.name]
         jobs.append(
@@ -497,6 +541,7 @@ def _run(
                 "bones": list(bone_local.values()),
                 "outdir": str(outdir),
                 "paper_frames": scene.paper_frames,
+                "run": run,
             }
         )
     bar = _Progress(n * len(jobs), progress) if progress is not None else None
@@ -596,6 +641,13 @@ def _warm_up() -> None:
     from . import _penetration  # noqa: F401
 
 
+def _chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
+    """Frame ranges per muscle: about three tasks per worker, for an even finish."""
+    k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), n_frames // 20))
+    edges = np.linspace(0, n_frames, k + 1).round().astype(int)
+    return [range(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+
+
 def _execute(
     jobs: list[dict[str, Any]],
     fill: list[tuple[str, Any]],
@@ -604,17 +656,24 @@ def _execute(
     *,
     meanwhile: Callable[[], None],
 ) -> tuple[list[dict[str, Any]], list[str]]:
-    """Run the jobs; in worker processes, first whatever `fill` puts into the cache.
+    """Run the jobs in frame chunks, then each muscle's comparison with the paper.
 
-    Returns the jobs' results and the notes of the cache filling.
+    In worker processes, whatever `fill` puts into the cache is built first.
+    Returns one result per job and the notes of the cache filling.
     """
+    n_frames = len(jobs[0]["frames"])
+    chunks = _chunks(n_frames, len(jobs), 0 if pool is None else len(pool._warm))
+    compare = jobs[0]["paper_frames"] > 0
     if pool is None:
         global _progress_queue
         meanwhile()
-        q = _LocalQueue(bar)
-        _progress_queue = q
+        _progress_queue = _LocalQueue(bar)
         try:
-            return [_muscle_job(j) for j in jobs], []
+            results = [_merge(j, [_frames_job(j, ks) for ks in chunks]) for j in jobs]
+            if compare:
+                for j, res in zip(jobs, results, strict=True):
+                    res.update(_compare_job(j, _worst(res["rows"])))
+            return results, []
         finally:
             _progress_queue = None
     import queue as queue_mod
@@ -631,14 +690,23 @@ def _execute(
             if timeout:
                 return
 
+    submit = pool.executor.submit
     try:
-        filled = [pool.executor.submit(_fill_cache, t) for t in fill]
+        filled = [submit(_fill_cache, t) for t in fill]
         meanwhile()
         early = [n for f in filled if (n := f.result())]
-        futs = [pool.executor.submit(_muscle_job, j) for j in jobs]
-        while not all(f.done() for f in futs):
-            ticks(0.1)
-        results = [f.result() for f in futs]
+        parts = [[submit(_frames_job, j, ks) for ks in chunks] for j in jobs]
+        results: list[dict[str, Any] | None] = [None] * len(jobs)
+        compares: dict[int, Any] = {}
+        while not all(c.done() for c in compares.values()) or None in results:
+            ticks(0.05)
+            for i, fs in enumerate(parts):
+                if results[i] is None and all(f.done() for f in fs):
+                    results[i] = _merge(jobs[i], [f.result() for f in fs])
+                    if compare:  # queued behind the remaining chunks
+                        compares[i] = submit(_compare_job, jobs[i], _worst(results[i]["rows"]))
+        for i, f in compares.items():
+            results[i].update(f.result())  # type: ignore[union-attr]
     except BrokenProcessPool:
         raise RuntimeError(
             "a worker process died without a Python error (out of memory, a crash in a compiled "
@@ -646,7 +714,7 @@ def _execute(
             "'__main__':` block); rerun with --workers 1 to see where"
         ) from None
     ticks(None)
-    return results, early
+    return [r for r in results if r is not None], early
 
 
 class _LocalQueue:
