@@ -76,8 +76,8 @@ class BoneProbe:
         E = np.sort(self.F[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
         key = E[:, 0] * len(self.V) + E[:, 1]
         uniq, inv = np.unique(key, return_inverse=True)
-        EN = np.zeros((len(uniq), 3))
-        np.add.at(EN, inv, np.repeat(FN, 3, axis=0))
+        FN3 = np.repeat(FN, 3, axis=0)
+        EN = np.stack([np.bincount(inv, FN3[:, i], minlength=len(uniq)) for i in range(3)], 1)
         self._edge_keys, self._EN = uniq, EN
         grid = _grid if _grid is not None else self._build(max_grid_nodes)
         self.lo = np.asarray(grid["lo"], dtype=np.float64)
