@@ -228,6 +228,63 @@ def test_bone_probe_grid_is_exact_and_cached(tmp_path):
     assert c.measure(Q) == _brute_force(c, Q)
 
 
+def test_registration_similarity_and_landmarks():
+    from musclewrap.scene._register import (
+        axes_rotation,
+        fit_sphere,
+        similarity,
+        surface_centroid,
+    )
+
+    rng = np.random.default_rng(4)
+    # a sphere's fitted centre and radius, and the centroid of a closed surface
+    V, F = capsule(radius=7.0, length=0.0, n_around=48, cap_rings=24, segments=1)
+    c, r, rms = fit_sphere(V + [1.0, 2.0, 3.0])
+    assert np.allclose(c, V.mean(axis=0) + [1, 2, 3], atol=1e-6) and r == pytest.approx(7.0, 1e-3)
+    assert rms < 0.05
+    assert np.allclose(surface_centroid(V, F), V.mean(axis=0), atol=1e-9)
+    # a known similarity is recovered from three landmarks, and from two with the axes
+    R = axes_rotation(["y", "z", "x"])
+    assert np.allclose(R @ [0.0, 1, 0], [1, 0, 0]) and np.linalg.det(R) == pytest.approx(1)
+    P = rng.normal(size=(4, 3)) * 50
+    Q = 1.17 * P @ R.T + [10.0, -20.0, 5.0]
+    for k in (2, 3, 4):
+        T = similarity(P[:k], Q[:k], R if k == 2 else None)
+        assert np.allclose(P @ T[:3, :3].T + T[:3, 3], Q, atol=1e-9), k
+    # two landmarks and no axes: the line through them is matched, not the turn about it
+    T = similarity(P[:2], Q[:2], None)
+    assert np.allclose(P[:2] @ T[:3, :3].T + T[:3, 3], Q[:2], atol=1e-9)
+
+
+def test_registration_errors_name_the_problem(tmp_path):
+    _, toml = _write_demo(tmp_path, n_frames=2)
+    (tmp_path / "model.osim").write_text("<OpenSimDocument/>")
+    head = '[model]\nosim = "model.osim"\nmotion = "m.mot"\n'
+    (tmp_path / "m.mot").write_text("endheader\ntime\ta\n0\t0\n")
+    cases = [
+        ("[registration]\naxes = ['y', 'y', 'x']\n", "axes must name"),
+        ("[registration]\naxes = ['-y', 'z', 'x']\n", "as a rotation"),
+        ("[registration]\naxes = ['y', 'z', 'x']\n", "two or more"),
+        (
+            "[registration]\n[[registration.landmark]]\nmesh = 'muscle.vtp'\nbody = 'a'\n"
+            "[[registration.landmark]]\nmesh = 'muscle.vtp'\nbody = 'b'\n",
+            "needs axes",
+        ),
+        (
+            "[registration]\naxes = ['y', 'z', 'x']\n[[registration.landmark]]\n"
+            "mesh = 'muscle.vtp'\nbody = 'a'\nfit = 'cube'\n"
+            "[[registration.landmark]]\nmesh = 'muscle.vtp'\nbody = 'b'\n",
+            "use 'sphere' or 'centroid'",
+        ),
+    ]
+    muscles = '[muscles.m]\nmesh = "muscle.vtp"\npaths = ["p"]\n'
+    for extra, match in cases:
+        f = tmp_path / "r.toml"
+        f.write_text(head + muscles + extra)
+        with pytest.raises(SceneError, match=match):
+            load_scene(f)
+
+
 # ------------------------------------------------------------------ real data
 @pytest.mark.realdata
 @pytest.mark.slow
@@ -254,6 +311,22 @@ def test_lhdl_walk_subset_meets_targets(data_dir, tmp_path):
         assert np.isfinite(r["penetration_depth_max"]) and 0 <= r["penetration_share"] < 1
     assert (tmp_path / "walk" / "femur" / "femur_0030.vtp").is_file()  # the femur moves
     assert (tmp_path / "walk" / "iliac" / "iliac.vtp").is_file()  # the pelvis does not
+    # cold: built (in the workers' first phase), not reported as cached; warm: all cached,
+    # the repairs still reported, and the same numbers
+    assert s.cache_hits == [] and all(t > 0 for t in s.seconds_prepare.values())
+    w = run_scene(
+        scene,
+        tmp_path / "warm",
+        frames="0:211:30",
+        workers=2,
+        cache_dir=tmp_path / "c",
+        progress=None,
+        render=False,
+    )
+    assert sorted(w.cache_hits) == sorted(m.name for m in scene.muscles)
+    assert {n.split(":")[0] for n in w.notes if "repaired with PyMeshFix" in n} == repaired
+    keys = ("relative_volume_error", "penetration_depth_max", "iterations")
+    assert [[r[k] for k in keys] for r in w.rows] == [[r[k] for k in keys] for r in s.rows]
 
 
 @pytest.mark.realdata

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .._typing import PathLike
 from ..constants import defaults
 from ._errors import SceneError, suggest
@@ -27,6 +29,7 @@ _TOP = {
     "muscles",
     "bones",
     "cache_dir",
+    "registration",
 }
 _MODEL = {"osim", "motion", "rest_pose", "angle_unit", "coordinates", "output_frame", "mesh_frame"}
 _LINES = {"csv", "rest_frame"}
@@ -36,6 +39,26 @@ _MUSCLE = {
     "max_iterations", "repair", "frame",
 }  # fmt: skip
 _BONE = {"mesh", "body", "frame"}
+_LANDMARK = {"name", "mesh", "fit", "body", "point"}
+
+
+@dataclass(frozen=True)
+class Landmark:
+    """A point found on a mesh (sphere centre or surface centroid) and its place on the model."""
+
+    name: str
+    mesh: Path
+    fit: str
+    body: str
+    point: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Registration:
+    """Meshes segmented from another subject, placed on the model by landmarks."""
+
+    axes: tuple[str, str, str] | None
+    landmarks: tuple[Landmark, ...]
 
 
 @dataclass(frozen=True)
@@ -89,6 +112,7 @@ class Scene:
     gif_every: int
     image_size: tuple[int, int]
     cache_dir: Path | None
+    registration: Registration | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -222,6 +246,10 @@ def load_scene(path: PathLike) -> Scene:
     if osim is None and output_frame != "ground":
         raise SceneError(f"{src}: [model] output_frame needs an OpenSim model ([model] osim)")
 
+    registration = _registration(raw, base, src, osim) if "registration" in raw else None
+    if mesh_frame == "registration" and registration is None:
+        raise SceneError(f"{src}: [model] mesh_frame = 'registration' needs a [registration] table")
+
     lines_csv = _file(base, lines["csv"], "[lines] csv", src) if "csv" in lines else None
     rest_frame = _get(lines, "rest_frame", int, "[lines]", src) if "rest_frame" in lines else 0
 
@@ -349,4 +377,69 @@ def load_scene(path: PathLike) -> Scene:
         gif_every=gif_every,
         image_size=(size[0], size[1]),
         cache_dir=cache_dir,
+        registration=registration,
+    )
+
+
+def _registration(raw: dict[str, Any], base: Path, src: Path, osim: Path | None) -> Registration:
+    reg = _table(raw["registration"], "registration", src)
+    _keys(reg, {"axes", "landmark"}, "[registration]", src)
+    if osim is None:
+        raise SceneError(f"{src}: [registration] needs an OpenSim model ([model] osim)")
+    axes = reg.get("axes")
+    if axes is not None:
+        ok = (
+            isinstance(axes, list)
+            and len(axes) == 3
+            and all(isinstance(a, str) and a.lstrip("+-") in ("x", "y", "z") for a in axes)
+            and sorted(a.lstrip("+-") for a in axes) == ["x", "y", "z"]
+        )
+        if ok:
+            from ._register import axes_rotation
+
+            ok = bool(np.isclose(np.linalg.det(axes_rotation(axes)), 1.0))
+        if not ok:
+            raise SceneError(
+                f"{src}: [registration] axes must name the mesh axes that become the model's "
+                "x, y and z, each once, as a rotation (e.g. ['y', 'z', 'x'] or ['-x', 'z', 'y'])"
+            )
+    items = reg.get("landmark", [])
+    if not isinstance(items, list) or len(items) < 2:
+        raise SceneError(
+            f"{src}: [registration] needs two or more [[registration.landmark]] tables"
+        )
+    if len(items) == 2 and axes is None:
+        raise SceneError(
+            f"{src}: [registration] with two landmarks needs axes (they fix the turn about "
+            "the line through the landmarks)"
+        )
+    marks = []
+    for i, item in enumerate(items):
+        where = f"[[registration.landmark]] number {i + 1}"
+        lm = _table(item, "registration.landmark", src)
+        _keys(lm, _LANDMARK, where, src)
+        for k in ("mesh", "body"):
+            if k not in lm:
+                raise SceneError(f"{src}: {where} needs '{k}'")
+        fit = lm.get("fit", "centroid")
+        if fit not in ("sphere", "centroid"):
+            raise SceneError(f"{src}: {where} fit = {fit!r}; use 'sphere' or 'centroid'")
+        point = lm.get("point", [0.0, 0.0, 0.0])
+        if not (
+            isinstance(point, list)
+            and len(point) == 3
+            and all(isinstance(v, (int, float)) for v in point)
+        ):
+            raise SceneError(f"{src}: {where} point must be [x, y, z] in the body, model units")
+        marks.append(
+            Landmark(
+                name=str(lm.get("name", f"landmark {i + 1}")),
+                mesh=_file(base, lm["mesh"], f"{where} mesh", src),
+                fit=fit,
+                body=_get(lm, "body", str, where, src),
+                point=(float(point[0]), float(point[1]), float(point[2])),
+            )
+        )
+    return Registration(
+        axes=None if axes is None else (axes[0], axes[1], axes[2]), landmarks=tuple(marks)
     )

@@ -30,6 +30,44 @@ def invert_rigid(T: FloatArray) -> FloatArray:
     return out
 
 
+def _register(scene: Scene, g: dict[str, FloatArray], s: float, notes: list[str]) -> FloatArray:
+    """Similarity from the registration's mesh frame to ground (mesh units), with a note."""
+    from ..mesh import read_mesh, tidy_mesh
+    from ._register import axes_rotation, check_landmarks, fit_sphere, similarity, surface_centroid
+
+    reg = scene.registration
+    assert reg is not None
+    P, Q, names, fits = [], [], [], []
+    for lm in reg.landmarks:
+        V, F, _ = tidy_mesh(*read_mesh(lm.mesh))
+        if lm.fit == "sphere":
+            c, r, rms = fit_sphere(V)
+            if not rms < 0.25 * r:
+                raise SceneError(
+                    f"{lm.mesh}: landmark '{lm.name}': the mesh is not sphere-like (fit radius "
+                    f"{r:.3g}, rms distance {rms:.3g}); use fit = 'centroid'"
+                )
+            fits.append(f"{lm.name} sphere r {r:.1f} (rms {rms:.2f})")
+        else:
+            c = surface_centroid(V, F)
+        P.append(c)
+        Q.append(apply(g[lm.body], np.array(lm.point)[None] * s)[0])
+        names.append(lm.name)
+    check_landmarks(np.array(P), names, str(scene.path))
+    check_landmarks(np.array(Q), names, str(scene.path))
+    R0 = None if reg.axes is None else axes_rotation(reg.axes)
+    T = similarity(np.array(P), np.array(Q), R0)
+    scale = float(np.cbrt(np.linalg.det(T[:3, :3])))
+    res = np.linalg.norm(apply(T, np.array(P)) - np.array(Q), axis=1)
+    notes.append(
+        f"registration: meshes scaled by {scale:.4f}; landmark misfit "
+        + ", ".join(f"{n} {d:.2g}" for n, d in zip(names, res, strict=True))
+        + f" {scene.mesh_unit}"
+        + (f"; {'; '.join(fits)}" if fits else "")
+    )
+    return T
+
+
 def parse_frames(text: str | None, n: int, *, source: str) -> list[int]:
     """Frame positions from ``start:stop:step`` (Python slice rules, no negative step)."""
     if text is None:
@@ -191,15 +229,19 @@ def _drive_opensim(
         T[:3, 3] *= s
         return T
 
+    reg = scene.registration
     bodies = sorted({m.body for m in scene.muscles} | {b.body for b in scene.bones} | {
-        x.frame for x in (*scene.muscles, *scene.bones)} | {
+        x.frame for x in (*scene.muscles, *scene.bones) if x.frame != "registration"} | {
+        lm.body for lm in (reg.landmarks if reg else ())} | {
         bone_names[m.reference].body if m.reference in bone_names else m.reference
         for m in scene.muscles if m.reference is not None
     } | {"ground"})  # fmt: skip
     model.set_pose(rest)
-    for x in (*scene.muscles, *scene.bones):
-        model.check_body(x.frame)
+    for b in bodies:
+        model.check_body(b)
     g = {b: transform(b, "ground") for b in bodies}
+    if reg is not None:
+        g["registration"] = _register(scene, g, s, notes)
     to_body = {x.name: invert_rigid(g[x.body]) @ g[x.frame] for x in (*scene.muscles, *scene.bones)}
     # reference points as fixed points of their bodies
     ref_local: dict[str, tuple[str, FloatArray] | None] = {}

@@ -173,11 +173,21 @@ def _bone_probe(V: FloatArray, F: IntArray, cache: str | None) -> Any:
     return _probes[key]
 
 
-def _fill_cache(task: tuple[str, Any]) -> str | None:
-    """Phase one of a run in workers: one preparation or bone probe into the cache."""
+def _fill_cache(task: tuple[str, Any]) -> dict[str, Any] | None:
+    """Phase one of a run in workers: one preparation or bone probe into the cache.
+
+    For a muscle, what its preparation reports (the later jobs read it from the cache).
+    """
     kind, arg = task
     if kind == "muscle":
-        return _prepare(arg)[2]
+        t0 = time.perf_counter()
+        _, hit, note = _prepare(arg)
+        return {
+            "name": arg["name"],
+            "seconds_prepare": time.perf_counter() - t0,
+            "cache_hit": hit,
+            "note": note,
+        }
     _bone_probe(*arg)
     return None
 
@@ -575,8 +585,7 @@ def _run(
             for V, F in bones.values()
             if not (cache / BoneProbe.cache_name(V, F)).is_file()
         ]
-    results, early = _execute(jobs, fill, pool, bar, meanwhile=write_bones)
-    notes += early
+    results = _execute(jobs, fill, pool, bar, meanwhile=write_bones)
     order = {s.name: i for i, s in enumerate(scene.muscles)}
     results.sort(key=lambda r: order[r["name"]])
     rows = [r for res in results for r in res["rows"]]
@@ -655,11 +664,11 @@ def _execute(
     bar: _Progress | None,
     *,
     meanwhile: Callable[[], None],
-) -> tuple[list[dict[str, Any]], list[str]]:
+) -> list[dict[str, Any]]:
     """Run the jobs in frame chunks, then each muscle's comparison with the paper.
 
     In worker processes, whatever `fill` puts into the cache is built first.
-    Returns one result per job and the notes of the cache filling.
+    Returns one result per job.
     """
     n_frames = len(jobs[0]["frames"])
     chunks = _chunks(n_frames, len(jobs), 0 if pool is None else len(pool._warm))
@@ -673,7 +682,7 @@ def _execute(
             if compare:
                 for j, res in zip(jobs, results, strict=True):
                     res.update(_compare_job(j, _worst(res["rows"])))
-            return results, []
+            return results
         finally:
             _progress_queue = None
     import queue as queue_mod
@@ -694,7 +703,7 @@ def _execute(
     try:
         filled = [submit(_fill_cache, t) for t in fill]
         meanwhile()
-        early = [n for f in filled if (n := f.result())]
+        built = {r["name"]: r for f in filled if (r := f.result())}
         parts = [[submit(_frames_job, j, ks) for ks in chunks] for j in jobs]
         results: list[dict[str, Any] | None] = [None] * len(jobs)
         compares: dict[int, Any] = {}
@@ -714,7 +723,10 @@ def _execute(
             "'__main__':` block); rerun with --workers 1 to see where"
         ) from None
     ticks(None)
-    return [r for r in results if r is not None], early
+    out = [r for r in results if r is not None]
+    for r in out:  # the preparation happened in phase one
+        r.update(built.get(r["name"], {}))
+    return out
 
 
 class _LocalQueue:

@@ -1,0 +1,119 @@
+"""Placing meshes segmented from another subject on a model: a similarity from landmarks."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .._typing import FloatArray
+from ._errors import SceneError
+
+__all__ = ["axes_rotation", "fit_sphere", "similarity", "surface_centroid"]
+
+
+def fit_sphere(P: FloatArray) -> tuple[FloatArray, float, float]:
+    """Least-squares sphere through points (algebraic fit, then the true radius).
+
+    Returns
+    -------
+    centre : (3,) array
+    radius : float
+    rms : float
+        Root mean square distance of the points from the sphere.
+    """
+    P = np.asarray(P, dtype=np.float64)
+    A = np.hstack([2 * P, np.ones((len(P), 1))])
+    sol, *_ = np.linalg.lstsq(A, (P * P).sum(axis=1), rcond=None)
+    c = sol[:3]
+    d = np.linalg.norm(P - c, axis=1)
+    r = float(d.mean())
+    return c, r, float(np.sqrt(np.mean((d - r) ** 2)))
+
+
+def surface_centroid(V: FloatArray, F: np.ndarray) -> FloatArray:
+    """Area-weighted centroid of a triangle surface (independent of vertex density)."""
+    T = V[F]
+    area = 0.5 * np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+    return (T.mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
+
+
+def axes_rotation(axes: Sequence[str]) -> FloatArray:
+    """Rotation whose rows pick the mesh axes that become the model's x, y and z.
+
+    ``["y", "z", "x"]``: model x = mesh y, model y = mesh z, model z = mesh x;
+    a leading ``-`` flips an axis. It must be a proper rotation (det +1).
+    """
+    unit = {"x": 0, "y": 1, "z": 2}
+    R = np.zeros((3, 3))
+    for i, a in enumerate(axes):
+        sign = -1.0 if a.startswith("-") else 1.0
+        R[i, unit[a.lstrip("+-")]] = sign
+    return R
+
+
+def _rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The smallest rotation taking direction ``a`` to direction ``b``."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    v = np.cross(a, b)
+    c = float(a @ b)
+    if c < -1 + 1e-12:  # opposite: half a turn about any axis normal to a
+        n = np.cross(a, [1.0, 0, 0] if abs(a[0]) < 0.9 else [0, 1.0, 0])
+        n /= np.linalg.norm(n)
+        return 2 * np.outer(n, n) - np.eye(3)
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + K + K @ K / (1 + c)
+
+
+def similarity(P: FloatArray, Q: FloatArray, axes: FloatArray | None = None) -> FloatArray:
+    """4x4 similarity (rotation, uniform scale, shift) taking landmarks ``P`` onto ``Q``.
+
+    Parameters
+    ----------
+    P, Q : (n, 3) arrays
+        Landmarks in the mesh's frame and in the model's, in the same order.
+    axes : (3, 3) array, optional
+        Rotation from `axes_rotation`; needed with two landmarks (it fixes the
+        turn about the line through them), a start for nothing with three or more.
+
+    Returns
+    -------
+    (4, 4) array
+
+    Notes
+    -----
+    Two landmarks: the axes' rotation, then the smallest rotation taking the
+    first-to-second direction onto the model's, the scale of their distances,
+    and the shift that puts the first on the model's first. Three or more: the
+    least-squares similarity of Umeyama (1991).
+    """
+    P = np.asarray(P, dtype=np.float64)
+    Q = np.asarray(Q, dtype=np.float64)
+    if len(P) == 2:
+        R0 = np.eye(3) if axes is None else axes
+        a, b = R0 @ (P[1] - P[0]), Q[1] - Q[0]
+        s = float(np.linalg.norm(b) / np.linalg.norm(a))
+        R = _rotation_between(a, b) @ R0
+        t = Q[0] - s * R @ P[0]
+    else:
+        mp, mq = P.mean(axis=0), Q.mean(axis=0)
+        X, Y = P - mp, Q - mq
+        U, S, Wt = np.linalg.svd(Y.T @ X / len(P))
+        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt))])
+        R = U @ D @ Wt
+        s = float(np.trace(np.diag(S) @ D) / (X * X).sum(axis=1).mean())
+        t = mq - s * R @ mp
+    T = np.eye(4)
+    T[:3, :3] = s * R
+    T[:3, 3] = t
+    return T
+
+
+def check_landmarks(P: FloatArray, names: Sequence[str], src: str) -> None:
+    """Refuse coincident landmarks (no direction, no scale)."""
+    P = np.asarray(P)
+    for i in range(len(P)):
+        for j in range(i + 1, len(P)):
+            if np.linalg.norm(P[i] - P[j]) < 1e-9 * (1 + np.abs(P).max()):
+                raise SceneError(f"{src}: landmarks '{names[i]}' and '{names[j]}' coincide")
