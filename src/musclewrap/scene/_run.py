@@ -6,6 +6,7 @@ import contextlib
 import os
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -650,6 +651,14 @@ def _warm_up() -> None:
     from . import _penetration  # noqa: F401
 
 
+def _import_matplotlib() -> None:
+    with contextlib.suppress(Exception):
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot  # noqa: F401
+
+
 def _chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
     """Frame ranges per muscle: about three tasks per worker, for an even finish."""
     k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), n_frames // 20))
@@ -705,6 +714,8 @@ def _execute(
         meanwhile()
         built = {r["name"]: r for f in filled if (r := f.result())}
         parts = [[submit(_frames_job, j, ks) for ks in chunks] for j in jobs]
+        # this process waits from here on: it imports the plotting library meanwhile
+        threading.Thread(target=_import_matplotlib, daemon=True).start()
         results: list[dict[str, Any] | None] = [None] * len(jobs)
         compares: dict[int, Any] = {}
         while not all(c.done() for c in compares.values()) or None in results:
