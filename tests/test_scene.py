@@ -331,6 +331,31 @@ def test_lhdl_walk_subset_meets_targets(data_dir, tmp_path):
 
 @pytest.mark.realdata
 @pytest.mark.slow
+def test_gait2392_vhf_example_runs(data_dir, tmp_path):
+    scene = load_scene(EXAMPLES / "gait2392_walk.toml")
+    s = run_scene(
+        scene,
+        tmp_path / "g",
+        frames="0:211:70",
+        workers=2,
+        cache_dir=tmp_path / "c",
+        progress=None,
+        render=False,
+    )
+    # placed by the hip and knee landmarks: exact on two landmarks, scaled up to the model
+    (note,) = [n for n in s.notes if n.startswith("registration:")]
+    scale = float(note.split("scaled by ")[1].split(";")[0])
+    assert 1.1 < scale < 1.25
+    assert len(s.rows) == 5 * 4
+    for r in s.rows:
+        assert r["converged"], r
+        assert abs(r["relative_volume_error"]) <= 1e-9, r
+        assert r["skeleton_fit_mean"] <= 1.0, r
+        assert r["shape_change_max"] <= 0.5, r
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
 def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys):
     out = tmp_path / "sweeps"
     rc = main(
