@@ -73,7 +73,15 @@ class Defaults:
     samples_per_line : int
         Minimum number of arc-length samples per action line.
     max_iterations : int
-        Iteration limit of the default solver.
+        Iteration limit of the default solver (most poses converge in 3-6
+        plain iterations).
+    plain_iterations : int
+        Most plain fixed-point iterations of the default solver before it
+        turns to a damped Newton method (for poses where the fixed point
+        converges slowly or oscillates).
+    newton_rate : float
+        Observed rate of the plain fixed point (step over previous step)
+        above which the default solver turns to Newton's method at once.
     paper_max_iterations : int
         Iteration limit of ``method="paper"`` (the paper used 100 to 200).
     """
@@ -85,7 +93,9 @@ class Defaults:
     proxy_size: int = 1000
     skeleton_weight: float = 1.0
     samples_per_line: int = 33
-    max_iterations: int = 8
+    max_iterations: int = 60
+    plain_iterations: int = 30
+    newton_rate: float = 0.85
     paper_max_iterations: int = 200
 
 

@@ -11,7 +11,14 @@ from ._checks import (
 from ._geometry import face_areas, half_edges, mean_edge_length, umbrella_laplacian
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
 from ._repair import repair_mesh
-from ._volume import combine_pair, volume, volume_cubic, volume_cubic_pair, volume_gradient
+from ._volume import (
+    combine_pair,
+    volume,
+    volume_cubic,
+    volume_cubic_pair,
+    volume_gradient,
+    volume_hessian_reduced,
+)
 
 __all__ = [
     "FORMATS",
@@ -33,5 +40,6 @@ __all__ = [
     "volume_cubic",
     "volume_cubic_pair",
     "volume_gradient",
+    "volume_hessian_reduced",
     "write_mesh",
 ]

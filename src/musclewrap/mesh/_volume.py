@@ -7,7 +7,14 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 
-__all__ = ["combine_pair", "volume", "volume_cubic", "volume_cubic_pair", "volume_gradient"]
+__all__ = [
+    "combine_pair",
+    "volume",
+    "volume_cubic",
+    "volume_cubic_pair",
+    "volume_gradient",
+    "volume_hessian_reduced",
+]
 
 
 def volume(V: FloatArray, F: IntArray, *, center: FloatArray | None = None) -> float:
@@ -63,6 +70,58 @@ def volume_gradient(V: FloatArray, F: IntArray) -> FloatArray:
     """
     V = np.ascontiguousarray(V, dtype=np.float64)
     return _gradient_kernel(V, np.ascontiguousarray(F, dtype=np.int64), V.mean(axis=0))
+
+
+# (row, column, third) coordinate index triples, each with Levi-Civita sign +1
+_CROSS = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
+
+
+def volume_hessian_reduced(V: FloatArray, F: IntArray, W: FloatArray) -> FloatArray:
+    """Hessian of the volume of ``W x`` with respect to ``x``, at ``V = W x``.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+        Current vertex positions (``W x``, centred or not: the volume of a
+        closed mesh does not depend on the origin).
+    F : (m, 3) int array
+        Triangles.
+    W : (n, k) float64 array
+        Coordinates of the vertices in the ``k`` control points.
+
+    Returns
+    -------
+    (3k, 3k) float64 array
+        Symmetric; rows and columns ordered control point by control point,
+        x, y, z within each (``x.ravel()`` of a ``(k, 3)`` array).
+
+    Notes
+    -----
+    Per face ``(a, b, c)`` the volume is ``a . (b x c) / 6``; the block of
+    its Hessian for vertices ``(i, j)`` with third vertex ``l`` is
+    ``-eps(i, j, l) [v_l]_x / 6`` (``[v]_x`` the cross-product matrix, eps the
+    sign of the permutation of the face's vertices). The mesh Hessian is
+    sparse; its coordinate components ``(r, s)`` vanish for ``r == s``, and
+    ``(s, r)`` is the transpose of ``(r, s)`` (symmetry), so three reductions
+    ``W^T H_rs W`` give all of it.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    from scipy import sparse
+
+    a, b, c = F.T
+    rows = np.concatenate([a, b, c, a, b, c])
+    cols = np.concatenate([b, c, a, c, a, b])
+    third = np.concatenate([c, a, b, b, c, a])
+    perm = np.repeat([1.0, 1.0, 1.0, -1.0, -1.0, -1.0], len(F))
+    n, k = W.shape
+    K = np.zeros((k, 3, k, 3))
+    for r, s, t in _CROSS:
+        # [v]_x has entry (r, s) = -eps(r, s, t) v_t
+        H = sparse.csr_matrix((perm * V[third, t] / 6.0, (rows, cols)), shape=(n, n))
+        K[:, r, :, s] = W.T @ (H @ W)
+        K[:, s, :, r] = K[:, r, :, s].T
+    return K.reshape(3 * k, 3 * k)
 
 
 def volume_cubic(A: FloatArray, B: FloatArray, F: IntArray) -> FloatArray:

@@ -37,6 +37,7 @@ from ..mesh import (
     volume_cubic,
     volume_cubic_pair,
     volume_gradient,
+    volume_hessian_reduced,
 )
 from ._cubic import cubic_root_near
 from ._result import DeformationResult
@@ -606,7 +607,10 @@ class Deformer:
         converged_dir = False
         its = 0
         prev_step = 0.0
-        for its in range(1, max_iterations + 1):
+        # the default solve iterates plainly a few times, then switches to Newton's method
+        plain = max_iterations if exact else min(max_iterations, defaults.plain_iterations)
+        best = (np.inf, x_ls, 0.0)
+        for its in range(1, plain + 1):
             u = self._solve(G)
             P_u = Wd @ u
             lam_new = cubic_root_near(volume_cubic(P_ls, -P_u, Fd), Vd0, lam)
@@ -616,6 +620,8 @@ class Deformer:
             step = float(np.abs(x_new - x).max())
             x, lam = x_new, lam_new
             P = P_ls - lam * P_u
+            e = x - x_ls
+            best = min(best, (float(np.sum(e * (self.H @ e))), x, lam), key=lambda b: b[0])
             if exact:
                 hist.append(
                     (self.energy(x, d_L, s_cur), volume(P, Fd, center=np.zeros(3)) / Vd0 - 1)
@@ -629,7 +635,15 @@ class Deformer:
             if error <= tol.direction * max(float(np.abs(lam * u).max()), 1e-9 * self._diag):
                 converged_dir = True
                 break
+            if not exact and its >= 4 and rho > defaults.newton_rate:
+                break  # too slow or oscillating for plain iteration
             G = WdT @ volume_gradient(P, Fd)
+        if not converged_dir and its < max_iterations:
+            # Slow (rate near 1) or oscillating fixed point: damped Newton on the proxy's
+            # optimality conditions from the plain iterate of least energy.
+            x, lam, n_newton, converged_dir = self._newton(best[1], x_ls, c, max_iterations - its)
+            its += n_newton
+            u = self._solve(WdT @ volume_gradient(Wd @ (x - c), Fd))
         if exact:
             V = P + c
             its_total = its
@@ -644,6 +658,79 @@ class Deformer:
             "converged" if converged_dir else f"direction not stationary after {its} iterations"
         )
         return x, V, its_total, converged_dir, reason, hist
+
+    def _newton(self, x, x_ls, c, budget: int):  # noqa: ANN001, ANN202
+        """Damped Newton on the proxy's KKT system ``H (x - x_ls) + lam g(x) = 0, v(x) = V0``.
+
+        Each step solves ``[(1 + mu) H + lam K, g; g^T, 0]`` (``K`` the volume's Hessian
+        in cage space), goes back onto the volume along ``-H^-1 g`` (a cubic) and is kept
+        only if the energy ``(x - x_ls)^T H (x - x_ls)`` does not grow; otherwise the
+        damping ``mu`` grows (toward a gradient step), and it shrinks after a success
+        (Levenberg-Marquardt). Returns ``(x, lam, iterations, converged)``: converged
+        when an undamped step is below ``tol.direction`` of the volume correction
+        (quadratic convergence leaves about its square).
+        """
+        mu = self.muscle
+        Wd, WdT, Fd, Vd0 = mu.proxy_W, mu.proxy_W_T, mu.proxy_F, mu.proxy_volume_rest
+        H = self.H
+        k = len(x)
+        if getattr(self, "_H3", None) is None:
+            self._H3 = np.kron(H, np.eye(3))
+        H3 = self._H3
+
+        def energy(y: FloatArray) -> float:
+            e = y - x_ls
+            return float(np.sum(e * (H @ e)))
+
+        def onto_volume(y: FloatArray) -> FloatArray:
+            P = Wd @ (y - c)
+            u = self._solve(WdT @ volume_gradient(P, Fd))
+            P_u = Wd @ u
+            return y - cubic_root_near(volume_cubic(P, -P_u, Fd), Vd0, 0.0) * u
+
+        damp, lam = 0.0, 0.0
+        for its in range(1, budget + 1):
+            P = Wd @ (x - c)
+            G = WdT @ volume_gradient(P, Fd)
+            r, g = (H @ (x - x_ls)).ravel(), G.ravel()
+            lam = -float(r @ g) / float(g @ g)  # least-squares multiplier at x
+            rhs = -np.append(r + lam * g, volume(P, Fd, center=np.zeros(3)) - Vd0)
+            K = volume_hessian_reduced(P, Fd, Wd)
+            e0 = energy(x)
+            for _ in range(40):
+                with np.errstate(all="ignore"):
+                    try:
+                        dx = _kkt_step((1.0 + damp) * H3 + lam * K, g, rhs)
+                        x_new = onto_volume(x + dx.reshape(k, 3))
+                    except np.linalg.LinAlgError:
+                        x_new = None
+                if x_new is not None and np.isfinite(x_new).all():
+                    if energy(x_new) <= e0 * (1.0 + 1e-12):
+                        break
+                damp = max(4.0 * damp, 0.25)
+            else:
+                return x, lam, its, False
+            step = float(np.abs(x_new - x).max())
+            x = x_new
+            size = max(float(np.abs(lam * self._solve(G)).max()), 1e-9 * self._diag)
+            if damp == 0.0 and step <= tol.direction * size:
+                return x, lam, its, True
+            damp = damp / 4.0 if damp > 1e-3 else 0.0
+        return x, lam, budget, False
+
+
+def _kkt_step(M: FloatArray, g: FloatArray, rhs: FloatArray) -> FloatArray:
+    """``dx`` of the bordered system ``[M, g; g^T, 0] [dx; dlam] = rhs`` (one LU).
+
+    ``M`` is symmetric but, with a large multiplier, mostly indefinite: a
+    Cholesky first would fail more often than not.
+    """
+    n = len(g)
+    J = np.empty((n + 1, n + 1))
+    J[:n, :n] = M
+    J[:n, n] = J[n, :n] = g
+    J[n, n] = 0.0
+    return np.linalg.solve(J, rhs)[:n]
 
 
 def deform(
