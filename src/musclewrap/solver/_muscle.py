@@ -609,7 +609,7 @@ class Deformer:
         prev_step = 0.0
         # the default solve iterates plainly a few times, then switches to Newton's method
         plain = max_iterations if exact else min(max_iterations, defaults.plain_iterations)
-        best = (np.inf, x_ls, 0.0)
+        iterates = []  # Newton starts from the one of least energy
         for its in range(1, plain + 1):
             u = self._solve(G)
             P_u = Wd @ u
@@ -620,8 +620,7 @@ class Deformer:
             step = float(np.abs(x_new - x).max())
             x, lam = x_new, lam_new
             P = P_ls - lam * P_u
-            e = x - x_ls
-            best = min(best, (float(np.sum(e * (self.H @ e))), x, lam), key=lambda b: b[0])
+            iterates.append(x)
             if exact:
                 hist.append(
                     (self.energy(x, d_L, s_cur), volume(P, Fd, center=np.zeros(3)) / Vd0 - 1)
@@ -641,7 +640,8 @@ class Deformer:
         if not converged_dir and its < max_iterations:
             # Slow (rate near 1) or oscillating fixed point: damped Newton on the proxy's
             # optimality conditions from the plain iterate of least energy.
-            x, lam, n_newton, converged_dir = self._newton(best[1], x_ls, c, max_iterations - its)
+            start = min(iterates, key=lambda y: float(np.sum((y - x_ls) * (self.H @ (y - x_ls)))))
+            x, lam, n_newton, converged_dir = self._newton(start, x_ls, c, max_iterations - its)
             its += n_newton
             u = self._solve(WdT @ volume_gradient(Wd @ (x - c), Fd))
         if exact:
