@@ -382,3 +382,63 @@ def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys):
             assert float(r["skeleton_fit_mean"]) <= 1.0, r
             assert float(r["shape_change_max"]) <= 0.5, r
     assert "unconverged frames 0" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_killed_run_resumes_to_identical_outputs(tmp_path, workers):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    _, toml = _write_demo(tmp_path, n_frames=300)  # 3 chunks of frames per muscle
+    if workers > 1:  # a second muscle, so that the worker pool is used
+        rows = _rows(tmp_path / "lines.csv")
+        with open(tmp_path / "lines.csv", "a", newline="") as fh:
+            w = csv.writer(fh)
+            for r in rows:
+                w.writerow([*list(r.values())[:2], "twin", *list(r.values())[3:]])
+        toml.write_text(
+            toml.read_text()
+            + '[muscles.twin]\nmesh = "muscle.vtp"\nreference = "thigh"\ncage_size = 200\n'
+        )
+    args = [str(toml), "--no-gif", "--no-cache", "--workers", str(workers)]
+    assert main(["run", *args, "-o", str(tmp_path / "ref")]) == 0
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "musclewrap.cli", "run", *args, "-o", str(out)],
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    journal = out / ".musclewrap-run"
+    t0 = time.monotonic()
+    while not list(journal.glob("chunk-*.json")):
+        assert proc.poll() is None and time.monotonic() - t0 < 120, "the run ended too soon"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "report.csv").exists()
+    kept = len(list(journal.glob("chunk-*.json")))
+    assert 1 <= kept < 3 * workers
+    assert main(["run", *args, "-o", str(out), "--resume"]) == 0
+    assert not journal.exists() and not list(out.rglob(".*.part.*"))
+    ref = {p.relative_to(tmp_path / "ref") for p in (tmp_path / "ref").rglob("*") if p.is_file()}
+    got = {p.relative_to(out) for p in out.rglob("*") if p.is_file()}
+    assert got == ref
+    for rel in ref:
+        a, b = (tmp_path / "ref" / rel), (out / rel)
+        if rel.name == "report.csv":  # timings differ between any two runs
+            strip = (
+                [{**r, "seconds": ""} for r in _rows(a)],
+                [{**r, "seconds": ""} for r in _rows(b)],
+            )
+            assert strip[0] == strip[1]
+        else:
+            assert a.read_bytes() == b.read_bytes(), rel
+    # a changed input is refused, not mixed in
+    assert main(["run", *args, "-o", str(tmp_path / "ref2"), "--frames", "0:200"]) == 0
+    (tmp_path / "ref2" / ".musclewrap-run").mkdir()
+    (tmp_path / "ref2" / ".musclewrap-run" / "run.json").write_text('{"key": "x", "chunks": []}')
+    assert main(["run", *args, "-o", str(tmp_path / "ref2"), "--resume"]) == 2

@@ -85,6 +85,11 @@ def _parser() -> argparse.ArgumentParser:
     ru.add_argument(
         "--allow-unconverged", action="store_true", help="exit 0 even if a frame did not converge"
     )
+    ru.add_argument(
+        "--resume",
+        action="store_true",
+        help="go on from an interrupted run into the same OUTDIR (same scene, files and frames)",
+    )
 
     dm = sub.add_parser("demo", help="run the embedded synthetic example (no data needed)")
     dm.add_argument("-o", "--output", default="musclewrap_demo", help="output folder")
@@ -298,6 +303,7 @@ def _cmd_run(a: argparse.Namespace) -> int:
             progress=sys.stderr,
             render=False if a.no_gif else None,
             log=lambda m: print(m, file=sys.stderr),
+            resume=a.resume,
         )
         print(summary.text())
         unconverged += summary.unconverged

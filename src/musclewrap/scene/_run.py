@@ -22,6 +22,7 @@ from ._cache import cached_arrays, digest
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
+from ._journal import Journal
 
 __all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_scene"]
 
@@ -208,15 +209,25 @@ def _deformer(job: dict[str, Any]) -> tuple[Any, Any, bool, str | None, float]:
     return muscle, d, hit, note, seconds
 
 
-def _frames_job(job: dict[str, Any], ks: range) -> dict[str, Any]:
-    """Deform one muscle on frames ``ks`` (indices into the job's frames) and write them."""
+_PER_FRAME = ("frames", "times", "lines", "references", "to_output")
+
+
+def _slice(job: dict[str, Any], ks: range) -> dict[str, Any]:
+    """The job for frames ``ks`` only (what a worker needs of a chunk)."""
+    part = {**job, **{k: job[k][ks.start : ks.stop] for k in _PER_FRAME}, "offset": ks.start}
+    part["bones"] = [(V, F, T[ks.start : ks.stop]) for V, F, T in job["bones"]]
+    return part
+
+
+def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
+    """Deform one muscle on the frames of a `_slice` of its job and write them."""
     muscle, d, hit, note, seconds_prepare = _deformer(job)
     probes = [(_bone_probe(V, F, job["cache_dir"]), T) for V, F, T in job["bones"]]
     out = Path(job["outdir"])
     name = job["name"]
     rows, entries = [], []
     kw = {"method": job["method"], "max_iterations": job["max_iterations"]}
-    for k in ks:
+    for k in range(len(job["frames"])):
         frame = job["frames"][k]
         res = d.deform(job["lines"][k], reference_point=job["references"][k], **kw)
         T = job["to_output"][k]
@@ -232,7 +243,7 @@ def _frames_job(job: dict[str, Any], ks: range) -> dict[str, Any]:
                 depth = max(depth, dep)
             fname = f"{name}/{name}_{frame:04d}.vtp"
             write_mesh(out / fname, Vo, muscle.F)
-            entries.append((k, fname))
+            entries.append((job["offset"] + k, fname))
         lname = f"{name}/{name}_lines_{frame:04d}.vtp"
         P, segs, o = [], [], 0
         for pts in job["lines"][k].values():
@@ -241,10 +252,10 @@ def _frames_job(job: dict[str, Any], ks: range) -> dict[str, Any]:
             segs += [[o + i, o + i + 1] for i in range(len(Pp) - 1)]
             o += len(Pp)
         write_mesh(out / lname, np.vstack(P), np.zeros((0, 3), int), lines=np.array(segs))
-        entries.append((k, lname))
+        entries.append((job["offset"] + k, lname))
         rows.append(
             {
-                "frame": frame,
+                "frame": int(frame),
                 "time": float(job["times"][k]),
                 "muscle": name,
                 "iterations": res.iterations,
@@ -411,6 +422,7 @@ def run_scene(
     progress: Any = sys.stderr,
     render: bool | None = None,
     log: Callable[[str], None] | None = None,
+    resume: bool = False,
 ) -> RunSummary:
     """Deform every muscle of a scene for every selected frame and write all outputs.
 
@@ -433,6 +445,12 @@ def run_scene(
         Write ``scene.gif`` (default: the scene's ``[output] gif``).
     log : callable, optional
         Receives one-line messages (repairs, notes) as they happen.
+    resume : bool, optional
+        Go on from an interrupted run into the same ``outdir``: its finished
+        frame chunks (recorded in ``outdir/.musclewrap-run``) are kept, the rest
+        run; refused if the scene, a file it names or the frames changed. The
+        outputs are the same as those of an uninterrupted run with the same
+        number of workers.
 
     Returns
     -------
@@ -447,7 +465,9 @@ def run_scene(
         if workers > 1 and len(scene.muscles) > 1:
             # started first: the workers import while this process reads meshes and OpenSim
             pool = stack.enter_context(_Pool(min(workers, len(scene.muscles))))
-        summary = _run_scene(scene, outdir, frames, pool, cache_dir, progress, say, notes, stack)
+        summary = _run_scene(
+            scene, outdir, frames, pool, cache_dir, progress, say, notes, stack, resume
+        )
     if render if render is not None else scene.gif:
         from ..output import render_series
 
@@ -463,6 +483,7 @@ def run_scene(
             )
         except RuntimeError as exc:
             summary.notes.append(f"scene.gif not written: {exc}")
+    Journal.finish(outdir)  # complete: nothing left to resume
     summary.seconds = time.perf_counter() - t0
     return summary
 
@@ -477,6 +498,7 @@ def _run_scene(
     say: Callable[[str], None],
     notes: list[str],
     stack: contextlib.ExitStack,
+    resume: bool,
 ) -> RunSummary:
     if cache_dir is True:
         cache = scene.cache_dir or default_cache_dir()
@@ -508,7 +530,18 @@ def _run_scene(
     if cache is None and pool is not None:
         # the workers still share what they build, for this run only
         cache = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="musclewrap-")))
-    return _run(scene, outdir, drive, muscles, bones, cache, pool, progress, notes)
+    key = _run_key(scene, drive)
+    return _run(scene, outdir, drive, muscles, bones, cache, pool, progress, notes, key, resume)
+
+
+def _run_key(scene: Scene, drive: Drive) -> str:
+    """Hash of everything a run's outputs depend on: files, settings, frames, version."""
+    files = [scene.path, *scene.motions, *(m.mesh for m in scene.muscles)]
+    files += [b.mesh for b in scene.bones]
+    files += [p for p in (scene.osim, scene.lines_csv) if p is not None]
+    if scene.registration is not None:
+        files += [lm.mesh for lm in scene.registration.landmarks]
+    return digest(*(f.read_bytes() for f in files), np.asarray(drive.frames), __version__)
 
 
 def _run(
@@ -521,6 +554,8 @@ def _run(
     pool: _Pool | None,
     progress: Any,
     notes: list[str],
+    key: str,
+    resume: bool,
 ) -> RunSummary:
     from ..output import write_csv, write_pvd
 
@@ -586,7 +621,11 @@ def _run(
             for V, F in bones.values()
             if not (cache / BoneProbe.cache_name(V, F)).is_file()
         ]
-    results = _execute(jobs, fill, pool, bar, meanwhile=write_bones)
+    chunks = _chunks(n, len(jobs), 0 if pool is None else len(pool._warm))
+    journal = Journal(outdir, key, [(c.start, c.stop) for c in chunks], resume)
+    notes += journal.notes
+    chunks = [range(a, b) for a, b in journal.chunks]
+    results = _execute(jobs, chunks, fill, pool, bar, journal, meanwhile=write_bones)
     order = {s.name: i for i, s in enumerate(scene.muscles)}
     results.sort(key=lambda r: order[r["name"]])
     rows = [r for res in results for r in res["rows"]]
@@ -640,8 +679,10 @@ class _Pool:
         return self
 
     def __exit__(self, kind: object, *_: object) -> None:
-        # on an error, do not wait for queued work
-        self.executor.shutdown(wait=kind is None, cancel_futures=True)
+        # On an error, queued work is dropped, but the workers are still waited for: one
+        # left starting up after this process unlinked the queue's semaphore would print
+        # a traceback of its own.
+        self.executor.shutdown(wait=True, cancel_futures=kind is not None)
 
 
 def _warm_up() -> None:
@@ -660,41 +701,77 @@ def _import_matplotlib() -> None:
 
 
 def _chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
-    """Frame ranges per muscle: about three tasks per worker, for an even finish."""
+    """Frame ranges per muscle: about three tasks per worker, for an even finish.
+
+    At most 128 frames each: a chunk is also what an interrupted run keeps.
+    """
     k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), n_frames // 20))
+    k = max(k, -(-n_frames // 128))
     edges = np.linspace(0, n_frames, k + 1).round().astype(int)
     return [range(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
 
 
 def _execute(
     jobs: list[dict[str, Any]],
+    chunks: list[range],
     fill: list[tuple[str, Any]],
     pool: _Pool | None,
     bar: _Progress | None,
+    journal: Journal,
     *,
     meanwhile: Callable[[], None],
 ) -> list[dict[str, Any]]:
     """Run the jobs in frame chunks, then each muscle's comparison with the paper.
 
-    In worker processes, whatever `fill` puts into the cache is built first.
-    Returns one result per job.
+    Chunks and comparisons found in the journal (an interrupted run) are kept;
+    each one finished here is recorded there at once. In worker processes,
+    whatever `fill` puts into the cache is built first. Returns one result per
+    job.
     """
-    n_frames = len(jobs[0]["frames"])
-    chunks = _chunks(n_frames, len(jobs), 0 if pool is None else len(pool._warm))
     compare = jobs[0]["paper_frames"] > 0
+    kept = {
+        (j["name"], ks.start): part
+        for j in jobs
+        for ks in chunks
+        if (part := journal.chunk(j["name"], ks.start, ks.stop)) is not None
+    }
+    if bar is not None and kept:
+        bar.add(sum(len(part["rows"]) for part in kept.values()))
+
+    def chunk_done(j: dict[str, Any], ks: range, part: dict[str, Any]) -> dict[str, Any]:
+        journal.save_chunk(j["name"], ks.start, ks.stop, part)
+        return part
+
+    def compare_done(j: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
+        journal.save_comparison(j["name"], result)
+        return result
+
     if pool is None:
         global _progress_queue
         meanwhile()
         _progress_queue = _LocalQueue(bar)
         try:
-            results = [_merge(j, [_frames_job(j, ks) for ks in chunks]) for j in jobs]
-            if compare:
-                for j, res in zip(jobs, results, strict=True):
-                    res.update(_compare_job(j, _worst(res["rows"])))
+            results = []
+            for j in jobs:
+                res = _merge(
+                    j,
+                    [
+                        kept.get((j["name"], ks.start))
+                        or chunk_done(j, ks, _frames_job(_slice(j, ks)))
+                        for ks in chunks
+                    ],
+                )
+                if compare:
+                    res.update(
+                        journal.comparison(j["name"])
+                        or compare_done(j, _compare_job(j, _worst(res["rows"])))
+                    )
+                results.append(res)
             return results
         finally:
             _progress_queue = None
     import queue as queue_mod
+    from concurrent.futures import Future
     from concurrent.futures.process import BrokenProcessPool
 
     def ticks(timeout: float | None) -> None:
@@ -713,20 +790,32 @@ def _execute(
         filled = [submit(_fill_cache, t) for t in fill]
         meanwhile()
         built = {r["name"]: r for f in filled if (r := f.result())}
-        parts = [[submit(_frames_job, j, ks) for ks in chunks] for j in jobs]
+        # per job and chunk: a kept result, or the future of one
+        parts: list[list[Any]] = [
+            [kept.get((j["name"], ks.start)) or submit(_frames_job, _slice(j, ks)) for ks in chunks]
+            for j in jobs
+        ]
         # this process waits from here on: it imports the plotting library meanwhile
         threading.Thread(target=_import_matplotlib, daemon=True).start()
         results: list[dict[str, Any] | None] = [None] * len(jobs)
         compares: dict[int, Any] = {}
         while not all(c.done() for c in compares.values()) or None in results:
             ticks(0.05)
-            for i, fs in enumerate(parts):
-                if results[i] is None and all(f.done() for f in fs):
-                    results[i] = _merge(jobs[i], [f.result() for f in fs])
-                    if compare:  # queued behind the remaining chunks
+            for i, row in enumerate(parts):
+                for c, x in enumerate(row):
+                    if isinstance(x, Future) and x.done():
+                        row[c] = chunk_done(jobs[i], chunks[c], x.result())
+                if results[i] is None and all(isinstance(x, dict) for x in row):
+                    results[i] = _merge(jobs[i], row)
+                    if not compare:
+                        continue
+                    found = journal.comparison(jobs[i]["name"])
+                    if found is not None:
+                        results[i].update(found)  # type: ignore[union-attr]
+                    else:  # queued behind the remaining chunks
                         compares[i] = submit(_compare_job, jobs[i], _worst(results[i]["rows"]))
         for i, f in compares.items():
-            results[i].update(f.result())  # type: ignore[union-attr]
+            results[i].update(compare_done(jobs[i], f.result()))  # type: ignore[union-attr]
     except BrokenProcessPool:
         raise RuntimeError(
             "a worker process died without a Python error (out of memory, a crash in a compiled "
