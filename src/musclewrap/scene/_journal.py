@@ -45,7 +45,9 @@ class Journal:
         for p in stale:
             p.unlink(missing_ok=True)
         if stale:
-            self.notes.append(f"removed {len(stale)} unfinished temporary file(s) of an earlier run")
+            self.notes.append(
+                f"removed {len(stale)} unfinished temporary file(s) of an earlier run"
+            )
         if resume and manifest.is_file():
             try:
                 meta = json.loads(manifest.read_text(encoding="utf-8"))
