@@ -126,6 +126,34 @@ def test_bad_files_named_in_error(tmp_path, content, ext):
         read_mesh(p)
 
 
+def test_vertices_of_the_wrong_shape_refused(tmp_path):
+    p = tmp_path / "flat.obj"
+    p.write_text("v 1.0\nv 2.0\nv 3.0\nf 1 2 3\n")  # one coordinate per vertex
+    with pytest.raises(MeshError, match="flat.obj.*wrong shape"):
+        read_mesh(p)
+
+
+@pytest.mark.realdata
+def test_legacy_vtk_that_crashes_vtks_reader_is_refused(data_dir, tmp_path):
+    import random
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+    from fuzz import mutate
+
+    # the third damaged copy of the psoas from this seed made VTK's legacy reader crash
+    # (SIGSEGV) when read in the process itself
+    data = (data_dir / "lhdl" / "muscles" / "LHDL_R_Psoas.vtk").read_bytes()
+    rng = random.Random(7)
+    for _ in range(3):
+        damaged = mutate(data, rng)
+    p = tmp_path / "damaged.vtk"
+    p.write_bytes(damaged)
+    with pytest.raises(MeshError, match="damaged.vtk"):
+        read_mesh(p)
+
+
 def test_missing_file():
     with pytest.raises(MeshError, match="no such mesh file"):
         read_mesh("/nonexistent/muscle.stl")

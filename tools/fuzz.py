@@ -142,6 +142,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared" / "data"))
     ap.add_argument("--timeout", type=float, default=60.0)
+    ap.add_argument("--keep", help="copy the inputs of bad cases into this folder")
     a = ap.parse_args()
     rng = random.Random(a.seed)
     with tempfile.TemporaryDirectory() as tmp:
@@ -166,6 +167,19 @@ def main() -> None:
                 p.write_bytes(data)
                 cases.append({"id": i, "fmt": fmt, "kind": "mesh", "path": str(p)})
         results = run_cases(cases, a.timeout)
+        if a.keep:
+            keep = Path(a.keep)
+            keep.mkdir(parents=True, exist_ok=True)
+            for c in cases:
+                if results[c["id"]]["outcome"] in ("unnamed", "crash", "hang"):
+                    src_path = Path(c["path"]) if c["kind"] == "mesh" else Path(c["argv"][1]).parent
+                    dest = keep / src_path.name
+                    if src_path.is_dir():
+                        import shutil
+
+                        shutil.copytree(src_path, dest, dirs_exist_ok=True)
+                    else:
+                        dest.write_bytes(src_path.read_bytes())
     table = collections.Counter((c["fmt"], results[c["id"]]["outcome"]) for c in cases)
     print(f"{len(cases)} cases (seed {a.seed})")
     for fmt in kinds:
