@@ -122,7 +122,8 @@ def seeds(data: Path, work: Path) -> dict[str, list[Path]]:
     rows = ["frame,time,muscle,line,point,x,y,z"]
     for k in range(6):
         for i, p in enumerate(sc.line(k)["main"]):
-            rows.append(f"{k},{k * 0.1},fusiform,main,{i},{p[0]!r},{p[1]!r},{p[2]!r}")
+            x, y, z = (float(c) for c in p)
+            rows.append(f"{k},{k * 0.1},fusiform,main,{i},{x!r},{y!r},{z!r}")
     (work / "lines.csv").write_text("\n".join(rows) + "\n")
     (work / "scene.toml").write_text(
         'name = "fuzz"\n[lines]\ncsv = "lines.csv"\nrest_frame = 0\n'
@@ -149,6 +150,27 @@ def main() -> None:
         work = Path(tmp)
         src = seeds(Path(a.data), work)
         kinds = sorted(src)
+        # the undamaged inputs must pass, or every damaged one would be refused for nothing
+        seed_cases = [
+            {
+                "id": -1,
+                "kind": "run",
+                "argv": [
+                    "run",
+                    str(work / "scene.toml"),
+                    "-o",
+                    str(work / "seed_out"),
+                    "--no-cache",
+                ],
+            }
+        ]
+        seed_cases += [
+            {"id": -2 - i, "kind": "mesh", "path": str(f)}
+            for i, f in enumerate(src[k][0] for k in kinds if not k.startswith("scene-"))
+        ]
+        bad_seeds = [r for r in run_cases(seed_cases, a.timeout).values() if r["outcome"] != "ok"]
+        if bad_seeds:
+            raise SystemExit(f"an undamaged input failed: {bad_seeds}")
         cases = []
         for i in range(a.cases):
             fmt = kinds[i % len(kinds)]

@@ -26,12 +26,15 @@ class _Errors:
 def read(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Points (float64) and triangles (int64) of a VTK polygon mesh; ValueError if unreadable."""
     from vtkmodules.util.numpy_support import vtk_to_numpy
-    from vtkmodules.vtkCommonCore import vtkCommand, vtkOutputWindow
+    from vtkmodules.vtkCommonCore import vtkCommand, vtkLogger, vtkOutputWindow
     from vtkmodules.vtkFiltersCore import vtkTriangleFilter
     from vtkmodules.vtkIOLegacy import vtkPolyDataReader
     from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 
-    vtkOutputWindow.GetInstance().SetDisplayMode(0)  # never print to the user's terminal
+    # never print to the user's terminal: the output window, and VTK's own logger (the XML
+    # parser reports damaged data through it)
+    vtkOutputWindow.GetInstance().SetDisplayMode(0)
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     errors = _Errors()
     if path.suffix.lower() == ".vtp":
         reader = vtkXMLPolyDataReader()
