@@ -154,6 +154,14 @@ def test_legacy_vtk_that_crashes_vtks_reader_is_refused(data_dir, tmp_path):
         read_mesh(p)
 
 
+@pytest.mark.parametrize("bad", ["nan", "inf", "-inf"])
+def test_non_finite_coordinates_refused(tmp_path, bad):
+    p = tmp_path / "poisoned.obj"
+    p.write_text(f"v 0 0 0\nv 1 0 0\nv 0 {bad} 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    with pytest.raises(MeshError, match="poisoned.obj: 1 vertex coordinate row.*NaN or infinite"):
+        read_mesh(p)
+
+
 def test_missing_file():
     with pytest.raises(MeshError, match="no such mesh file"):
         read_mesh("/nonexistent/muscle.stl")

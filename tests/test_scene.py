@@ -392,17 +392,8 @@ def test_killed_run_resumes_to_identical_outputs(tmp_path, workers):
     import sys
     import time
 
-    _, toml = _write_demo(tmp_path, n_frames=300)  # 3 chunks of frames per muscle
-    if workers > 1:  # a second muscle, so that the worker pool is used
-        rows = _rows(tmp_path / "lines.csv")
-        with open(tmp_path / "lines.csv", "a", newline="") as fh:
-            w = csv.writer(fh)
-            for r in rows:
-                w.writerow([*list(r.values())[:2], "twin", *list(r.values())[3:]])
-        toml.write_text(
-            toml.read_text()
-            + '[muscles.twin]\nmesh = "muscle.vtp"\nreference = "thigh"\ncage_size = 200\n'
-        )
+    # 3 chunks of frames per muscle; with 2 workers a second muscle, so that the pool is used
+    _, toml = (_twin_scene if workers > 1 else _write_demo)(tmp_path, n_frames=300)
     args = [str(toml), "--no-gif", "--no-cache", "--workers", str(workers)]
     assert main(["run", *args, "-o", str(tmp_path / "ref")]) == 0
     out = tmp_path / "out"
@@ -442,3 +433,75 @@ def test_killed_run_resumes_to_identical_outputs(tmp_path, workers):
     (tmp_path / "ref2" / ".musclewrap-run").mkdir()
     (tmp_path / "ref2" / ".musclewrap-run" / "run.json").write_text('{"key": "x", "chunks": []}')
     assert main(["run", *args, "-o", str(tmp_path / "ref2"), "--resume"]) == 2
+
+
+def _twin_scene(tmp_path, n_frames):
+    """The demo scene with a second muscle (so that runs use the worker pool)."""
+    sc, toml = _write_demo(tmp_path, n_frames=n_frames)
+    rows = _rows(tmp_path / "lines.csv")
+    with open(tmp_path / "lines.csv", "a", newline="") as fh:
+        w = csv.writer(fh)
+        for r in rows:
+            w.writerow([*list(r.values())[:2], "twin", *list(r.values())[3:]])
+    toml.write_text(
+        toml.read_text()
+        + '[muscles.twin]\nmesh = "muscle.vtp"\nreference = "thigh"\ncage_size = 200\n'
+    )
+    return sc, toml
+
+
+def test_unconverged_frames_are_reported_and_set_the_exit_status(tmp_path, capsys):
+    _, toml = _write_demo(tmp_path, n_frames=4)
+    toml.write_text(
+        toml.read_text().replace("cage_size = 200\n", "cage_size = 200\nmax_iterations = 1\n")
+    )
+    args = ["run", str(toml), "--no-gif", "--no-cache", "-o"]
+    assert main([*args, str(tmp_path / "a")]) == 3
+    assert "did not converge" in capsys.readouterr().err
+    rows = _rows(tmp_path / "a" / "report.csv")
+    bad = [r for r in rows if r["converged"] == "False"]
+    assert bad and all("after 1 iteration" in r["reason"] for r in bad)
+    # accepted on request; what is written is finite and volume-exact all the same
+    assert main([*args, str(tmp_path / "b"), "--allow-unconverged"]) == 0
+    for r in _rows(tmp_path / "b" / "report.csv"):
+        assert abs(float(r["relative_volume_error"])) <= 1e-9
+
+
+def test_dead_worker_is_a_clear_error(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    _, toml = _twin_scene(tmp_path, n_frames=400)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "musclewrap.cli", "run", str(toml), "--no-gif", "--no-cache"]
+        + ["--workers", "2", "-o", str(tmp_path / "out")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+
+    def workers():
+        kids = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+        return [
+            int(k)
+            for k in kids
+            if b"spawn_main" in Path(f"/proc/{k}/cmdline").read_bytes()
+            and b"resource_tracker" not in Path(f"/proc/{k}/cmdline").read_bytes()
+        ]
+
+    t0 = time.monotonic()
+    while not (tmp_path / "out" / "fusiform").is_dir() or not workers():
+        assert proc.poll() is None and time.monotonic() - t0 < 120
+        time.sleep(0.05)
+    os.kill(workers()[0], signal.SIGKILL)
+    try:
+        _, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 4
+    assert "worker process died" in err and "Traceback" not in err
