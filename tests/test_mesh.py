@@ -162,6 +162,19 @@ def test_non_finite_coordinates_refused(tmp_path, bad):
         read_mesh(p)
 
 
+def test_second_belly_is_refused_not_dropped():
+    from musclewrap.mesh import clean_mesh
+
+    V, F = capsule(n_around=24, cap_rings=6, segments=10)
+    small = (V - V.mean(axis=0)) * 0.5 + V.mean(axis=0) + [60.0, 0, 0]
+    V2, F2 = np.vstack([V, small]), np.vstack([F, F + len(V)])
+    with pytest.raises(MeshError, match="bellies.stl: not a closed 2-manifold.*2 connected"):
+        clean_mesh(V2, F2, source="bellies.stl")
+    # automatic repair would keep only the larger belly: refused, with the reason
+    with pytest.raises(MeshError, match=r"bellies.stl: .*-11.11 %.*second belly"):
+        clean_mesh(V2, F2, source="bellies.stl", repair=True)
+
+
 def test_missing_file():
     with pytest.raises(MeshError, match="no such mesh file"):
         read_mesh("/nonexistent/muscle.stl")

@@ -51,7 +51,7 @@ def repair_mesh(
         import pymeshfix
     except ImportError:  # pragma: no cover - pymeshfix is a core dependency
         raise ImportError(
-            f"{source}: repairing this mesh needs pymeshfix: pip install 'musclewrap[repair]'"
+            f"{source}: repairing this mesh needs pymeshfix: pip install pymeshfix"
         ) from None
     before = check_mesh(V, F)
     mf = pymeshfix.MeshFix(
@@ -69,9 +69,17 @@ def repair_mesh(
     v0, v1 = abs(before.volume), abs(after.volume)
     change = (v1 - v0) / v0 if v0 > 0 else np.inf
     if not abs(change) <= 0.01:
+        hint = "the mesh is too damaged to repair safely, repair it by hand"
+        if before.components > 1 and change < 0:
+            # the repair keeps only the largest component: the others were not slivers
+            hint = (
+                f"the repair keeps the largest of {before.components} components and the others "
+                "hold that volume: if the muscle has a second belly, give each belly its own "
+                "mesh and muscle entry; else remove the extra component by hand"
+            )
         raise MeshError(
             f"{source}: automatic repair changed the volume by {100 * change:+.2f} % "
-            f"({v0:.6g} -> {v1:.6g}); the mesh is too damaged to repair safely, repair it by hand"
+            f"({v0:.6g} -> {v1:.6g}); {hint}"
         )
     found = "; ".join(before.problems(repairable=False))
     notes = [
