@@ -175,6 +175,26 @@ def test_second_belly_is_refused_not_dropped():
         clean_mesh(V2, F2, source="bellies.stl", repair=True)
 
 
+def test_self_intersecting_surface_refused():
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.mesh import clean_mesh
+    from musclewrap.mesh._checks import self_intersecting_faces
+
+    V, F = capsule(n_around=24, cap_rings=6, segments=20)
+    # a clean surface has none, wherever it lies and at any scale
+    for seed, scale in enumerate([1e-3, 0.02, 1.0, 50.0, 1e3]):
+        R = Rotation.random(random_state=seed).as_matrix()
+        assert self_intersecting_faces(scale * (V @ R.T + [300.0, -200, 500]), F) == 0
+    # a band of one side pushed through the opposite wall: still closed, manifold, one piece
+    c = V.mean(axis=0)
+    band = (np.abs(V[:, 2] - c[2]) < 15) & (V[:, 0] > c[0] + 10)
+    V[band, 0] -= 2 * (V[band, 0] - c[0]) + 10
+    assert self_intersecting_faces(V, F) == self_intersecting_faces(V * 1e-3 + 7.0, F) > 20
+    with pytest.raises(MeshError, match=r"folded.stl: the surface passes through itself \(\d+"):
+        clean_mesh(V, F, source="folded.stl", repair=True)
+
+
 def test_missing_file():
     with pytest.raises(MeshError, match="no such mesh file"):
         read_mesh("/nonexistent/muscle.stl")

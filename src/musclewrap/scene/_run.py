@@ -394,7 +394,9 @@ def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, l
         V, F, notes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
         return {"V": V, "F": F, "notes": np.array(notes, dtype=str)}
 
-    key = digest(spec.mesh.read_bytes(), f"muscle|{spec.repair}|{__version__}")
+    key = digest(
+        spec.mesh.read_bytes(), f"muscle|{spec.repair}|{__version__}|self-intersection check"
+    )
     d = cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
     return d["V"], d["F"], [str(n) for n in d["notes"]]
 
