@@ -160,6 +160,13 @@ def test_non_finite_coordinates_refused(tmp_path, bad):
     p.write_text(f"v 0 0 0\nv 1 0 0\nv 0 {bad} 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
     with pytest.raises(MeshError, match="poisoned.obj: 1 vertex coordinate row.*NaN or infinite"):
         read_mesh(p)
+    # arrays handed to the library directly are checked too, before any geometry
+    from musclewrap.mesh import clean_mesh
+
+    V, F = capsule(n_around=12, cap_rings=4, segments=5)
+    V[3, 1] = float(bad)
+    with pytest.raises(MeshError, match="arrays.stl: 1 vertex coordinate row.*NaN or infinite"):
+        clean_mesh(V, F, source="arrays.stl", repair=True)
 
 
 def test_second_belly_is_refused_not_dropped():

@@ -236,6 +236,10 @@ def clean_mesh(
         If the mesh is open, non-manifold, inconsistently oriented, has several
         components, passes through itself, or encloses no volume.
     """
+    V = np.asarray(V, dtype=np.float64)
+    if not np.isfinite(V).all():
+        bad = int((~np.isfinite(V).all(axis=1)).sum())
+        raise MeshError(f"{source}: {bad} vertex coordinate row(s) are NaN or infinite")
     V, F, notes = tidy_mesh(V, F)
     chk = check_mesh(V, F)
     problems = chk.problems(repairable=False)
