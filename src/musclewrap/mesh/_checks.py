@@ -277,14 +277,14 @@ def clean_mesh(
     return V, np.ascontiguousarray(F), notes
 
 
-def self_intersecting_faces(V: FloatArray, F: IntArray, *, chunk: int = 50_000) -> int:
+def self_intersecting_faces(V: FloatArray, F: IntArray, *, chunk: int = 200_000) -> int:
     """Number of triangles that cross a triangle they share no vertex with.
 
     Candidate pairs: centroids within the two triangles' reach (a k-d tree; the few
     triangles far larger than the rest are tested against all), then overlapping bounding
     boxes. Each candidate pair gets the separating-axis test (face normals, edge-edge
     cross products, in-plane edge normals; exact for convex polygons); touching within
-    1e-9 of the mesh size counts as apart. About 0.3 s for 40K faces.
+    1e-9 of the mesh size counts as apart. About 0.2 s for 40K faces, 16 s for 1.25M.
     """
     from scipy.spatial import cKDTree
 
@@ -294,41 +294,50 @@ def self_intersecting_faces(V: FloatArray, F: IntArray, *, chunk: int = 50_000) 
     c = T.mean(axis=1)
     reach = np.linalg.norm(T - c[:, None, :], axis=2).max(axis=1)
     r0 = float(np.quantile(reach, 0.999))
-    pairs = [cKDTree(c).query_pairs(2.0 * r0, output_type="ndarray")]
+    tree = cKDTree(c)
+    pairs = [tree.query_pairs(2.0 * r0, output_type="ndarray")]
     big = np.nonzero(reach > r0)[0]
-    for b in big:  # few by construction
-        near = np.nonzero(np.linalg.norm(c - c[b], axis=1) <= reach + reach[b])[0]
-        pairs.append(np.stack([np.full(len(near), b), near], axis=1))
+    if len(big):  # few by construction: each against every centroid it could reach
+        near = tree.query_ball_point(c[big], reach[big] + reach.max())
+        counts = np.fromiter((len(x) for x in near), dtype=np.int64, count=len(big))
+        flat = np.fromiter((k for x in near for k in x), dtype=np.int64, count=int(counts.sum()))
+        b = np.repeat(big, counts)
+        # not again what the first query found, nor a pair of big triangles twice
+        fresh = np.linalg.norm(c[b] - c[flat], axis=1) > 2.0 * r0
+        fresh &= (reach[flat] <= r0) | (b < flat)
+        pairs.append(np.stack([b[fresh], flat[fresh]], axis=1))
     P = np.vstack(pairs)
-    P = P[P[:, 0] != P[:, 1]]
-    i, j = P.min(axis=1), P.max(axis=1)
-    if len(big):
-        key = np.unique(i * len(F) + j)
-        i, j = key // len(F), key % len(F)
-    share = (F[i][:, :, None] == F[j][:, None, :]).any(axis=(1, 2))
-    i, j = i[~share], j[~share]
+    del pairs
     lo, hi = T.min(axis=1), T.max(axis=1)
-    keep = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
-    i, j = i[keep], j[keep]
     scale = float(np.abs(V - V.mean(axis=0)).max()) or 1.0
-    crossed = np.zeros(len(i), dtype=bool)
-    for s in range(0, len(i), chunk):
-        A, B = T[i[s : s + chunk]], T[j[s : s + chunk]]
-        eA, eB = A[:, [1, 2, 0]] - A, B[:, [1, 2, 0]] - B
-        nA, nB = np.cross(eA[:, 0], eA[:, 1]), np.cross(eB[:, 0], eB[:, 1])
-        axes = [nA, nB]
-        axes += [np.cross(eA[:, a], eB[:, b]) for a in range(3) for b in range(3)]
-        axes += [np.cross(nA, eA[:, a]) for a in range(3)]
-        axes += [np.cross(nB, eB[:, b]) for b in range(3)]
+    tol = 1e-9 * scale
+
+    def separated(A: FloatArray, B: FloatArray, axes: list[FloatArray]) -> np.ndarray:
         apart = np.zeros(len(A), dtype=bool)
         for ax in axes:
             norm = np.linalg.norm(ax, axis=1)
             usable = norm > 1e-12 * scale * scale  # parallel edges give no axis
             u = ax / np.where(usable, norm, 1.0)[:, None]
             pa, pb = np.einsum("nkd,nd->nk", A, u), np.einsum("nkd,nd->nk", B, u)
-            gap = (pa.min(axis=1) > pb.max(axis=1) - 1e-9 * scale) | (
-                pb.min(axis=1) > pa.max(axis=1) - 1e-9 * scale
-            )
+            gap = (pa.min(axis=1) > pb.max(axis=1) - tol) | (pb.min(axis=1) > pa.max(axis=1) - tol)
             apart |= usable & gap
-        crossed[s : s + chunk] = ~apart
-    return len(np.unique(np.concatenate([i[crossed], j[crossed]])))
+        return apart
+
+    hits = []
+    for s in range(0, len(P), chunk):  # in blocks: memory stays a few times the pair list
+        i, j = P[s : s + chunk, 0], P[s : s + chunk, 1]
+        share = (F[i][:, :, None] == F[j][:, None, :]).any(axis=(1, 2))
+        keep = ~share & np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
+        i, j = i[keep], j[keep]
+        A, B = T[i], T[j]
+        eA, eB = A[:, [1, 2, 0]] - A, B[:, [1, 2, 0]] - B
+        nA, nB = np.cross(eA[:, 0], eA[:, 1]), np.cross(eB[:, 0], eB[:, 1])
+        # the face planes part most neighbours of a smooth surface: the other axes only after
+        left = ~separated(A, B, [nA, nB])
+        A, B, eA, eB, nA, nB = A[left], B[left], eA[left], eB[left], nA[left], nB[left]
+        axes = [np.cross(eA[:, a], eB[:, b]) for a in range(3) for b in range(3)]
+        axes += [np.cross(nA, eA[:, a]) for a in range(3)]
+        axes += [np.cross(nB, eB[:, b]) for b in range(3)]
+        crossing = ~separated(A, B, axes)
+        hits += [i[left][crossing], j[left][crossing]]
+    return len(np.unique(np.concatenate(hits))) if hits else 0
