@@ -290,15 +290,19 @@ def test_registration_errors_name_the_problem(tmp_path):
 @pytest.mark.slow
 def test_lhdl_walk_subset_meets_targets(data_dir, tmp_path):
     scene = load_scene(EXAMPLES / "lhdl_walk.toml")
-    s = run_scene(
-        scene,
-        tmp_path / "walk",
-        frames="0:211:30",
-        workers=2,
-        cache_dir=tmp_path / "c",
-        progress=None,
-        render=False,
-    )
+
+    def run(out):
+        return run_scene(
+            scene,
+            tmp_path / out,
+            frames="0:211:30",
+            workers=2,
+            cache_dir=tmp_path / "c",
+            progress=None,
+            render=False,
+        )
+
+    s = run("walk")
     # three of the four LHDL muscles are not clean manifolds: repaired with a report
     repaired = {n.split(":")[0] for n in s.notes if "repaired with PyMeshFix" in n}
     assert repaired == {"gluteus_medius", "iliacus", "psoas"}
@@ -314,15 +318,7 @@ def test_lhdl_walk_subset_meets_targets(data_dir, tmp_path):
     # cold: built (in the workers' first phase), not reported as cached; warm: all cached,
     # the repairs still reported, and the same numbers
     assert s.cache_hits == [] and all(t > 0 for t in s.seconds_prepare.values())
-    w = run_scene(
-        scene,
-        tmp_path / "warm",
-        frames="0:211:30",
-        workers=2,
-        cache_dir=tmp_path / "c",
-        progress=None,
-        render=False,
-    )
+    w = run("warm")
     assert sorted(w.cache_hits) == sorted(m.name for m in scene.muscles)
     assert {n.split(":")[0] for n in w.notes if "repaired with PyMeshFix" in n} == repaired
     keys = ("relative_volume_error", "penetration_depth_max", "iterations")

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..mesh import check_mesh, face_areas, volume
+from ..mesh import check_mesh, face_areas, self_intersecting_faces, volume
 
 __all__ = ["Cage", "CageError", "build_cage", "cage_self_intersections", "verify_cage"]
 
@@ -72,7 +72,9 @@ def _min_angle_deg(C: FloatArray, CF: IntArray) -> float:
 
 
 def cage_self_intersections(C: FloatArray, CF: IntArray) -> int:
-    """Count pairs of non-adjacent cage triangles that intersect.
+    """Count cage triangles that cross a triangle they share no vertex with.
+
+    The mesh check `musclewrap.mesh.self_intersecting_faces`, applied to the cage.
 
     Parameters
     ----------
@@ -84,24 +86,9 @@ def cage_self_intersections(C: FloatArray, CF: IntArray) -> int:
     Returns
     -------
     int
-        Number of intersecting pairs (0 for a valid cage).
+        Number of crossing triangles (0 for a valid cage).
     """
-    T = C[CF]
-    lo, hi = T.min(axis=1), T.max(axis=1)
-    overlap = np.all(
-        (lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :]), axis=2
-    )
-    overlap = np.triu(overlap, k=1)
-    i, j = np.nonzero(overlap)
-    shares = (CF[i][:, :, None] == CF[j][:, None, :]).any(axis=(1, 2))
-    i, j = i[~shares], j[~shares]
-    hits = 0
-    for a, b in zip(i, j, strict=True):
-        hit, _, _, _ = igl.tri_tri_intersection_test_3d(
-            T[a, 0:1], T[a, 1:2], T[a, 2:3], T[b, 0:1], T[b, 1:2], T[b, 2:3]
-        )
-        hits += bool(hit)
-    return hits
+    return self_intersecting_faces(C, CF)
 
 
 def _vertex_normals(C: FloatArray, CF: IntArray) -> FloatArray:
@@ -150,7 +137,7 @@ def _problems(
     if not chk.ok:
         problems.append("cage: " + "; ".join(chk.problems()))
     if n_self:
-        problems.append(f"cage has {n_self} self-intersecting triangle pair(s)")
+        problems.append(f"cage has {n_self} self-intersecting triangle(s)")
     outside = int(np.sum(wn < tol.winding_inside))
     if outside:
         problems.append(f"{outside} fine vertices lie outside the cage")

@@ -6,6 +6,7 @@ from ._checks import (
     check_mesh,
     clean_mesh,
     merge_duplicate_vertices,
+    self_intersecting_faces,
     tidy_mesh,
 )
 from ._geometry import face_areas, half_edges, mean_edge_length, umbrella_laplacian
@@ -35,6 +36,7 @@ __all__ = [
     "merge_duplicate_vertices",
     "read_mesh",
     "repair_mesh",
+    "self_intersecting_faces",
     "tidy_mesh",
     "volume",
     "volume_cubic",

@@ -168,7 +168,6 @@ def _write_vtk(
     from vtkmodules.vtkCommonCore import vtkPoints
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
     from vtkmodules.vtkIOLegacy import vtkPolyDataWriter
-    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 
     poly = vtkPolyData()
     pts = vtkPoints()
@@ -192,16 +191,8 @@ def _write_vtk(
         arr = numpy_to_vtk(np.ascontiguousarray(values), deep=True)
         arr.SetName(name)
         poly.GetPointData().AddArray(arr)
-    if path.suffix.lower() == ".vtp":
-        w = vtkXMLPolyDataWriter()
-        # raw appended data without compression: the default (zlib) made writing the
-        # per-frame series the largest cost of a run; files are larger
-        w.SetDataModeToAppended()
-        w.EncodeAppendedDataOff()
-        w.SetCompressorTypeToNone()
-    else:
-        w = vtkPolyDataWriter()
-        w.SetFileTypeToBinary()
+    w = vtkPolyDataWriter()  # legacy .vtk; .vtp goes through _write_vtp
+    w.SetFileTypeToBinary()
     w.SetInputData(poly)
     w.SetFileName(str(path))
     if w.Write() != 1:

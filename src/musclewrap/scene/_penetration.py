@@ -168,13 +168,18 @@ class BoneProbe:
         return f"bone-probe-{digest(V, F, str(_FORMAT))[:32]}.npz"
 
     @classmethod
-    def cached(cls, V: FloatArray, F: IntArray, cache_dir: Path | None) -> BoneProbe:
-        """Build, or read back from ``cache_dir`` (keyed by the bone's content)."""
+    def cached(
+        cls, V: FloatArray, F: IntArray, cache_dir: Path | None, *, name: str | None = None
+    ) -> BoneProbe:
+        """Build, or read back from ``cache_dir`` (keyed by the bone's content).
+
+        ``name``: the `cache_name` of ``V, F`` where the caller has it already.
+        """
         from ._cache import cached_arrays
 
         V = np.ascontiguousarray(V, dtype=np.float64)
         F = np.ascontiguousarray(F, dtype=np.int64)
-        path = None if cache_dir is None else Path(cache_dir) / cls.cache_name(V, F)
+        path = None if cache_dir is None else Path(cache_dir) / (name or cls.cache_name(V, F))
         built: list[BoneProbe] = []
 
         def build() -> dict[str, np.ndarray]:

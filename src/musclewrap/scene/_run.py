@@ -165,13 +165,13 @@ def _prepare(job: dict[str, Any]) -> tuple[Any, bool, str | None]:
     return m, False, note
 
 
-def _bone_probe(V: FloatArray, F: IntArray, cache: str | None) -> Any:
-    """The bone's probe: kept per process, read from or written to the cache."""
+def _bone_probe(V: FloatArray, F: IntArray, name: str, cache: str | None) -> Any:
+    """The bone's probe (``name``: its `BoneProbe.cache_name`): kept per process, cached."""
     from ._penetration import BoneProbe
 
-    key = (BoneProbe.cache_name(V, F), cache)
+    key = (name, cache)
     if key not in _probes:
-        _probes[key] = BoneProbe.cached(V, F, None if cache is None else Path(cache))
+        _probes[key] = BoneProbe.cached(V, F, None if cache is None else Path(cache), name=name)
     return _probes[key]
 
 
@@ -215,14 +215,14 @@ _PER_FRAME = ("frames", "times", "lines", "references", "to_output")
 def _slice(job: dict[str, Any], ks: range) -> dict[str, Any]:
     """The job for frames ``ks`` only (what a worker needs of a chunk)."""
     part = {**job, **{k: job[k][ks.start : ks.stop] for k in _PER_FRAME}, "offset": ks.start}
-    part["bones"] = [(V, F, T[ks.start : ks.stop]) for V, F, T in job["bones"]]
+    part["bones"] = [(V, F, T[ks.start : ks.stop], name) for V, F, T, name in job["bones"]]
     return part
 
 
 def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     """Deform one muscle on the frames of a `_slice` of its job and write them."""
     muscle, d, hit, note, seconds_prepare = _deformer(job)
-    probes = [(_bone_probe(V, F, job["cache_dir"]), T) for V, F, T in job["bones"]]
+    probes = [(_bone_probe(V, F, name, job["cache_dir"]), T) for V, F, T, name in job["bones"]]
     out = Path(job["outdir"])
     name = job["name"]
     rows, entries = [], []
@@ -386,18 +386,23 @@ def _bone_display(
     return d["V"], d["F"]
 
 
+def _cached_mesh(
+    path: Path, cache: Path | None, tag: str, build: Callable[[], dict[str, np.ndarray]]
+) -> dict[str, np.ndarray]:
+    """Arrays `build` makes from a mesh file, cached by the file's bytes and ``tag``."""
+    key = digest(path.read_bytes(), f"{tag}|{__version__}")
+    return cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
+
+
 def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, list[str]]:
-    """Read and clean (or repair) a muscle mesh; the result is cached by the file's bytes."""
+    """Read and clean (or repair) a muscle mesh; cached."""
 
     def build() -> dict[str, np.ndarray]:
         V, F = read_mesh(spec.mesh)
         V, F, notes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
         return {"V": V, "F": F, "notes": np.array(notes, dtype=str)}
 
-    key = digest(
-        spec.mesh.read_bytes(), f"muscle|{spec.repair}|{__version__}|self-intersection check"
-    )
-    d = cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
+    d = _cached_mesh(spec.mesh, cache, f"muscle|{spec.repair}|self-intersection check", build)
     return d["V"], d["F"], [str(n) for n in d["notes"]]
 
 
@@ -409,8 +414,7 @@ def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bo
         flip = check_mesh(V, F).volume < 0
         return {"V": V, "F": F[:, ::-1].copy() if flip else F, "flipped": np.array(flip)}
 
-    key = digest(path.read_bytes(), f"bone|{__version__}")
-    d = cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
+    d = _cached_mesh(path, cache, "bone", build)
     return d["V"], d["F"], bool(d["flipped"])
 
 
@@ -563,7 +567,13 @@ def _run(
 
     outdir.mkdir(parents=True, exist_ok=True)
     n = len(drive.frames)
-    bone_local = {b.name: (*bones[b.name], drive.to_output[b.body]) for b in scene.bones}
+    from ._penetration import BoneProbe
+
+    # per bone: mesh in its body frame, its transforms to the output frame, its probe's name
+    bone_local = {
+        b.name: (*bones[b.name], drive.to_output[b.body], BoneProbe.cache_name(*bones[b.name]))
+        for b in scene.bones
+    }
     jobs = []
     run = os.urandom(8).hex()  # tells a worker's kept muscle from another run's
     for spec in scene.muscles:
@@ -597,7 +607,7 @@ def _run(
 
     def write_bones() -> None:
         # one file per frame where the bone moves in the output frame, else one file
-        for bname, (V, F, T) in bone_local.items():
+        for bname, (V, F, T, _) in bone_local.items():
             DV, DF = _bone_display(V, F, scene.bone_display_faces, cache)
             if np.allclose(T, T[0], atol=1e-9 * (1 + np.abs(T).max())):
                 fname = f"{bname}/{bname}.vtp"
@@ -616,14 +626,12 @@ def _run(
         ("muscle", j) for j in jobs if not (p := _prepare_path(j)) or not p.is_file()
     ]
     if cache is not None:
-        from ._penetration import BoneProbe
-
         fill += [
-            ("bone", (V, F, str(cache)))
-            for V, F in bones.values()
-            if not (cache / BoneProbe.cache_name(V, F)).is_file()
+            ("bone", (V, F, name, str(cache)))
+            for V, F, _, name in bone_local.values()
+            if not (cache / name).is_file()
         ]
-    chunks = _chunks(n, len(jobs), 0 if pool is None else len(pool._warm))
+    chunks = _chunks(n, len(jobs), 0 if pool is None else pool.n)
     journal = Journal(outdir, key, [(c.start, c.stop) for c in chunks], resume)
     notes += journal.notes
     chunks = [range(a, b) for a, b in journal.chunks]
@@ -675,7 +683,9 @@ class _Pool:
             max_workers=n, mp_context=ctx, initializer=_init_worker, initargs=(self.queue, threads)
         )
         # one task per worker starts them all now, each importing what the jobs need
-        self._warm = [self.executor.submit(_warm_up) for _ in range(n)]
+        self.n = n
+        for _ in range(n):
+            self.executor.submit(_warm_up)
 
     def __enter__(self) -> _Pool:
         return self
