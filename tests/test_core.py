@@ -114,6 +114,18 @@ def small_muscle():
     return Muscle.from_mesh(V, F, cage_size=200)
 
 
+@pytest.mark.parametrize("method", ["sqp", "exact", "paper"])
+def test_overflowing_pose_is_an_unconverged_result_not_an_exception(small_muscle, method):
+    d = small_muscle.bind({"a": [[0, 0, 5], [0, 0, 195]]})
+    for far in ([0, 1e150, 1e154], [0, 0, 1e200]):
+        r = d.deform({"a": [[0, 0, 5], far]}, method=method)
+        assert not r.converged and r.reason.startswith("numerically singular")
+        assert np.isnan(r.V).all() and np.isnan(r.relative_volume_error)
+    # the deformer is unharmed: the next pose solves as before
+    r = d.deform({"a": [[0, 0, 5], [10, 0, 190]]}, method=method)
+    assert r.converged and abs(r.relative_volume_error) <= 1e-9
+
+
 def test_cage_encloses_and_is_clean(small_muscle):
     c = small_muscle.cage
     assert c.min_winding > 0.99 and c.min_distance > 0

@@ -463,6 +463,32 @@ def test_unconverged_frames_are_reported_and_set_the_exit_status(tmp_path, capsy
         assert abs(float(r["relative_volume_error"])) <= 1e-9
 
 
+def test_a_frame_that_cannot_be_solved_is_reported_and_the_motion_goes_on(tmp_path, capsys):
+    _, toml = _write_demo(tmp_path, n_frames=5)
+    with open(tmp_path / "lines.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    first = next(r[5:] for r in rows[1:] if r[0] == "3")
+    rows = [rows[0]] + [r[:5] + first if r[0] == "3" else r for r in rows[1:]]
+    with open(tmp_path / "lines.csv", "w", newline="") as fh:
+        csv.writer(fh).writerows(rows)  # frame 3: every point of the line in one place
+    out = tmp_path / "out"
+    assert main(["run", str(toml), "--no-gif", "--no-cache", "-o", str(out)]) == 3
+    err = capsys.readouterr()
+    assert "1 without positions" in err.out and "did not converge" in err.err
+    report = _rows(out / "report.csv")
+    assert [r["converged"] for r in report] == ["True"] * 3 + ["False", "True"]
+    assert (
+        "frame: current lines: line 'main' needs at least two distinct points"
+        in (report[3]["reason"])
+    )
+    assert report[3]["relative_volume_error"] == "nan"
+    assert not (out / "fusiform" / "fusiform_0003.vtp").exists()
+    for k in (0, 1, 2, 4):
+        assert abs(float(report[k]["relative_volume_error"])) <= 1e-9
+        assert (out / "fusiform" / f"fusiform_{k:04d}.vtp").is_file()
+    assert "fusiform_0003.vtp" not in (out / "scene.pvd").read_text()
+
+
 def test_dead_worker_is_a_clear_error(tmp_path):
     import os
     import signal

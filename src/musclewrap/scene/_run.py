@@ -70,16 +70,29 @@ class RunSummary:
 
     def text(self) -> str:
         """Human-readable summary."""
-        fits = [r["skeleton_fit_mean"] for r in self.rows]
-        shape = [r["shape_change_max"] for r in self.rows]
-        pen = [r["penetration_depth_max"] for r in self.rows]
+
+        def worst(key: str) -> float:  # over the frames with positions
+            v = [r[key] for r in self.rows if np.isfinite(r["relative_volume_error"])]
+            return max(v, default=float("nan"))
+
+        failed = sum(not np.isfinite(r["relative_volume_error"]) for r in self.rows)
+        solved_error = max(
+            (
+                abs(r["relative_volume_error"])
+                for r in self.rows
+                if np.isfinite(r["relative_volume_error"])
+            ),
+            default=float("nan"),
+        )
         lines = [
             f"{len(self.muscles)} muscle(s) x {self.n_frames} frame(s) in {self.seconds:.1f} s "
             f"-> {self.outdir / 'scene.pvd'}",
-            f"  worst |relative volume error| {self.worst_volume_error:.2e}; "
-            f"unconverged frames {self.unconverged}; skeleton fit mean <= {max(fits):.3g}; "
-            f"shape change <= {max(shape):.3g} edge lengths; deepest bone penetration "
-            f"{max(pen):.3g}",
+            f"  worst |relative volume error| {solved_error:.2e}; "
+            f"unconverged frames {self.unconverged}"
+            + (f" ({failed} without positions, no mesh written)" if failed else "")
+            + f"; skeleton fit mean <= {worst('skeleton_fit_mean'):.3g}; "
+            f"shape change <= {worst('shape_change_max'):.3g} edge lengths; deepest bone "
+            f"penetration {worst('penetration_depth_max'):.3g}",
             "  preparation: "
             + ", ".join(
                 f"{m} {'cached' if m in self.cache_hits else f'{s:.2f} s'}"
@@ -221,6 +234,8 @@ def _slice(job: dict[str, Any], ks: range) -> dict[str, Any]:
 
 def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     """Deform one muscle on the frames of a `_slice` of its job and write them."""
+    from ..conditions import LineError
+
     muscle, d, hit, note, seconds_prepare = _deformer(job)
     probes = [(_bone_probe(V, F, name, job["cache_dir"]), T) for V, F, T, name in job["bones"]]
     out = Path(job["outdir"])
@@ -229,11 +244,16 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     kw = {"method": job["method"], "max_iterations": job["max_iterations"]}
     for k in range(len(job["frames"])):
         frame = job["frames"][k]
-        res = d.deform(job["lines"][k], reference_point=job["references"][k], **kw)
+        try:
+            res = d.deform(job["lines"][k], reference_point=job["references"][k], **kw)
+        except LineError as exc:
+            # this frame's lines cannot drive the muscle (e.g. a path collapsed to a point):
+            # the frame is reported as failed and the motion goes on
+            res = _failed_result(muscle, f"invalid action lines in this frame: {exc}")
         T = job["to_output"][k]
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
-        n_in, depth = 0, 0.0
+        n_in, depth = (0, 0.0) if ok_values else (float("nan"), float("nan"))
         if ok_values:
             Vo = apply(T, res.V)
             for probe, TB in probes:
@@ -280,23 +300,57 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _worst(rows: list[dict[str, Any]]) -> int:
-    """Index of the worst frame: most iterations, then largest volume error."""
-    return max(
-        range(len(rows)),
-        key=lambda k: (rows[k]["iterations"], abs(rows[k]["relative_volume_error"])),
+def _failed_result(muscle: Any, reason: str) -> Any:
+    """An unconverged `DeformationResult` without positions, for a frame that failed."""
+    from ..solver import DeformationResult
+
+    nan = float("nan")
+    return DeformationResult(
+        V=np.full_like(muscle.V, np.nan),
+        cage=np.full_like(muscle.cage.C, np.nan),
+        volume_rest=muscle.volume_rest,
+        volume=nan,
+        relative_volume_error=nan,
+        iterations=0,
+        converged=False,
+        reason=reason,
+        skeleton_fit_mean=nan,
+        skeleton_fit_max=nan,
+        energy=nan,
+        method="none",
+        seconds=0.0,
+        history=(),
     )
 
 
-def _compare_job(job: dict[str, Any], worst: int) -> dict[str, Any]:
+def _comparison_frames(rows: list[dict[str, Any]]) -> tuple[int | None, list[int]]:
+    """The frames solved (with positions) and the worst of them.
+
+    The worst has the most iterations, then the largest volume error; None when
+    no frame was solved.
+    """
+    solved = [k for k, r in enumerate(rows) if np.isfinite(r["relative_volume_error"])]
+    worst = max(
+        solved,
+        key=lambda k: (rows[k]["iterations"], abs(rows[k]["relative_volume_error"])),
+        default=None,
+    )
+    return worst, solved
+
+
+def _compare_job(job: dict[str, Any], frames: tuple[int | None, list[int]]) -> dict[str, Any]:
     """The paper's iteration beside the default on a few frames and the worst one.
 
-    The worst frame's iteration histories (the default's iteration with the fine
-    gradient, method "exact", and the paper's) go into convergence.png.
+    ``frames`` is `_comparison_frames` of the muscle's rows. The worst frame's
+    iteration histories (the default's iteration with the fine gradient, method
+    "exact", and the paper's) go into convergence.png.
     """
+    worst, solved = frames
+    if worst is None:
+        return {"name": job["name"], "paper": [], "worst_frame": None, "convergence": {}}
     _, d, *_ = _deformer(job)
-    n = len(job["frames"])
-    picks = set(np.linspace(0, n - 1, job["paper_frames"]).round().astype(int).tolist())
+    spread = np.linspace(0, len(solved) - 1, job["paper_frames"]).round().astype(int)
+    picks = {solved[i] for i in spread.tolist()}
     paper, conv = [], {}
     for k in sorted(picks | {worst}):
         r = d.deform(job["lines"][k], reference_point=job["references"][k], method="paper")
@@ -776,7 +830,7 @@ def _execute(
                 if compare:
                     res.update(
                         journal.comparison(j["name"])
-                        or compare_done(j, _compare_job(j, _worst(res["rows"])))
+                        or compare_done(j, _compare_job(j, _comparison_frames(res["rows"])))
                     )
                 results.append(res)
             return results
@@ -825,7 +879,9 @@ def _execute(
                     if found is not None:
                         results[i].update(found)  # type: ignore[union-attr]
                     else:  # queued behind the remaining chunks
-                        compares[i] = submit(_compare_job, jobs[i], _worst(results[i]["rows"]))
+                        compares[i] = submit(
+                            _compare_job, jobs[i], _comparison_frames(results[i]["rows"])
+                        )
         for i, f in compares.items():
             results[i].update(compare_done(jobs[i], f.result()))  # type: ignore[union-attr]
     except BrokenProcessPool:

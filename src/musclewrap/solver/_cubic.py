@@ -24,11 +24,11 @@ def cubic_root_near(c: FloatArray, target: float, guess: float) -> float:
     Returns
     -------
     float
-        The root (``nan`` when the polynomial is constant).
+        The root (``nan`` when the polynomial is constant or not finite).
     """
     p0, p1, p2, p3 = float(c[0]) - target, float(c[1]), float(c[2]), float(c[3])
     p = np.array([p0, p1, p2, p3])
-    if max(abs(p1), abs(p2), abs(p3)) == 0:
+    if not np.isfinite(p).all() or max(abs(p1), abs(p2), abs(p3)) == 0:
         return float("nan")
     # Newton from the guess: the volume correction is a small, simple root
     t = float(guess)

@@ -536,36 +536,51 @@ class Deformer:
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
         t0 = time.perf_counter()
-        cur, s_cur, d_L, b = self._targets(current_lines, reference_point)
-        x_ls = self._solve(b)
-        if method == "paper":
-            from ._paper import solve_paper
+        with np.errstate(all="ignore"):
+            # overflow (absurd coordinates) shows as non-finite values, reported below
+            cur, s_cur, d_L, b = self._targets(current_lines, reference_point)
+            try:
+                if not np.isfinite(b).all():
+                    raise FloatingPointError("the conditions overflow (line coordinates too large)")
+                x_ls = self._solve(b)
+                if method == "paper":
+                    from ._paper import solve_paper
 
-            x, V, its, ok, reason, hist = solve_paper(
-                self,
-                x_ls,
-                b,
-                d_L,
-                s_cur,
-                max_iterations=max_iterations or defaults.paper_max_iterations,
-                alpha=alpha,
-            )
-        else:
-            x, V, its, ok, reason, hist = self._solve_sqp(
-                x_ls,
-                d_L,
-                s_cur,
-                exact=(method == "exact"),
-                max_iterations=max_iterations or defaults.max_iterations,
-            )
-        return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0)
+                    x, V, its, ok, reason, hist = solve_paper(
+                        self,
+                        x_ls,
+                        b,
+                        d_L,
+                        s_cur,
+                        max_iterations=max_iterations or defaults.paper_max_iterations,
+                        alpha=alpha,
+                    )
+                else:
+                    x, V, its, ok, reason, hist = self._solve_sqp(
+                        x_ls,
+                        d_L,
+                        s_cur,
+                        exact=(method == "exact"),
+                        max_iterations=max_iterations or defaults.max_iterations,
+                    )
+            except (np.linalg.LinAlgError, FloatingPointError) as exc:
+                # a singular or overflowing system on this pose: an unconverged result
+                # with the reason, never an exception that would end a whole motion
+                x = np.full_like(self.muscle.cage.C, np.nan)
+                V = np.full_like(self.muscle.V, np.nan)
+                its, ok, reason, hist = 0, False, f"numerically singular: {exc}", []
+            return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0)
 
     def _result(
         self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0
     ) -> DeformationResult:  # noqa: ANN001
         mu = self.muscle
         if not np.isfinite(V).all():
-            ok, reason = False, "numerically singular: non-finite positions"
+            if ok or not reason.startswith("numerically singular"):
+                reason = "numerically singular: non-finite positions" + (
+                    "" if ok else f" ({reason})"
+                )
+            ok = False
             V = np.full_like(V, np.nan)
             vol = float("nan")
         else:
@@ -615,7 +630,14 @@ class Deformer:
             P_u = Wd @ u
             lam_new = cubic_root_near(volume_cubic(P_ls, -P_u, Fd), Vd0, lam)
             if not np.isfinite(lam_new):
-                return x, np.full_like(mu.V, np.nan), its, False, "volume gradient vanished", hist
+                return (
+                    x,
+                    np.full_like(mu.V, np.nan),
+                    its,
+                    False,
+                    "no finite volume correction",
+                    hist,
+                )
             x_new = x_ls - lam_new * u
             step = float(np.abs(x_new - x).max())
             x, lam = x_new, lam_new
