@@ -215,3 +215,117 @@ def test_merge_duplicate_vertices_soup_and_signed_zero():
     V2, F2, merged = merge_duplicate_vertices(V, F)
     assert merged == 2 and len(V2) == 4
     assert np.array_equal(V2[F2], V[F])
+
+
+# ------------------------------------------------- repairable and refused topology
+def _capsule():
+    return capsule(n_around=24, cap_rings=6, segments=10)
+
+
+def test_inconsistently_oriented_faces_are_flipped_and_reported():
+    V, F = _capsule()
+    want = volume(V, F)
+    bad = F.copy()
+    bad[5:15] = bad[5:15, ::-1]
+    assert check_mesh(V, bad).inconsistent_edges > 0
+    for faces in (bad, bad[:, ::-1]):  # the same, and then the whole surface inward too
+        V2, F2, notes = clean_mesh(V, faces, source="patchy.stl")
+        assert "10 of 1008 faces were oriented against their neighbours: flipped" in notes[0]
+        chk = check_mesh(V2, F2)
+        assert chk.ok and chk.inconsistent_edges == 0
+        assert volume(V2, F2) == pytest.approx(want, rel=1e-12)
+
+
+def test_one_sided_surface_cannot_be_oriented():
+    from musclewrap.mesh import orient_faces
+
+    # a Moebius strip: 12 quads around a half-twisted band
+    n = 12
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    F = []
+    for i in range(n):
+        j = (i + 1) % n
+        a, b = 2 * i, 2 * i + 1
+        c, d = (2 * j, 2 * j + 1) if j else (1, 0)  # the half twist joins the ends crossed
+        F += [[a, c, b], [b, c, d]]
+    F = np.array(F)
+    assert orient_faces(F, 2 * n) is None
+    # an orientable band with the same faces scrambled is oriented
+    Fb = np.array([[2 * i, 2 * ((i + 1) % n), 2 * i + 1] for i in range(n)])
+    Fb = np.vstack([Fb, [[2 * i + 1, 2 * ((i + 1) % n), 2 * ((i + 1) % n) + 1] for i in range(n)]])
+    Fb[::3] = Fb[::3, ::-1]
+    out = orient_faces(Fb, 2 * n)
+    assert out is not None and out[1] == 8
+    ring = np.c_[np.cos(t).repeat(2), np.sin(t).repeat(2), np.tile([0.0, 1.0], n)]
+    assert check_mesh(ring, Fb).inconsistent_edges > 0
+    assert check_mesh(ring, out[0]).inconsistent_edges == 0
+
+
+def test_surfaces_touching_at_a_vertex_are_refused_or_split():
+    V, F = _capsule()
+    top, bottom = int(np.argmax(V[:, 2])), int(np.argmin(V[:, 2]))
+    # a second capsule standing on the first, sharing its pole vertex
+    V2 = V - V[bottom] + V[top]
+    F2 = F + len(V)
+    F2[F2 == len(V) + bottom] = top
+    V2, F2 = np.vstack([V, V2]), np.vstack([F, F2])
+    chk = check_mesh(V2, F2)
+    assert chk.closed and chk.components == 1 and chk.nonmanifold_vertices == 1
+    with pytest.raises(MeshError, match="touch.stl: .*1 non-manifold vertex"):
+        clean_mesh(V2, F2, source="touch.stl")
+    # split, the two are separate bodies: a second belly, not a repair
+    with pytest.raises(MeshError, match="touch.stl: .*-50.00 %.*second belly"):
+        clean_mesh(V2, F2, source="touch.stl", repair=True)
+    # a sliver touching the muscle at one vertex is split off and dropped
+    tet = np.array([[0.0, 0, 0], [0.3, 0, 0], [0, 0.3, 0], [0, 0, 0.3]]) + V[top]
+    tf = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]) + len(V)
+    tf[tf == len(V)] = top
+    V3, F3 = np.vstack([V, tet]), np.vstack([F, tf])
+    V4, F4, notes = clean_mesh(V3, F3, source="tag.stl", repair=True)
+    assert "split 1 non-manifold vertex" in notes[-2] and "PyMeshFix" in notes[-1]
+    assert check_mesh(V4, F4).ok
+    assert volume(V4, F4) == pytest.approx(volume(V, F), rel=1e-9)
+
+
+def test_zero_area_face_is_kept_and_the_muscle_deforms():
+    from musclewrap import Muscle
+
+    V, F = _capsule()
+    a, b, c = F[0]
+    m = len(V)
+    # the edge a-b gets its midpoint m: face 0 becomes two, and the flat triangle (m, a, b)
+    # closes the surface against the neighbour that still runs b -> a
+    V2 = np.vstack([V, (V[a] + V[b]) / 2])
+    F2 = np.vstack([F[1:], [[a, m, c], [m, b, c], [m, a, b]]])
+    _, _, notes = clean_mesh(V2, F2, source="flat.stl")
+    assert notes == ["kept 1 zero-area face(s) (they add no volume)"]
+    mu = Muscle.from_mesh(V2, F2, cage_size=150)
+    z0, z1 = V[:, 2].min() + 1, V[:, 2].max() - 1
+    r = mu.bind({"a": [[0, 0, z0], [0, 0, z1]]}).deform({"a": [[0, 0, z0], [15, 0, z1 - 3]]})
+    assert r.converged and abs(r.relative_volume_error) <= 1e-9 and np.isfinite(r.V).all()
+
+
+def test_sliver_hole_and_fin_are_repaired_with_the_change_reported():
+    V, F = _capsule()
+    want = volume(V, F)
+    tet = np.array([[0.0, 0, 0], [0.5, 0, 0], [0, 0.5, 0], [0, 0, 0.5]]) + [100.0, 0, 0]
+    tf = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]) + len(V)
+    a, b, c = F[100]
+    n = np.cross(V[b] - V[a], V[c] - V[a])
+    cases = {
+        "sliver": (np.vstack([V, tet]), np.vstack([F, tf]), "2 connected components"),
+        "hole": (V, F[1:], "open: 3 boundary edge"),
+        "fin": (
+            np.vstack([V, V[a] + 3 * n / np.linalg.norm(n)]),
+            np.vstack([F, [[a, b, len(V)], [b, a, len(V)]]]),
+            "1 non-manifold edge",
+        ),
+    }
+    for name, (V2, F2, problem) in cases.items():
+        with pytest.raises(MeshError, match=f"{name}.ply: not a closed 2-manifold.*{problem}"):
+            clean_mesh(V2, F2, source=f"{name}.ply")
+        V3, F3, notes = clean_mesh(V2, F2, source=f"{name}.ply", repair=True)
+        assert check_mesh(V3, F3).ok
+        assert len(notes) == 1 and f"repaired with PyMeshFix ({problem}" in notes[0]
+        assert "volume " in notes[0] and "relative)" in notes[0]
+        assert volume(V3, F3) == pytest.approx(want, rel=1e-3)

@@ -6,7 +6,9 @@ from ._checks import (
     check_mesh,
     clean_mesh,
     merge_duplicate_vertices,
+    orient_faces,
     self_intersecting_faces,
+    split_nonmanifold_vertices,
     tidy_mesh,
 )
 from ._geometry import face_areas, half_edges, mean_edge_length, umbrella_laplacian
@@ -34,9 +36,11 @@ __all__ = [
     "check_mesh",
     "clean_mesh",
     "merge_duplicate_vertices",
+    "orient_faces",
     "read_mesh",
     "repair_mesh",
     "self_intersecting_faces",
+    "split_nonmanifold_vertices",
     "tidy_mesh",
     "volume",
     "volume_cubic",

@@ -13,7 +13,15 @@ from ..constants import tol
 from ._geometry import face_areas, half_edges
 from ._volume import volume
 
-__all__ = ["MeshCheck", "MeshError", "check_mesh", "clean_mesh", "merge_duplicate_vertices"]
+__all__ = [
+    "MeshCheck",
+    "MeshError",
+    "check_mesh",
+    "clean_mesh",
+    "merge_duplicate_vertices",
+    "orient_faces",
+    "split_nonmanifold_vertices",
+]
 
 
 class MeshError(ValueError):
@@ -36,6 +44,9 @@ class MeshCheck:
         Interior edges traversed in the same direction by both faces.
     degenerate_faces : int
         Faces with (near) zero area or repeated vertex indices.
+    nonmanifold_vertices : int
+        Vertices where separate fans of faces meet (e.g. two surfaces touching
+        at a point): the faces around such a vertex do not form one disc.
     components : int
         Connected components (by shared vertices).
     volume : float
@@ -50,6 +61,7 @@ class MeshCheck:
     degenerate_faces: int
     components: int
     volume: float
+    nonmanifold_vertices: int = 0
     notes: tuple[str, ...] = field(default=())
 
     @property
@@ -67,6 +79,7 @@ class MeshCheck:
         """True for a closed, consistently oriented, single-component mesh."""
         return (
             self.closed
+            and self.nonmanifold_vertices == 0
             and self.consistently_oriented
             and self.components == 1
             and self.degenerate_faces == 0
@@ -87,6 +100,11 @@ class MeshCheck:
             out.append(f"open: {self.boundary_edges} boundary edge(s) (holes)")
         if self.nonmanifold_edges:
             out.append(f"{self.nonmanifold_edges} non-manifold edge(s) (shared by >2 faces)")
+        if self.nonmanifold_vertices:
+            out.append(
+                f"{self.nonmanifold_vertices} non-manifold vertex(es) (separate sheets of the "
+                "surface touch at a point)"
+            )
         if self.inconsistent_edges:
             out.append(f"{self.inconsistent_edges} edge(s) with inconsistent face orientation")
         if self.degenerate_faces and repairable:
@@ -115,20 +133,15 @@ def check_mesh(V: FloatArray, F: IntArray) -> MeshCheck:
         degenerate faces, components and the signed volume.
     """
     he = half_edges(F)
-    und = np.sort(he, axis=1)
     n = V.shape[0]
-    # one int64 key per undirected edge: a 1-D unique is ~10x faster than a row-wise one
-    keys, inverse, counts = np.unique(
-        und[:, 0].astype(np.int64) * max(n, 1) + und[:, 1], return_inverse=True, return_counts=True
-    )
-    inverse = inverse.ravel()
+    a, b, per, counts = _edge_pairs(np.sort(he, axis=1), n)
     boundary = int(np.sum(counts == 1))
     nonmanifold = int(np.sum(counts > 2))
-    # For edges shared by exactly two faces, a consistent orientation means the
-    # two half-edges run in opposite directions.
-    forward = he[:, 0] < he[:, 1]
-    fwd_count = np.bincount(inverse, forward.astype(np.int64), minlength=len(keys))
-    inconsistent = int(np.sum((counts == 2) & (fwd_count != 1)))
+    # for edges shared by exactly two faces, a consistent orientation means the
+    # two half-edges run in opposite directions
+    inconsistent = int(np.sum((per == 2) & (he[a, 0] == he[b, 0])))
+    fan_vertex, _ = _fans(F, n, he, (a, b))
+    nonmanifold_vertices = int(np.sum(np.bincount(fan_vertex, minlength=n) > 1))
     diag = float(np.linalg.norm(V.max(0) - V.min(0))) or 1.0
     area2 = 2.0 * face_areas(V, F)
     repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
@@ -146,7 +159,153 @@ def check_mesh(V: FloatArray, F: IntArray) -> MeshCheck:
         degenerate_faces=degenerate,
         components=components,
         volume=volume(V, F),
+        nonmanifold_vertices=nonmanifold_vertices,
     )
+
+
+def _edge_pairs(und: IntArray, n: int) -> tuple[IntArray, IntArray, IntArray, IntArray]:
+    """Half-edges on the same undirected edge, from the sorted vertex pairs ``und``.
+
+    Returns
+    -------
+    a, b : int arrays
+        Pairs of half-edges on one edge (consecutive ones where more than two share it).
+    per : int array
+        Each pair's number of half-edges on its edge.
+    counts : int array
+        The number of half-edges on each undirected edge.
+    """
+    keys = und[:, 0].astype(np.int64) * max(n, 1) + und[:, 1]
+    order = np.argsort(keys, kind="stable")
+    ks = keys[order]
+    first = np.ones(len(ks), dtype=bool)
+    first[1:] = ks[1:] != ks[:-1]
+    starts = np.flatnonzero(first)
+    counts = np.diff(np.append(starts, len(ks)))
+    same = ~first[1:]
+    per = np.repeat(counts, counts)[:-1][same]
+    return order[:-1][same], order[1:][same], per, counts
+
+
+def _fans(
+    F: IntArray,
+    n: int,
+    he: IntArray | None = None,
+    pairs: tuple[IntArray, IntArray] | None = None,
+) -> tuple[IntArray, IntArray]:
+    """The fans of faces around each vertex.
+
+    Corners (face, vertex) are joined across every edge that two faces share at
+    that vertex; each connected set of corners at a vertex is one fan. A vertex
+    of a 2-manifold (closed or with a boundary) has exactly one.
+
+    Returns
+    -------
+    fan_vertex : (k,) int array
+        The vertex of each fan (a vertex appears once per fan).
+    corner_fan : (3 m,) int array
+        The fan of each corner, in the order of ``F.ravel()``.
+    """
+    m = len(F)
+    if m == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    if he is None or pairs is None:
+        he = half_edges(F)
+        pairs = _edge_pairs(np.sort(he, axis=1), n)[:2]
+    a, b = pairs
+    # half-edge h = (face h % m, position h // m) runs from corner (f, i) to (f, i + 1)
+    fa, ia = a % m, a // m
+    fb, ib = b % m, b // m
+    sa, ea = 3 * fa + ia, 3 * fa + (ia + 1) % 3
+    sb, eb = 3 * fb + ib, 3 * fb + (ib + 1) % 3
+    parallel = he[a, 0] == he[b, 0]
+    u = np.concatenate([sa, ea])
+    v = np.concatenate([np.where(parallel, sb, eb), np.where(parallel, eb, sb)])
+    g = sp.coo_matrix((np.ones(len(u), dtype=np.int8), (u, v)), shape=(3 * m, 3 * m))
+    _, label = connected_components(g, directed=False)
+    key = F.ravel().astype(np.int64) * (3 * m) + label
+    uniq, corner_fan = np.unique(key, return_inverse=True)
+    return uniq // (3 * m), corner_fan.ravel()
+
+
+def split_nonmanifold_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, IntArray, int]:
+    """Give each fan of faces around a vertex its own copy of the vertex.
+
+    Where separate sheets of a surface touch at a point, the shared vertex
+    becomes one vertex per sheet; positions, and so the enclosed volume, do not
+    change.
+
+    Returns
+    -------
+    V, F : arrays
+        The mesh with split vertices (the first fan of a vertex keeps its index).
+    split : int
+        How many vertices were split.
+    """
+    fan_vertex, corner_fan = _fans(F, len(V))
+    extra = np.ones(len(fan_vertex), dtype=bool)
+    extra[np.unique(fan_vertex, return_index=True)[1]] = False  # first fan keeps the index
+    index = fan_vertex.copy()
+    index[extra] = len(V) + np.arange(int(extra.sum()))
+    V2 = np.vstack([V, V[fan_vertex[extra]]])
+    split = len(np.unique(fan_vertex[extra]))
+    return V2, index[corner_fan].reshape(-1, 3), split
+
+
+def orient_faces(F: IntArray, n: int) -> tuple[IntArray, int] | None:
+    """Orient the faces of each edge-connected piece consistently with each other.
+
+    Across every edge shared by exactly two faces, the two must traverse it in
+    opposite directions; each piece's faces are flipped to agree with a
+    spanning tree of face neighbours, and where that flips most of a piece, the
+    complement is flipped instead (the global direction is left to the volume's
+    sign).
+
+    Returns
+    -------
+    (F, flipped) or None
+        The faces and how many were flipped; None when the surface cannot be
+        oriented (a one-sided surface such as a Moebius strip).
+    """
+    from scipy.sparse.csgraph import breadth_first_order
+
+    m = len(F)
+    he = half_edges(F)
+    a, b, per, _ = _edge_pairs(np.sort(he, axis=1), n)
+    a, b = a[per == 2], b[per == 2]
+    fa, fb = a % m, b % m
+    same = (he[a, 0] == he[b, 0]).astype(np.int8)  # the pair disagrees
+    g = sp.csr_matrix(
+        (np.concatenate([same, same]) + 1, (np.concatenate([fa, fb]), np.concatenate([fb, fa]))),
+        shape=(m, m),
+    )
+    ncomp, comp = connected_components(g, directed=False)
+    parent = np.arange(m)
+    for c in range(ncomp):
+        root = int(np.argmax(comp == c))
+        order, pred = breadth_first_order(g, root, directed=False, return_predecessors=True)
+        parent[order[1:]] = pred[order[1:]]
+    has = parent != np.arange(m)
+    parity = np.zeros(m, dtype=np.int8)
+    parity[has] = np.asarray(g[np.flatnonzero(has), parent[has]]).ravel() - 1
+    # pointer jumping: parity to the root in log2(depth) passes
+    anc = parent
+    while not np.array_equal(anc, anc[anc]):
+        parity = parity ^ parity[anc]
+        anc = anc[anc]
+    parity = parity ^ parity[anc]  # roots have parity 0
+    flip = parity.astype(bool)
+    for c in range(ncomp):
+        piece = comp == c
+        if 2 * int(flip[piece].sum()) > int(piece.sum()):
+            flip[piece] = ~flip[piece]
+    F2 = F.copy()
+    F2[flip] = F2[flip][:, ::-1]
+    he2 = half_edges(F2)  # (a flipped face's half-edges change slots: pair them anew)
+    a2, b2, per2, _ = _edge_pairs(np.sort(he2, axis=1), n)
+    if np.any((he2[a2, 0] == he2[b2, 0]) & (per2 == 2)):
+        return None
+    return F2, int(flip.sum())
 
 
 def merge_duplicate_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, IntArray, int]:
@@ -206,9 +365,10 @@ def clean_mesh(
 ) -> tuple[FloatArray, IntArray, list[str]]:
     """Make a mesh usable or refuse it with a message naming the problem.
 
-    Merges duplicate vertices, drops faces with repeated indices, flips a
-    consistently inward-oriented mesh, and refuses anything that is not a
-    closed, consistently oriented, single-component 2-manifold.
+    Merges duplicate vertices, drops faces with repeated indices, orients the
+    faces of a closed surface consistently (`orient_faces`) and outward, and
+    refuses anything that is not a closed, single-component 2-manifold without
+    self-intersections.
 
     Parameters
     ----------
@@ -220,8 +380,9 @@ def clean_mesh(
         File name or label quoted in messages.
     repair : bool, optional
         Repair a non-manifold, open or multi-component mesh automatically
-        (`musclewrap.mesh.repair_mesh`, PyMeshFix) instead of refusing it; the
-        notes then say what changed.
+        instead of refusing it: vertices where sheets touch are split
+        (`split_nonmanifold_vertices`), the rest goes to
+        `musclewrap.mesh.repair_mesh` (PyMeshFix); the notes say what changed.
 
     Returns
     -------
@@ -233,8 +394,8 @@ def clean_mesh(
     Raises
     ------
     MeshError
-        If the mesh is open, non-manifold, inconsistently oriented, has several
-        components, passes through itself, or encloses no volume.
+        If the mesh is open, non-manifold, one-sided, has several components,
+        passes through itself, or encloses no volume.
     """
     V = np.asarray(V, dtype=np.float64)
     if not np.isfinite(V).all():
@@ -242,9 +403,25 @@ def clean_mesh(
         raise MeshError(f"{source}: {bad} vertex coordinate row(s) are NaN or infinite")
     V, F, notes = tidy_mesh(V, F)
     chk = check_mesh(V, F)
+    if chk.closed and chk.inconsistent_edges:
+        oriented = orient_faces(F, len(V))
+        if oriented is not None:  # else refused below: a one-sided surface
+            F, flipped = oriented
+            notes.append(
+                f"{flipped} of {len(F)} faces were oriented against their neighbours: flipped"
+            )
+            chk = check_mesh(V, F)
     problems = chk.problems(repairable=False)
     if chk.degenerate_faces:
         notes.append(f"kept {chk.degenerate_faces} zero-area face(s) (they add no volume)")
+    if problems and repair and chk.nonmanifold_vertices:
+        V, F, split = split_nonmanifold_vertices(V, F)
+        notes.append(
+            f"split {split} non-manifold vertex(es) where sheets of the surface touch "
+            "(positions and volume unchanged)"
+        )
+        chk = check_mesh(V, F)
+        problems = chk.problems(repairable=False)
     if problems and repair:
         from ._repair import repair_mesh
 

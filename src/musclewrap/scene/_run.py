@@ -456,7 +456,9 @@ def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, l
         V, F, notes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
         return {"V": V, "F": F, "notes": np.array(notes, dtype=str)}
 
-    d = _cached_mesh(spec.mesh, cache, f"muscle|{spec.repair}|self-intersection check", build)
+    d = _cached_mesh(
+        spec.mesh, cache, f"muscle|{spec.repair}|self-intersection, fans, orientation", build
+    )
     return d["V"], d["F"], [str(n) for n in d["notes"]]
 
 
