@@ -103,6 +103,10 @@ def test_lines_validation():
     s = sample_lines(check_lines({"a": [[0, 0, 0], [0, 0, 10], [0, 0, 20]]}), spacing=1.0)
     with pytest.raises(LineError, match="missing"):
         s.evaluate({"b": np.array([[0.0, 0, 0], [1, 0, 0]])})
+    with pytest.raises(LineError, match="missing \\[\\], unexpected \\['b'\\]"):
+        s.evaluate(
+            {"a": np.array([[0.0, 0, 0], [1, 0, 0]]), "b": np.array([[0.0, 0, 0], [1, 0, 0]])}
+        )
     # a current line with another point count matches by arc length
     pts = s.evaluate({"a": np.array([[0.0, 0, 0], [0, 0, 40]])})
     assert np.allclose(pts[:, 2], 2 * s.evaluate({"a": np.array([[0.0, 0, 0], [0, 0, 20]])})[:, 2])
@@ -112,6 +116,24 @@ def test_lines_validation():
 def small_muscle():
     V, F = capsule(n_around=32, cap_rings=8, segments=30)
     return Muscle.from_mesh(V, F, cage_size=200)
+
+
+def test_rest_line_far_from_the_muscle_is_refused(small_muscle):
+    z = [[0, 0, 5], [0, 0, 195]]
+    with pytest.raises(LineError, match="line 'far' lies 4.98e\\+03 away from the muscle.*units"):
+        small_muscle.bind({"a": z, "far": [[5000, 0, 5], [5000, 0, 195]]})
+    # a line given in another frame (here 500 mm to the side)
+    with pytest.raises(LineError, match="line 'a' lies .* away from the muscle"):
+        small_muscle.bind({"a": [[0, 500, 0.005], [0, 500, 0.195]]})
+    # a line that leaves the muscle at its ends (tendons, attachments) is fine
+    small_muscle.bind({"a": [[0, 0, -60], [0, 0, 260]]})
+
+
+def test_line_that_folds_back_is_followed(small_muscle):
+    d = small_muscle.bind({"a": [[0, 0, 5], [0, 0, 195]]})
+    r = d.deform({"a": [[0, 0, 5], [0, 0, 150], [0, 10, 100]]})  # a U-turn at 150
+    assert r.converged and abs(r.relative_volume_error) <= 1e-9
+    assert r.skeleton_fit_mean < 1.0 and np.isfinite(r.V).all()
 
 
 @pytest.mark.parametrize("method", ["sqp", "exact", "paper"])

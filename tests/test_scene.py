@@ -326,6 +326,64 @@ def test_lhdl_walk_subset_meets_targets(data_dir, tmp_path):
 
 
 @pytest.mark.realdata
+def test_opensim_scene_errors_name_the_problem(data_dir, tmp_path):
+    lhdl = data_dir / "lhdl"
+    mot = (data_dir / "opensim" / "motions" / "subject01_walk1_ik.mot").read_text()
+    (tmp_path / "walk.mot").write_text(mot)
+    head = f"""name = "hip"
+[units]
+mesh = "mm"
+model = "m"
+[model]
+osim = "{lhdl / "model" / "LHDL_hip_r.osim"}"
+motion = "walk.mot"
+coordinates = ["hip_flexion_r", "hip_adduction_r", "hip_rotation_r"]
+[muscles.gmax]
+mesh = "{lhdl / "muscles" / "LHDL_R_GluteusMaximus.vtk"}"
+paths = ["glut_max1_r"]
+body = "pelvis"
+[output]
+gif = false
+"""
+    toml = tmp_path / "s.toml"
+
+    def refused(text, match, frames="0:3"):
+        toml.write_text(text)
+        with pytest.raises(SceneError, match=match):
+            run_scene(load_scene(toml), tmp_path / "o", frames=frames, cache_dir=tmp_path / "c")
+        assert not (tmp_path / "o").exists()
+
+    # names absent from the model: the nearest valid one is suggested
+    refused(
+        head.replace('"glut_max1_r"', '"glut_max_1r"'),
+        "no muscle 'glut_max_1r'; did you mean .*'glut_max1_r'.*Valid names: .*glut_max1_r",
+    )
+    refused(head.replace('"hip_rotation_r"', '"knee_angle_r"'), "no coordinate 'knee_angle_r'")
+    refused(head.replace('body = "pelvis"', 'body = "pelvic"'), "pelvic.*did you mean 'pelvis'")
+    # a coordinate absent from the motion: the motion's columns are listed
+    (tmp_path / "walk.mot").write_text(mot.replace("hip_rotation_r", "hip_rot_r", 1))
+    refused(head, "walk.mot: the motion has no column 'hip_rotation_r'; did you mean .*'hip_rot_r'")
+    # degrees read as radians
+    (tmp_path / "walk.mot").write_text(mot.replace("endheader", "inDegrees=no\nendheader", 1))
+    refused(head, "walk.mot: angles are read as radians but .* looks like degrees")
+    (tmp_path / "walk.mot").write_text(mot)
+    # frames out of range
+    refused(head, "--frames '300:400': out of range.*frames 0..210", frames="300:400")
+    # a model OpenSim cannot load: its own message is shown
+    broken = tmp_path / "broken.osim"
+    text = (lhdl / "model" / "LHDL_hip_r.osim").read_bytes()
+    broken.write_bytes(text[: len(text) // 2])
+    refused(
+        head.replace(str(lhdl / "model" / "LHDL_hip_r.osim"), str(broken)),
+        "broken.osim: OpenSim could not load the model: .+",
+    )
+    # the walk is in degrees without saying so: taken as degrees, and the run says why
+    toml.write_text(head)
+    s = run_scene(load_scene(toml), tmp_path / "o", frames="0:2", cache_dir=tmp_path / "c")
+    assert any("no inDegrees line in the header: angles taken as degrees" in n for n in s.notes)
+
+
+@pytest.mark.realdata
 @pytest.mark.slow
 def test_gait2392_vhf_example_runs(data_dir, tmp_path):
     scene = load_scene(EXAMPLES / "gait2392_walk.toml")
@@ -461,6 +519,21 @@ def test_unconverged_frames_are_reported_and_set_the_exit_status(tmp_path, capsy
     assert main([*args, str(tmp_path / "b"), "--allow-unconverged"]) == 0
     for r in _rows(tmp_path / "b" / "report.csv"):
         assert abs(float(r["relative_volume_error"])) <= 1e-9
+
+
+def test_a_run_never_writes_over_its_inputs(tmp_path):
+    _, toml = _write_demo(tmp_path, n_frames=2)
+    (tmp_path / "out" / "fusiform").mkdir(parents=True)
+    (tmp_path / "muscle.vtp").rename(tmp_path / "out" / "fusiform" / "muscle.vtp")
+    toml.write_text(toml.read_text().replace('"muscle.vtp"', '"out/fusiform/muscle.vtp"'))
+    scene = load_scene(toml)
+    with pytest.raises(SceneError, match="muscle.vtp: an input of the scene lies where the run"):
+        run_scene(scene, tmp_path / "out", cache_dir=False, progress=None)
+    (tmp_path / "lines.csv").rename(tmp_path / "report.csv")
+    toml.write_text(toml.read_text().replace('"lines.csv"', '"report.csv"'))
+    with pytest.raises(SceneError, match="report.csv: an input of the scene lies where the run"):
+        run_scene(load_scene(toml), tmp_path, cache_dir=False, progress=None)
+    assert sorted(p.name for p in (tmp_path / "out").rglob("*")) == ["fusiform", "muscle.vtp"]
 
 
 def test_a_frame_that_cannot_be_solved_is_reported_and_the_motion_goes_on(tmp_path, capsys):

@@ -56,7 +56,10 @@ def _parser() -> argparse.ArgumentParser:
         "--method", choices=("sqp", "exact", "paper"), default="sqp", help="solver (default sqp)"
     )
     de.add_argument(
-        "--allow-unconverged", action="store_true", help="exit 0 even if the solve did not converge"
+        "--allow-unconverged",
+        action="store_true",
+        help="write the result and exit 0 even if the solve did not converge (a result "
+        "without finite positions is never written)",
     )
 
     ru = sub.add_parser(
@@ -108,10 +111,29 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _spare_inputs(inputs: Sequence[str | None], outputs: Sequence[str | None]) -> None:
+    """Refuse an output path that names an input file (or another output)."""
+    seen: dict[Path, str] = {}
+    for p in inputs:
+        if p is not None:
+            seen[Path(p).resolve()] = "an input"
+    for p in outputs:
+        if p is None:
+            continue
+        r = Path(p).resolve()
+        if r in seen:
+            raise ValueError(
+                f"{p}: this is {seen[r]} file of the command; musclewrap never writes over its "
+                "inputs or one output over another: choose another output path"
+            )
+        seen[r] = "another output"
+
+
 def _cmd_prepare(a: argparse.Namespace) -> int:
     from .constants import defaults
     from .solver import Muscle
 
+    _spare_inputs([a.mesh], [a.output])
     m = Muscle.from_file(a.mesh, cage_size=a.cage_size or defaults.cage_size)
     m.save(a.output)
     c = m.cage
@@ -129,11 +151,17 @@ def _cmd_deform(a: argparse.Namespace) -> int:
 
     from .conditions import read_lines_csv
     from .constants import defaults
-    from .mesh import read_mesh, write_mesh
+    from .mesh import FORMATS, read_mesh, write_mesh
     from .solver import Muscle
 
     if (a.reference_rest is None) != (a.reference_current is None):
         raise ValueError("give both --reference-rest and --reference-current, or neither")
+    if Path(a.output).suffix.lower() not in FORMATS:
+        raise ValueError(
+            f"{a.output}: unknown output format '{Path(a.output).suffix}'; use one of "
+            + ", ".join(FORMATS)
+        )
+    _spare_inputs([a.mesh, a.rest, a.current, a.prepared], [a.output, a.report])
     rest = read_lines_csv(a.rest)
     cur = read_lines_csv(a.current)
     t0 = time.perf_counter()
@@ -158,7 +186,8 @@ def _cmd_deform(a: argparse.Namespace) -> int:
     d = muscle.bind(rest, reference_point=a.reference_rest)
     res = d.deform(cur, reference_point=a.reference_current, method=a.method)
     ok = res.converged  # includes the volume tolerance
-    if (ok or a.allow_unconverged) and np.isfinite(res.V).all():
+    finite = bool(np.isfinite(res.V).all())
+    if (ok or a.allow_unconverged) and finite:
         write_mesh(a.output, res.V, muscle.F)
     report = {
         "n_vertices": int(len(muscle.V)),
@@ -190,17 +219,20 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         from .mesh import atomic_path
 
         with atomic_path(a.report) as tmp:
-            tmp.write_text(json.dumps(report, indent=2), encoding="utf-8")
+            # strict JSON: a value that could not be computed is null, never NaN
+            clean = {
+                k: None if isinstance(v, float) and not np.isfinite(v) else v
+                for k, v in report.items()
+            }
+            tmp.write_text(json.dumps(clean, indent=2, allow_nan=False), encoding="utf-8")
     print(
         f"{'converged' if res.converged else 'NOT converged'} in {res.iterations} iterations: "
         f"volume error {res.relative_volume_error:.2e}, skeleton fit {res.skeleton_fit_mean:.3g} (mean), "
         f"{res.seconds * 1e3:.1f} ms"
     )
-    if not ok and not a.allow_unconverged:
-        print(
-            f"error: {res.reason}; no output written (use --allow-unconverged to write it anyway)",
-            file=sys.stderr,
-        )
+    if not ok and not (a.allow_unconverged and finite):
+        hint = " (use --allow-unconverged to write it anyway)" if finite else ""
+        print(f"error: {res.reason}; no output written{hint}", file=sys.stderr)
         return 3
     return 0
 

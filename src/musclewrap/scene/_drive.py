@@ -138,6 +138,12 @@ def _angle_in_degrees(scene: Scene, motion, model: OpenSimModel, coords) -> tupl
             f"(more than a full turn): the motion looks like degrees; fix its header "
             f"(inDegrees=yes) or set [model] angle_unit = 'deg'"
         )
+    if deg and 0 < peak <= 2 * np.pi:
+        # every rotation stays within 6.3 degrees: radians written under a degrees header?
+        how += (
+            f"; note: the largest angle is {peak:.3g} degrees ('{worst}'): if the motion is in "
+            "radians, fix its header (inDegrees=no) or set [model] angle_unit = 'rad'"
+        )
     return deg, how
 
 

@@ -13,10 +13,11 @@ class SceneError(ValueError):
 
 
 def suggest(name: str, valid: Sequence[str]) -> str:
-    """A hint naming the nearest valid names (or listing them when few)."""
-    close = difflib.get_close_matches(name, list(valid), n=3, cutoff=0.5)
-    if close:
-        return f"did you mean {' or '.join(repr(c) for c in close)}?"
-    shown = ", ".join(list(valid)[:30])
+    """A hint naming the nearest valid names, then the valid names (the first 30)."""
+    valid = list(valid)
+    close = difflib.get_close_matches(name, valid, n=3, cutoff=0.5)
+    shown = ", ".join(valid[:30])
     more = f" (and {len(valid) - 30} more)" if len(valid) > 30 else ""
+    if close:
+        return f"did you mean {' or '.join(repr(c) for c in close)}? Valid names: {shown}{more}"
     return f"valid names: {shown}{more}"

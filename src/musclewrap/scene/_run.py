@@ -22,7 +22,7 @@ from ._cache import cached_arrays, digest
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
-from ._journal import Journal
+from ._journal import JOURNAL, Journal
 
 __all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_scene"]
 
@@ -521,6 +521,7 @@ def run_scene(
     t0 = time.perf_counter()
     say = log or (lambda s: None)
     outdir = Path(outdir)
+    _check_outputs_spare_inputs(scene, outdir)
     notes: list[str] = []
     with contextlib.ExitStack() as stack:
         pool = None
@@ -596,13 +597,35 @@ def _run_scene(
     return _run(scene, outdir, drive, muscles, bones, cache, pool, progress, notes, key, resume)
 
 
-def _run_key(scene: Scene, drive: Drive) -> str:
-    """Hash of everything a run's outputs depend on: files, settings, frames, version."""
+def _input_files(scene: Scene) -> list[Path]:
+    """Every file the scene reads."""
     files = [scene.path, *scene.motions, *(m.mesh for m in scene.muscles)]
     files += [b.mesh for b in scene.bones]
     files += [p for p in (scene.osim, scene.lines_csv) if p is not None]
     if scene.registration is not None:
         files += [lm.mesh for lm in scene.registration.landmarks]
+    return files
+
+
+def _check_outputs_spare_inputs(scene: Scene, outdir: Path) -> None:
+    """Refuse an output folder where the run would write over one of its inputs."""
+    out = outdir.resolve()
+    files = {out / n for n in ("scene.pvd", "report.csv", "scene.gif", JOURNAL)}
+    files |= {out / n for n in ("volume_error.png", "convergence.png")}
+    folders = [out / m.name for m in scene.muscles] + [out / b.name for b in scene.bones]
+    for f in _input_files(scene):
+        r = f.resolve()
+        if r in files or any(r.is_relative_to(d) for d in folders):
+            raise SceneError(
+                f"{f}: an input of the scene lies where the run writes its outputs (in "
+                f"{outdir}); musclewrap never writes over its inputs: choose another output "
+                "folder (-o)"
+            )
+
+
+def _run_key(scene: Scene, drive: Drive) -> str:
+    """Hash of everything a run's outputs depend on: files, settings, frames, version."""
+    files = _input_files(scene)
     return digest(*(f.read_bytes() for f in files), np.asarray(drive.frames), __version__)
 
 

@@ -18,6 +18,7 @@ from .._typing import FloatArray, IntArray, PathLike
 from .._validation import as_faces, as_points, as_vertices
 from ..cage import Cage, build_cage
 from ..conditions import (
+    LineError,
     RotationField,
     SampleRotations,
     check_lines,
@@ -396,6 +397,7 @@ class Deformer:
         )
         self.rest_samples = self.sampling.evaluate(rest, "rest lines")
         self.sample_line = self.sampling.line_index()
+        self._check_near(muscle.V)
         self.S = mean_value_coordinates(self.rest_samples, C, CF)
         m, k = len(C), len(self.rest_samples)
         self.weight = skeleton_weight * np.sqrt(m / k)
@@ -414,6 +416,28 @@ class Deformer:
         self._LT = np.ascontiguousarray(L.T)
         self._ST = np.ascontiguousarray(self.S.T)
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
+
+    def _check_near(self, V: FloatArray) -> None:
+        """Refuse a rest line that lies far from the muscle (units or frames mixed up).
+
+        A line may leave the muscle (tendons, attachments on the bones), but one
+        whose samples lie, in the median, more than half the muscle's size
+        outside its bounding box cannot be meant for it.
+        """
+        lo, hi = V.min(axis=0), V.max(axis=0)
+        size = float(np.linalg.norm(hi - lo))
+        for i, name in enumerate(self.sampling.names):
+            P = self.rest_samples[self.sample_line == i]
+            gap = float(
+                np.median(np.linalg.norm(np.maximum(0, np.maximum(lo - P, P - hi)), axis=1))
+            )
+            if gap > 0.5 * size:
+                raise LineError(
+                    f"rest lines: line '{name}' lies {gap:.3g} away from the muscle (its "
+                    f"bounding box; the muscle measures {size:.3g} corner to corner): lines and "
+                    "mesh must share units and coordinate frame (a mesh in metres with lines in "
+                    "millimetres, or a line given in a body's frame, looks like this)"
+                )
 
     @property
     def condition_number(self) -> float:

@@ -1,0 +1,146 @@
+"""The command line: what it writes, and what it refuses (exit status 2, no output file)."""
+
+import json
+import re
+
+import pytest
+
+from musclewrap.cli import main
+from musclewrap.mesh import read_mesh, volume, write_mesh
+from musclewrap.synthetic import capsule
+
+REPORT_KEYS = {
+    "n_vertices",
+    "n_cage_vertices",
+    "volume_rest",
+    "volume_deformed",
+    "relative_volume_error",
+    "iterations",
+    "converged",
+    "reason",
+    "skeleton_fit_mean",
+    "seconds_prepare",
+    "seconds_deform",
+}
+
+
+def _lines(path, lines):
+    rows = ["line,x,y,z"] + [f"{n},{x!r},{y!r},{z!r}" for n, P in lines.items() for x, y, z in P]
+    path.write_text("\n".join(rows) + "\n")
+    return str(path)
+
+
+@pytest.fixture()
+def files(tmp_path):
+    V, F = capsule(n_around=24, cap_rings=6, segments=20)
+    write_mesh(tmp_path / "m.ply", V, F)
+    rest = _lines(tmp_path / "rest.csv", {"a": [(0, 0, 5), (0, 0, 195)]})
+    cur = _lines(tmp_path / "cur.csv", {"a": [(0, 0, 5), (0, 0, 100), (20, 0, 185)]})
+    return tmp_path, str(tmp_path / "m.ply"), rest, cur
+
+
+def test_prepare_then_deform_writes_the_volume_it_reports(files, capsys):
+    tmp, mesh, rest, cur = files
+    prepared = str(tmp / "m.npz")
+    assert main(["prepare", mesh, "-o", prepared, "--cage-size", "150"]) == 0
+    for ext in (".vtp", ".vtk", ".ply", ".obj"):
+        out, rep = tmp / f"out{ext}", tmp / f"r{ext}.json"
+        args = ["deform", mesh, "--rest", rest, "--current", cur, "-o", str(out)]
+        assert main([*args, "--report", str(rep), "--prepared", prepared]) == 0
+        report = json.loads(rep.read_text())
+        assert REPORT_KEYS <= set(report)
+        assert report["converged"] and report["iterations"] <= 5
+        assert abs(report["relative_volume_error"]) <= 1e-9
+        assert report["coordinates_precision"] == "float64"
+        V, F = read_mesh(out)
+        # what the user reads back has the volume the report states
+        assert volume(V, F) == pytest.approx(report["volume_deformed"], rel=1e-12)
+    # a preparation of another mesh is refused
+    V, F = capsule(n_around=20, cap_rings=6, segments=20)
+    write_mesh(tmp / "other.ply", V, F)
+    args = ["deform", str(tmp / "other.ply"), "--rest", rest, "--current", cur]
+    assert main([*args, "-o", str(tmp / "x.vtp"), "--prepared", prepared]) == 2
+    assert "prepared from another mesh" in capsys.readouterr().err
+    assert not (tmp / "x.vtp").exists()
+
+
+def test_bad_input_is_refused_with_no_output_file(files, capsys):
+    tmp, mesh, rest, cur = files
+    V, F = read_mesh(mesh)
+    write_mesh(tmp / "open.ply", V, F[1:])
+    write_mesh(tmp / "metres.ply", V / 1000, F)
+    cases = [
+        # (mesh, rest, current, output, expected message)
+        (
+            str(tmp / "open.ply"),
+            rest,
+            cur,
+            "o.vtp",
+            "open.ply: not a closed 2-manifold.*3 boundary",
+        ),
+        (str(tmp / "nope.stl"), rest, cur, "o.vtp", "nope.stl: no such mesh file"),
+        (mesh, _lines(tmp / "one.csv", {"a": [(0, 0, 5)]}), cur, "o.vtp", "two distinct points"),
+        (
+            mesh,
+            rest,
+            _lines(tmp / "nan.csv", {"a": [(0, 0, 5), (0, float("nan"), 9)]}),
+            "o.vtp",
+            "nan.csv",
+        ),
+        (
+            mesh,
+            rest,
+            _lines(tmp / "b.csv", {"b": [(0, 0, 5), (0, 0, 195)]}),
+            "o.vtp",
+            "missing \\['a'\\], unexpected \\['b'\\]",
+        ),
+        (
+            str(tmp / "metres.ply"),
+            rest,
+            cur,
+            "o.vtp",
+            "line 'a' lies .* away from the muscle.*units",
+        ),
+        (mesh, rest, cur, "o.xyz", "o.xyz: unknown output format"),
+        (mesh, rest, cur, "m.ply", "m.ply: this is an input file.*never writes over its inputs"),
+    ]
+    for m, r, c, out, match in cases:
+        before = sorted(p.name for p in tmp.iterdir())
+        stamp = {p.name: p.read_bytes() for p in tmp.iterdir() if p.is_file()}
+        args = ["deform", m, "--rest", r, "--current", c, "-o", str(tmp / out)]
+        assert main([*args, "--report", str(tmp / "rep.json")]) == 2, match
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and "Traceback" not in err
+        assert re.search(match, err), (match, err)
+        # nothing written, nothing changed
+        assert sorted(p.name for p in tmp.iterdir()) == before
+        assert all(p.read_bytes() == stamp[p.name] for p in tmp.iterdir() if p.is_file())
+    # the report can be neither an input nor the mesh output
+    args = ["deform", mesh, "--rest", rest, "--current", cur, "-o", str(tmp / "a.vtp")]
+    assert main([*args, "--report", cur]) == 2
+    assert "cur.csv: this is an input file" in capsys.readouterr().err
+    assert main([*args, "--report", str(tmp / "a.vtp")]) == 2
+    assert "another output" in capsys.readouterr().err
+    assert not (tmp / "a.vtp").exists()
+    assert main(["prepare", mesh, "-o", mesh]) == 2
+
+
+def test_a_pose_without_finite_positions_writes_nothing_even_when_allowed(files, capsys):
+    tmp, mesh, rest, cur = files
+    huge = _lines(tmp / "huge.csv", {"a": [(0, 0, 5), (0, 1e150, 1e154)]})
+    args = ["deform", mesh, "--rest", rest, "--current", huge, "-o", str(tmp / "o.vtp")]
+    for extra in ([], ["--allow-unconverged"]):
+        assert main([*args, "--report", str(tmp / "r.json"), *extra]) == 3
+        assert "numerically singular" in capsys.readouterr().err
+        assert not (tmp / "o.vtp").exists()
+        report = json.loads((tmp / "r.json").read_text())  # strict JSON: nulls, no NaN
+        assert report["converged"] is False and report["relative_volume_error"] is None
+
+
+def test_demo_writes_the_series(tmp_path):
+    out = tmp_path / "demo"
+    assert main(["demo", "-o", str(out), "--frames", "3"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"scene.pvd", "report.csv", "volume_error.png", "muscle"} <= names
+    assert len(list((out / "muscle").glob("*.vtp"))) == 3
+    assert main(["demo", "-o", str(out), "--frames", "1"]) == 2
