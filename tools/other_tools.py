@@ -39,6 +39,18 @@ def cases() -> dict[str, tuple[np.ndarray, np.ndarray]]:
     a, b = F[0, 0], F[0, 1]
     Vx = np.vstack([V, V[a] + 10 * (V[a] - c) / np.linalg.norm(V[a] - c)])
     out["non-manifold edge (a fin)"] = (Vx, np.vstack([F, [[a, b, len(V)]]]))
+    # ten faces oriented against their neighbours
+    Fi = F.copy()
+    Fi[5:15] = Fi[5:15, ::-1]
+    out["10 faces flipped"] = (V, Fi)
+    # a second capsule standing on the first, sharing its pole vertex
+    top, bottom = int(np.argmax(V[:, 2])), int(np.argmin(V[:, 2]))
+    F2 = F + len(V)
+    F2[F2 == len(V) + bottom] = top
+    out["non-manifold vertex (two touch)"] = (
+        np.vstack([V, V - V[bottom] + V[top]]),
+        np.vstack([F, F2]),
+    )
     return out
 
 
