@@ -6,6 +6,7 @@ from musclewrap.cage import build_cage, cage_self_intersections
 from musclewrap.conditions import LineError, check_lines, cotangent_laplacian, sample_lines
 from musclewrap.constants import tol
 from musclewrap.coordinates import mean_value_coordinates
+from musclewrap.mesh import MeshError
 from musclewrap.solver import cubic_root_near
 from musclewrap.synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
 
@@ -127,6 +128,22 @@ def test_rest_line_far_from_the_muscle_is_refused(small_muscle):
         small_muscle.bind({"a": [[0, 500, 0.005], [0, 500, 0.195]]})
     # a line that leaves the muscle at its ends (tendons, attachments) is fine
     small_muscle.bind({"a": [[0, 0, -60], [0, 0, 260]]})
+
+
+def test_a_muscle_too_large_for_the_memory_is_refused_before_preparation(monkeypatch):
+    import musclewrap.solver._muscle as sm
+
+    V, F = capsule(n_around=32, cap_rings=8, segments=30)
+    monkeypatch.setattr(sm, "available_memory", lambda: 2**20)  # 1 MiB left
+    with pytest.raises(
+        MeshError,
+        match="big.stl: 2,880 faces need about 8 MiB .* and 1 MiB are available: decimate",
+    ):
+        Muscle.from_mesh(V, F, source="big.stl")
+    monkeypatch.setattr(sm, "available_memory", lambda: None)  # unknown: no refusal
+    sm.check_memory(10**9, "huge.stl")
+    monkeypatch.undo()
+    assert sm.available_memory() > 2**20  # this machine's /proc/meminfo is read
 
 
 def test_line_that_folds_back_is_followed(small_muscle):

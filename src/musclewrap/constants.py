@@ -84,6 +84,12 @@ class Defaults:
         above which the default solver turns to Newton's method at once.
     paper_max_iterations : int
         Iteration limit of ``method="paper"`` (the paper used 100 to 200).
+    memory_per_face : float
+        Peak memory, in bytes per face of the fine mesh, of checking,
+        preparing and deforming a muscle, as measured by
+        ``benchmarks/bench_large.py --scene`` (1.25M and 3.1M faces: 3.5 and
+        8.3 GiB, a slope of 2.6 KiB per face, with margin). A muscle that
+        needs more than the memory available is refused before preparation.
     """
 
     cage_size: int = 300
@@ -97,6 +103,7 @@ class Defaults:
     plain_iterations: int = 30
     newton_rate: float = 0.85
     paper_max_iterations: int = 200
+    memory_per_face: float = 3000.0
 
 
 tol = Tolerances()

@@ -452,7 +452,10 @@ def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, l
     """Read and clean (or repair) a muscle mesh; cached."""
 
     def build() -> dict[str, np.ndarray]:
+        from ..solver._muscle import check_memory
+
         V, F = read_mesh(spec.mesh)
+        check_memory(len(F), str(spec.mesh))
         V, F, notes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
         return {"V": V, "F": F, "notes": np.array(notes, dtype=str)}
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -28,6 +29,7 @@ from ..conditions import (
 from ..constants import defaults, tol
 from ..coordinates import mean_value_coordinates, rows_dot
 from ..mesh import (
+    MeshError,
     atomic_path,
     check_mesh,
     clean_mesh,
@@ -56,6 +58,48 @@ def _point_polyline_distance(Q: FloatArray, P: FloatArray) -> FloatArray:
     t = np.clip(t, 0.0, 1.0)
     closest = A[None] + t[:, :, None] * AB[None]
     return np.min(np.linalg.norm(Q[:, None, :] - closest, axis=2), axis=1)
+
+
+def available_memory() -> int | None:
+    """Memory the system can still give (``MemAvailable`` on Linux), bytes; None if unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def check_memory(n_faces: int, source: str = "mesh") -> None:
+    """Refuse a mesh whose preparation would not fit in the memory available.
+
+    The need is ``defaults.memory_per_face`` bytes per face (measured, linear in
+    the mesh size). Refusing beforehand gives a message instead of the
+    operating system killing the process part-way.
+
+    Raises
+    ------
+    musclewrap.mesh.MeshError
+        If the need exceeds the memory available.
+    """
+    need = n_faces * defaults.memory_per_face
+    have = available_memory()
+
+    def size(b: float) -> str:
+        return f"{b / 2**30:.1f} GiB" if b >= 2**30 else f"{b / 2**20:.0f} MiB"
+
+    if have is not None and need > have:
+        raise MeshError(
+            f"{source}: {n_faces:,} faces need about {size(need)} to prepare and deform "
+            f"and {size(have)} are available: decimate the mesh (a few hundred thousand "
+            "faces describe any muscle to well below a millimetre), run fewer workers, or free "
+            "memory"
+        )
 
 
 @dataclass(eq=False)
@@ -193,6 +237,7 @@ class Muscle:
         t0 = time.perf_counter()
         V = as_vertices(V, "V")
         F = as_faces(F, len(V), "F")
+        check_memory(len(F), source)
         V, F, notes = clean_mesh(V, F, source=source)
         cage = build_cage(V, F, size=cage_size, offset=cage_offset, coarsening=cage_coarsening)
         W = mean_value_coordinates(V, cage.C, cage.CF)
