@@ -125,7 +125,10 @@ def test_rest_line_far_from_the_muscle_is_refused(small_muscle):
         small_muscle.bind({"a": z, "far": [[5000, 0, 5], [5000, 0, 195]]})
     # a line given in another frame (here 500 mm to the side)
     with pytest.raises(LineError, match="line 'a' lies .* away from the muscle"):
-        small_muscle.bind({"a": [[0, 500, 0.005], [0, 500, 0.195]]})
+        small_muscle.bind({"a": [[0, 500, 5], [0, 500, 195]]})
+    # lines in metres, the mesh in millimetres: inside the box, but a thousand times too short
+    with pytest.raises(LineError, match="longest line measures 0.19 and the muscle 208.*units"):
+        small_muscle.bind({"a": [[0, 0, 0.005], [0, 0, 0.195]]})
     # a line that leaves the muscle at its ends (tendons, attachments) is fine
     small_muscle.bind({"a": [[0, 0, -60], [0, 0, 260]]})
 

@@ -463,14 +463,25 @@ class Deformer:
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
 
     def _check_near(self, V: FloatArray) -> None:
-        """Refuse a rest line that lies far from the muscle (units or frames mixed up).
+        """Refuse rest lines that cannot belong to the muscle (units or frames mixed up).
 
         A line may leave the muscle (tendons, attachments on the bones), but one
         whose samples lie, in the median, more than half the muscle's size
-        outside its bounding box cannot be meant for it.
+        outside its bounding box cannot be meant for it; nor can lines whose
+        longest is shorter than 2 % of the muscle's size.
         """
         lo, hi = V.min(axis=0), V.max(axis=0)
         size = float(np.linalg.norm(hi - lo))
+        span = max(
+            float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
+            for P in self.rest_lines.values()
+        )
+        if span < 0.02 * size:
+            raise LineError(
+                f"rest lines: the longest line measures {span:.3g} and the muscle {size:.3g} "
+                "corner to corner: lines and mesh must share units (lines in metres with a mesh "
+                "in millimetres look like this)"
+            )
         for i, name in enumerate(self.sampling.names):
             P = self.rest_samples[self.sample_line == i]
             gap = float(
