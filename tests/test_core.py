@@ -70,6 +70,17 @@ def test_mvc_validates_input():
         mean_value_coordinates(np.zeros((1, 3)), V, F + 10)
 
 
+@pytest.mark.parametrize("k", [1, 3, 6, 7, 13])
+def test_rows_dot_is_w_at_x(k):
+    from musclewrap.coordinates import rows_dot
+
+    rng = np.random.default_rng(k)
+    W, X = rng.random((257, 300)), rng.normal(size=(300, k))
+    assert np.allclose(rows_dot(W, X), W @ X, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="X must be \\(300, k\\)"):
+        rows_dot(W, X[:299])
+
+
 def test_laplacian_rows_and_planar_patch():
     V, F = capsule(n_around=16, cap_rings=5, segments=8)
     L = cotangent_laplacian(V, F)

@@ -13,21 +13,30 @@ from .synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
 __all__ = ["capsule_benchmark", "interleaved_ms"]
 
 
-def interleaved_ms(fn, ref, repeats: int) -> tuple[float, float]:  # noqa: ANN001
-    """Median times (ms) of ``fn`` and ``ref`` run alternately, so drift hits both.
+def interleaved_ms(
+    fn, ref, repeats: int, block: int = 8, pause: float = 0.3
+) -> tuple[float, float]:  # noqa: ANN001
+    """Median times (ms) of ``fn`` and ``ref``, timed in alternating phases.
 
-    Each is called once untimed first, then ``repeats`` times timed.
+    Each phase is one untimed call and up to ``block`` timed calls of one of
+    the two; phases alternate, so drift on a shared machine hits both, and
+    ``pause`` seconds separate them. The pause matters: OpenBLAS's threads
+    (``W @ X``) keep spinning for about 0.1-0.2 s after a call, and numba's
+    after a pose; whichever runs next in that time loses a core to them
+    (``rows_dot`` measured 2.2 ms alone and 6.5 ms right after ``W @ X`` on the
+    capsule). A run of poses never has ``W @ X`` between its poses.
     """
-    fn()
-    ref()
-    ts, tr = [], []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-        t = time.perf_counter()
-        ref()
-        tr.append(time.perf_counter() - t)
+    ts: list[float] = []
+    tr: list[float] = []
+    while len(ts) < repeats:
+        k = min(block, repeats - len(ts))
+        for f, out in ((fn, ts), (ref, tr)):
+            time.sleep(pause)
+            f()
+            for _ in range(k):
+                t = time.perf_counter()
+                f()
+                out.append(time.perf_counter() - t)
     return float(np.median(ts) * 1e3), float(np.median(tr) * 1e3)
 
 
@@ -52,8 +61,8 @@ def capsule_benchmark(
     info : dict
         Preparation time, cage size, coarsening and smallest cage angle, the
         median time of one float64 ``W @ X`` (numpy, 3 columns; each solve is
-        timed alternately with it) and of the solver's one pass
-        ``rows_dot(W, [x, u])`` (6 columns) timed the same way.
+        timed in phases alternating with it, `interleaved_ms`) and of the
+        solver's one pass ``rows_dot(W, [x, u])`` (6 columns) timed the same way.
     rows : list of dict
         One per scenario and method: iterations, volume error, skeleton fit,
         energy, largest shape change (spike measure, in mean rest edge

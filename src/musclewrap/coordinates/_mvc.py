@@ -189,13 +189,25 @@ def _face_edges(CF: IntArray) -> tuple[IntArray, IntArray]:
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def _rows_dot_kernel(W, XT, out):  # pragma: no cover - compiled
+    # six columns at once: each entry of W is loaded once and feeds six independent
+    # sums (about 3x faster than six separate dot products per row on the capsule)
     n, m = W.shape
     for r in numba.prange(n):
-        for c in range(XT.shape[0]):
-            s = 0.0
-            for j in range(m):
-                s += W[r, j] * XT[c, j]
-            out[r, c] = s
+        s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+        for j in range(m):
+            w = W[r, j]
+            s0 += w * XT[0, j]
+            s1 += w * XT[1, j]
+            s2 += w * XT[2, j]
+            s3 += w * XT[3, j]
+            s4 += w * XT[4, j]
+            s5 += w * XT[5, j]
+        out[r, 0] = s0
+        out[r, 1] = s1
+        out[r, 2] = s2
+        out[r, 3] = s3
+        out[r, 4] = s4
+        out[r, 5] = s5
 
 
 def rows_dot(W: FloatArray, X: npt.ArrayLike) -> FloatArray:
@@ -216,7 +228,19 @@ def rows_dot(W: FloatArray, X: npt.ArrayLike) -> FloatArray:
     -------
     (n, k) float64 array
     """
-    XT = np.ascontiguousarray(np.asarray(X, dtype=np.float64).T)
-    out = np.empty((W.shape[0], XT.shape[0]))
-    _rows_dot_kernel(np.ascontiguousarray(W, dtype=np.float64), XT, out)
+    X = np.asarray(X, dtype=np.float64)
+    if X.ndim != 2 or X.shape[0] != W.shape[1]:
+        raise ValueError(f"rows_dot: X must be ({W.shape[1]}, k), got {X.shape}")
+    W = np.ascontiguousarray(W, dtype=np.float64)
+    k = X.shape[1]
+    out = np.empty((W.shape[0], k))
+    if k == 6:  # the solver's case: no padding, no copy
+        _rows_dot_kernel(W, np.ascontiguousarray(X.T), out)
+        return out
+    part = np.empty((W.shape[0], 6))
+    for c0 in range(0, k, 6):  # columns in groups of six, the last one padded with zeros
+        XT = np.zeros((6, X.shape[0]))
+        XT[: min(6, k - c0)] = X[:, c0 : c0 + 6].T
+        _rows_dot_kernel(W, XT, part)
+        out[:, c0 : c0 + 6] = part[:, : min(6, k - c0)]
     return out

@@ -154,9 +154,8 @@ def _det(ax, ay, az, bx, by, bz, cx, cy, cz):  # pragma: no cover - compiled
     return ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
 
 
-# Reductions over faces split them into this many fixed chunks (run in parallel) and
-# add the partial sums in order: the result is the same bit for bit on any number of
-# threads.
+# Reductions over faces split them into this many fixed chunks and add the partial sums
+# in order (a fixed summation order, whatever runs them).
 _CHUNKS = 16
 
 
@@ -241,21 +240,13 @@ def _cubic_pair_py(XU, F):  # pragma: no cover - compiled
     return out / 6.0
 
 
-# Each reduction is compiled twice: threads pay off from ~10K faces, below that the
-# start of a parallel region costs more than it saves. Same chunks, same result.
-_PARALLEL_FACES = 10000
-_volume_par = numba.njit(parallel=True, cache=True)(_volume_py)
-_volume_ser = numba.njit(cache=True)(_volume_py)
-_cubic_pair_par = numba.njit(parallel=True, cache=True)(_cubic_pair_py)
-_cubic_pair_ser = numba.njit(cache=True)(_cubic_pair_py)
-
-
-def _volume_kernel(V, F, c):  # noqa: ANN001, ANN202
-    return (_volume_par if F.shape[0] >= _PARALLEL_FACES else _volume_ser)(V, F, c)
-
-
-def _cubic_pair_kernel(XU, F):  # noqa: ANN001, ANN202
-    return (_cubic_pair_par if F.shape[0] >= _PARALLEL_FACES else _cubic_pair_ser)(XU, F)
+# The reductions run on one thread. Compiled with threads they were no faster on their
+# own (they are bound by memory), and inside a pose each parallel region woke the thread
+# pool between BLAS calls: the capsule's pose took 12.5-14.8 ms with them and 7.2-8.5 ms
+# without (a scratch measurement in blocks against W @ X; BENCHMARKS.md has the run).
+# The chunks stay, so the sums are the same bit for bit as before.
+_volume_kernel = numba.njit(cache=True)(_volume_py)
+_cubic_pair_kernel = numba.njit(cache=True)(_cubic_pair_py)
 
 
 def volume_cubic_pair(XU: FloatArray, F: IntArray) -> FloatArray:
