@@ -6,7 +6,8 @@ For every VHF muscle in ``DATA/vhf`` (and the LHDL gluteus maximus): preparation
 proxy) and bind (skeleton coordinates, factorisation) times, then the five capsule scenarios
 on the muscle's principal axis with the default solver: iterations, volume error, skeleton
 fit, largest shape change (spike measure, mean rest edge lengths) and the median time per
-pose over the median float64 ``W @ X`` (numpy, 3 columns) timed alternately with it.
+pose over the median float64 ``W @ X`` (numpy, 3 columns) timed in phases alternating with it
+(`musclewrap._bench.interleaved_ms`).
 """
 
 import sys

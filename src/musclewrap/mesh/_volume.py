@@ -186,19 +186,22 @@ def _volume_py(V, F, c):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
 
 @numba.njit(cache=True)
 def _gradient_kernel(V, F, c):  # pragma: no cover - compiled
+    # d/da det(a, b, d) = b x d, and cyclically; scalars only (no array per face)
     G = np.zeros((V.shape[0], 3))
     for f in range(F.shape[0]):
-        i = F[f]
-        p = np.empty((3, 3))
-        for k in range(3):
-            for j in range(3):
-                p[k, j] = V[i[k], j] - c[j]
-        for k in range(3):
-            u = p[(k + 1) % 3]
-            w = p[(k + 2) % 3]
-            G[i[k], 0] += (u[1] * w[2] - u[2] * w[1]) / 6.0
-            G[i[k], 1] += (u[2] * w[0] - u[0] * w[2]) / 6.0
-            G[i[k], 2] += (u[0] * w[1] - u[1] * w[0]) / 6.0
+        a, b, d = F[f, 0], F[f, 1], F[f, 2]
+        ax, ay, az = V[a, 0] - c[0], V[a, 1] - c[1], V[a, 2] - c[2]
+        bx, by, bz = V[b, 0] - c[0], V[b, 1] - c[1], V[b, 2] - c[2]
+        dx, dy, dz = V[d, 0] - c[0], V[d, 1] - c[1], V[d, 2] - c[2]
+        G[a, 0] += (by * dz - bz * dy) / 6.0
+        G[a, 1] += (bz * dx - bx * dz) / 6.0
+        G[a, 2] += (bx * dy - by * dx) / 6.0
+        G[b, 0] += (dy * az - dz * ay) / 6.0
+        G[b, 1] += (dz * ax - dx * az) / 6.0
+        G[b, 2] += (dx * ay - dy * ax) / 6.0
+        G[d, 0] += (ay * bz - az * by) / 6.0
+        G[d, 1] += (az * bx - ax * bz) / 6.0
+        G[d, 2] += (ax * by - ay * bx) / 6.0
     return G
 
 
