@@ -16,6 +16,7 @@ from ._io import FORMATS, atomic_path, read_mesh, write_mesh
 from ._repair import repair_mesh
 from ._volume import (
     combine_pair,
+    mean_rows,
     volume,
     volume_cubic,
     volume_cubic_pair,
@@ -32,6 +33,7 @@ __all__ = [
     "face_areas",
     "half_edges",
     "mean_edge_length",
+    "mean_rows",
     "umbrella_laplacian",
     "check_mesh",
     "clean_mesh",

@@ -35,6 +35,7 @@ from ..mesh import (
     clean_mesh,
     combine_pair,
     mean_edge_length,
+    mean_rows,
     umbrella_laplacian,
     volume,
     volume_cubic,
@@ -543,7 +544,7 @@ class Deformer:
     def fine_volume_gradient(self, x: FloatArray) -> FloatArray:
         """Gradient of the fine volume w.r.t. cage vertices, ``W^T dV(W x)`` (chain rule)."""
         mu = self.muscle
-        c = x.mean(axis=0)
+        c = mean_rows(x)
         return mu.W_T @ volume_gradient(mu.W @ (x - c), mu.F)
 
     def stationarity(
@@ -688,7 +689,7 @@ class Deformer:
 
     def _solve_sqp(self, x_ls, d_L, s_cur, *, exact: bool, max_iterations: int):  # noqa: ANN001, ANN202
         mu = self.muscle
-        c = x_ls.mean(axis=0)
+        c = mean_rows(x_ls)
         if exact:
             Wd, Fd, Vd0 = mu.W, mu.F, mu.volume_rest
         else:

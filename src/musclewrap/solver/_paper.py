@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._typing import FloatArray
-from ..mesh import volume, volume_gradient
+from ..mesh import mean_rows, volume, volume_gradient
 
 if TYPE_CHECKING:
     from ._muscle import Deformer
@@ -86,7 +86,7 @@ def solve_paper(
     for its in range(1, max_iterations + 1):
         if fine:
             # mean value coordinates sum to one: W (x - c) = W x - c, and V = W x is current
-            c = x.mean(axis=0)
+            c = mean_rows(x)
             P = V - c
             dv = volume(P, mu.F, center=np.zeros(3)) - mu.volume_rest
             g = mu.W_T @ volume_gradient(P, mu.F)
