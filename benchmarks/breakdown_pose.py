@@ -4,8 +4,8 @@ Run: ``python benchmarks/breakdown_pose.py [--repeats N]``.
 
 Wraps the solver's building blocks with timers, runs ``deform`` N times and prints the
 milliseconds per pose of each block (median over the poses) next to the median time per
-pose and the median float64 ``W @ X`` (numpy, 3 columns) timed alternately with it. The
-timers add a little overhead of their own.
+pose and the median float64 ``W @ X`` (numpy, 3 columns) timed in phases alternating with
+it (`musclewrap._bench.interleaved_ms`). The timers add a little overhead of their own.
 """
 
 import argparse
