@@ -1,6 +1,7 @@
 """Where the time of one pose goes (default solver, capsule ``bend``).
 
-Run: ``python benchmarks/breakdown_pose.py [--repeats N]``.
+Run: ``python benchmarks/breakdown_pose.py [--repeats N] [--mesh PATH]`` (with ``--mesh``, a
+real muscle in the ``bend`` scenario on its principal axis instead of the capsule).
 
 Wraps the solver's building blocks with timers, runs ``deform`` N times and prints the
 milliseconds per pose of each block (median over the poses) next to the median time per
@@ -33,9 +34,15 @@ BLOCKS = {
 }
 
 
-def main(repeats: int) -> None:
-    muscle = Muscle.from_mesh(*capsule())
-    rest, cur = capsule_scenario("bend")
+def main(repeats: int, mesh: str | None = None) -> None:
+    if mesh:
+        from musclewrap.synthetic import principal_axis_scenario
+
+        muscle = Muscle.from_file(mesh)
+        rest, cur = principal_axis_scenario(muscle.V, "bend")
+    else:
+        muscle = Muscle.from_mesh(*capsule())
+        rest, cur = capsule_scenario("bend")
     d = muscle.bind(rest)
     spent = dict.fromkeys(BLOCKS, 0.0)
     for label, (owner, name) in BLOCKS.items():
@@ -71,4 +78,6 @@ def main(repeats: int) -> None:
 if __name__ == "__main__":
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeats", type=int, default=41)
-    main(p.parse_args().repeats)
+    p.add_argument("--mesh", help="a muscle mesh file instead of the capsule")
+    a = p.parse_args()
+    main(a.repeats, a.mesh)
