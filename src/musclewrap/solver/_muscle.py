@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import igl
+import numba
 import numpy as np
 import numpy.typing as npt
 from scipy.linalg import cho_factor, cho_solve
@@ -52,13 +53,21 @@ METHODS = ("sqp", "exact", "paper")
 _FORMAT = 3
 
 
-def _point_polyline_distance(Q: FloatArray, P: FloatArray) -> FloatArray:
-    A, B = P[:-1], P[1:]
-    AB = B - A
-    t = np.einsum("qsk,sk->qs", Q[:, None, :] - A[None], AB) / np.einsum("sk,sk->s", AB, AB)
-    t = np.clip(t, 0.0, 1.0)
-    closest = A[None] + t[:, :, None] * AB[None]
-    return np.min(np.linalg.norm(Q[:, None, :] - closest, axis=2), axis=1)
+@numba.njit(cache=True)
+def _point_polyline_distance(Q: FloatArray, P: FloatArray) -> FloatArray:  # pragma: no cover
+    """Distance from each point of ``Q`` to the poly-line ``P`` (segments without zero length)."""
+    out = np.empty(Q.shape[0])
+    for q in range(Q.shape[0]):
+        best = np.inf
+        for s in range(P.shape[0] - 1):
+            ab0, ab1, ab2 = P[s + 1, 0] - P[s, 0], P[s + 1, 1] - P[s, 1], P[s + 1, 2] - P[s, 2]
+            aq0, aq1, aq2 = Q[q, 0] - P[s, 0], Q[q, 1] - P[s, 1], Q[q, 2] - P[s, 2]
+            t = (aq0 * ab0 + aq1 * ab1 + aq2 * ab2) / (ab0 * ab0 + ab1 * ab1 + ab2 * ab2)
+            t = min(max(t, 0.0), 1.0)
+            d0, d1, d2 = aq0 - t * ab0, aq1 - t * ab1, aq2 - t * ab2
+            best = min(best, d0 * d0 + d1 * d1 + d2 * d2)
+        out[q] = np.sqrt(best)
+    return out
 
 
 def available_memory() -> int | None:
@@ -525,14 +534,21 @@ class Deformer:
         b = self._LT @ d_L + self.weight**2 * (self._ST @ s_cur)
         return cur, s_cur, d_L, b
 
-    def energy(self, x: FloatArray, d_L: FloatArray, s_cur: FloatArray) -> float:
-        """``||L x - d_L||^2 + w^2 ||S x - s'||^2`` of cage positions ``x``."""
+    def energy(
+        self, x: FloatArray, d_L: FloatArray, s_cur: FloatArray, Sx: FloatArray | None = None
+    ) -> float:
+        """``||L x - d_L||^2 + w^2 ||S x - s'||^2`` of cage positions ``x``.
+
+        ``Sx`` (``S @ x``) may be passed when already computed.
+        """
         r1 = self.muscle.L @ x - d_L
-        r2 = self.S @ x - s_cur
+        r2 = (self.S @ x if Sx is None else Sx) - s_cur
         return float(np.sum(r1 * r1) + self.weight**2 * np.sum(r2 * r2))
 
-    def _skeleton_fit(self, x: FloatArray, cur: Mapping[str, FloatArray]) -> tuple[float, float]:
-        Sx = self.S @ x
+    def _skeleton_fit(
+        self, x: FloatArray, cur: Mapping[str, FloatArray], Sx: FloatArray | None = None
+    ) -> tuple[float, float]:
+        Sx = self.S @ x if Sx is None else Sx
         dist = np.concatenate(
             [
                 _point_polyline_distance(Sx[self.sample_line == i], cur[name])
@@ -669,7 +685,9 @@ class Deformer:
         rel = (vol - mu.volume_rest) / mu.volume_rest
         if ok and not abs(rel) <= tol.volume:
             ok, reason = False, f"volume error {rel:.3g} above tolerance {tol.volume:g}"
-        fit_mean, fit_max = self._skeleton_fit(x, cur) if np.isfinite(x).all() else (np.nan, np.nan)
+        finite_x = bool(np.isfinite(x).all())
+        Sx = self.S @ x if finite_x else None
+        fit_mean, fit_max = self._skeleton_fit(x, cur, Sx) if finite_x else (np.nan, np.nan)
         return DeformationResult(
             V=V,
             cage=x,
@@ -681,7 +699,7 @@ class Deformer:
             reason=reason,
             skeleton_fit_mean=fit_mean,
             skeleton_fit_max=fit_max,
-            energy=self.energy(x, d_L, s_cur) if np.isfinite(x).all() else float("nan"),
+            energy=self.energy(x, d_L, s_cur, Sx) if finite_x else float("nan"),
             method=method,
             seconds=time.perf_counter() - t0,
             history=tuple(hist),
