@@ -118,12 +118,25 @@ def test_vtk_lines_and_point_data_read_back_by_vtk(tmp_path, ext):
 
 
 @pytest.mark.parametrize("content", [b"", b"solid x\nfacet garbage", b"\x00\x01\x02" * 50])
-@pytest.mark.parametrize("ext", [".stl", ".vtk", ".vtp", ".ply", ".obj"])
+@pytest.mark.parametrize("ext", [".stl", ".vtk", ".vtp", ".ply", ".obj", ".off"])
 def test_bad_files_named_in_error(tmp_path, content, ext):
     p = tmp_path / f"bad{ext}"
     p.write_bytes(content)
     with pytest.raises(MeshError, match="bad"):
         read_mesh(p)
+
+
+@pytest.mark.parametrize("ext", [".stl", ".vtk", ".vtp", ".ply", ".obj", ".off"])
+def test_truncated_files_are_refused_naming_the_file(tmp_path, ext):
+    V, F = capsule(n_around=24, cap_rings=6, segments=10)
+    p = tmp_path / f"cut{ext}"
+    write_mesh(p, V, F)
+    data = p.read_bytes()
+    for keep in (0.3, 0.6, 0.9):
+        p.write_bytes(data[: int(keep * len(data))])
+        # refused by the reader, or read in part and refused by the checks: never accepted
+        with pytest.raises(MeshError, match="cut"):
+            clean_mesh(*read_mesh(p), source=str(p))
 
 
 def test_vertices_of_the_wrong_shape_refused(tmp_path):
