@@ -381,6 +381,23 @@ gif = false
     toml.write_text(head)
     s = run_scene(load_scene(toml), tmp_path / "o", frames="0:2", cache_dir=tmp_path / "c")
     assert any("no inDegrees line in the header: angles taken as degrees" in n for n in s.notes)
+    # radians under a degrees header: accepted (a small motion is possible), with a note
+    lines = mot.splitlines()
+    k = lines.index("endheader")
+    labels = lines[k + 1].split("\t")
+    rot = {labels.index(c) for c in ("hip_flexion_r", "hip_adduction_r", "hip_rotation_r")}
+    rows = [
+        "\t".join(
+            repr(float(np.radians(float(v)))) if i in rot else v
+            for i, v in enumerate(r.split("\t"))
+        )
+        for r in lines[k + 2 :]
+        if r.strip()
+    ]
+    text = "\n".join([*lines[:k], "inDegrees=yes", *lines[k : k + 2], *rows]) + "\n"
+    (tmp_path / "walk.mot").write_text(text)
+    s = run_scene(load_scene(toml), tmp_path / "o2", frames="0:2", cache_dir=tmp_path / "c")
+    assert any("if the motion is in radians, fix its header (inDegrees=no)" in n for n in s.notes)
 
 
 @pytest.mark.realdata
