@@ -145,7 +145,7 @@ def test_rest_line_far_from_the_muscle_is_refused(small_muscle):
 
 
 def test_a_muscle_too_large_for_the_memory_is_refused_before_preparation(monkeypatch):
-    import musclewrap.solver._muscle as sm
+    import musclewrap.mesh._checks as sm
 
     V, F = capsule(n_around=32, cap_rings=8, segments=30)
     monkeypatch.setattr(sm, "available_memory", lambda: 2**20)  # 1 MiB left

@@ -18,6 +18,7 @@ __all__ = [
     "LineSampling",
     "check_lines",
     "csv_rows",
+    "placement_problem",
     "polyline_at",
     "read_lines_csv",
     "sample_lines",
@@ -245,3 +246,38 @@ def read_lines_csv(path: PathLike) -> dict[str, FloatArray]:
     if not pts:
         raise LineError(f"{p}: no action-line points found")
     return check_lines(pts, name=str(p))
+
+
+def placement_problem(V: FloatArray, lines: Mapping[str, FloatArray]) -> str | None:
+    """Why rest lines cannot belong to the mesh ``V`` (units or frames mixed up), or None.
+
+    A line may leave the muscle (tendons, attachments on the bones), but one
+    whose points lie, in the median, more than half the muscle's size outside
+    its bounding box cannot be meant for it; nor can lines whose longest is
+    shorter than 2 % of the muscle's size (metres against millimetres).
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+        The muscle's vertices.
+    lines : mapping of str to (k, 3) float64 array
+        Points along each rest line (its points, or samples of it).
+
+    Returns
+    -------
+    str or None
+        The problem, in words, for an error message.
+    """
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    size = float(np.linalg.norm(hi - lo))
+    span = max(float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum()) for P in lines.values())
+    if span < 0.02 * size:
+        return f"the longest line measures {span:.3g} and the muscle {size:.3g} corner to corner"
+    for name, P in lines.items():
+        gap = float(np.median(np.linalg.norm(np.maximum(0, np.maximum(lo - P, P - hi)), axis=1)))
+        if gap > 0.5 * size:
+            return (
+                f"line '{name}' lies {gap:.3g} away from the muscle (its bounding box; the "
+                f"muscle measures {size:.3g} corner to corner)"
+            )
+    return None

@@ -3,6 +3,8 @@
 from ._checks import (
     MeshCheck,
     MeshError,
+    available_memory,
+    check_memory,
     check_mesh,
     clean_mesh,
     merge_duplicate_vertices,
@@ -29,6 +31,8 @@ __all__ = [
     "MeshCheck",
     "MeshError",
     "atomic_path",
+    "available_memory",
+    "check_memory",
     "combine_pair",
     "face_areas",
     "half_edges",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -9,13 +10,15 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .._typing import FloatArray, IntArray
-from ..constants import tol
+from ..constants import defaults, tol
 from ._geometry import face_areas, half_edges
 from ._volume import volume
 
 __all__ = [
     "MeshCheck",
     "MeshError",
+    "available_memory",
+    "check_memory",
     "check_mesh",
     "clean_mesh",
     "merge_duplicate_vertices",
@@ -360,6 +363,48 @@ def tidy_mesh(V: FloatArray, F: IntArray) -> tuple[FloatArray, IntArray, list[st
     return V, F, notes
 
 
+def available_memory() -> int | None:
+    """Memory the system can still give (``MemAvailable`` on Linux), bytes; None if unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def check_memory(n_faces: int, source: str = "mesh") -> None:
+    """Refuse a mesh whose preparation would not fit in the memory available.
+
+    The need is ``defaults.memory_per_face`` bytes per face (measured, linear in
+    the mesh size). Refusing beforehand gives a message instead of the
+    operating system killing the process part-way.
+
+    Raises
+    ------
+    MeshError
+        If the need exceeds the memory available.
+    """
+    need = n_faces * defaults.memory_per_face
+    have = available_memory()
+
+    def size(b: float) -> str:
+        return f"{b / 2**30:.1f} GiB" if b >= 2**30 else f"{b / 2**20:.0f} MiB"
+
+    if have is not None and need > have:
+        raise MeshError(
+            f"{source}: {n_faces:,} faces need about {size(need)} to prepare and deform "
+            f"and {size(have)} are available: decimate the mesh (a few hundred thousand "
+            "faces describe any muscle to well below a millimetre), run fewer workers, or free "
+            "memory"
+        )
+
+
 def clean_mesh(
     V: FloatArray, F: IntArray, *, source: str = "mesh", repair: bool = False
 ) -> tuple[FloatArray, IntArray, list[str]]:
@@ -395,9 +440,11 @@ def clean_mesh(
     ------
     MeshError
         If the mesh is open, non-manifold, one-sided, has several components,
-        passes through itself, or encloses no volume.
+        passes through itself, encloses no volume, or is too large for the
+        memory available (`check_memory`).
     """
     V = np.asarray(V, dtype=np.float64)
+    check_memory(len(F), source)
     if not np.isfinite(V).all():
         bad = int((~np.isfinite(V).all(axis=1)).sum())
         raise MeshError(f"{source}: {bad} vertex coordinate row(s) are NaN or infinite")

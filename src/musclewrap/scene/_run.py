@@ -168,6 +168,7 @@ def _prepare(job: dict[str, Any]) -> tuple[Any, bool, str | None]:
         cage_size=job["cage_size"],
         cage_coarsening=job["cage_coarsening"],
         source=job["source"],
+        cleaned=True,  # by _read_muscle, and only moved rigidly since
     )
     if path is not None:
         try:
@@ -235,6 +236,7 @@ def _slice(job: dict[str, Any], ks: range) -> dict[str, Any]:
 def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     """Deform one muscle on the frames of a `_slice` of its job and write them."""
     from ..conditions import LineError
+    from ..solver import DeformationResult
 
     muscle, d, hit, note, seconds_prepare = _deformer(job)
     probes = [(_bone_probe(V, F, name, job["cache_dir"]), T) for V, F, T, name in job["bones"]]
@@ -249,7 +251,12 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
         except LineError as exc:
             # this frame's lines cannot drive the muscle (e.g. a path collapsed to a point):
             # the frame is reported as failed and the motion goes on
-            res = _failed_result(muscle, f"invalid action lines in this frame: {exc}")
+            res = DeformationResult.failed(
+                len(muscle.V),
+                len(muscle.cage.C),
+                muscle.volume_rest,
+                f"invalid action lines in this frame: {exc}",
+            )
         T = job["to_output"][k]
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
@@ -298,29 +305,6 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
         "cache_hit": hit,
         "note": note,
     }
-
-
-def _failed_result(muscle: Any, reason: str) -> Any:
-    """An unconverged `DeformationResult` without positions, for a frame that failed."""
-    from ..solver import DeformationResult
-
-    nan = float("nan")
-    return DeformationResult(
-        V=np.full_like(muscle.V, np.nan),
-        cage=np.full_like(muscle.cage.C, np.nan),
-        volume_rest=muscle.volume_rest,
-        volume=nan,
-        relative_volume_error=nan,
-        iterations=0,
-        converged=False,
-        reason=reason,
-        skeleton_fit_mean=nan,
-        skeleton_fit_max=nan,
-        energy=nan,
-        method="none",
-        seconds=0.0,
-        history=(),
-    )
 
 
 def _comparison_frames(rows: list[dict[str, Any]]) -> tuple[int | None, list[int]]:
@@ -452,10 +436,7 @@ def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, l
     """Read and clean (or repair) a muscle mesh; cached."""
 
     def build() -> dict[str, np.ndarray]:
-        from ..solver._muscle import check_memory
-
         V, F = read_mesh(spec.mesh)
-        check_memory(len(F), str(spec.mesh))
         V, F, notes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
         return {"V": V, "F": F, "notes": np.array(notes, dtype=str)}
 
@@ -937,19 +918,16 @@ class _LocalQueue:
 def _check_units(
     scene: Scene, drive: Drive, muscles: dict[str, tuple[FloatArray, IntArray]]
 ) -> None:
-    """Refuse a muscle whose rest lines lie far from its mesh (both in its body frame)."""
+    """Refuse a muscle whose rest lines cannot belong to its mesh (both in its body frame)."""
+    from ..conditions import placement_problem
+
     for spec in scene.muscles:
-        Vb, _ = muscles[spec.name]
-        lo, hi = Vb.min(0), Vb.max(0)
-        diag = float(np.linalg.norm(hi - lo))
-        P = np.vstack(list(drive.rest_lines[spec.name].values()))
-        gap = np.linalg.norm(np.maximum(0, np.maximum(lo - P, P - hi)), axis=1)
-        if np.median(gap) > 0.5 * diag:
+        problem = placement_problem(muscles[spec.name][0], drive.rest_lines[spec.name])
+        if problem is not None:
             raise SceneError(
-                f"{spec.mesh}: the rest action lines of '{spec.name}' lie {np.median(gap):.3g} "
-                f"{scene.mesh_unit} from the mesh (mesh size {diag:.3g} {scene.mesh_unit}): check "
-                f"[units] (mesh = '{scene.mesh_unit}', model = '{scene.model_unit}'), the muscle's "
-                f"body ('{spec.body}'), or the rest pose"
+                f"{spec.mesh}: the rest action lines of '{spec.name}' ({scene.mesh_unit}): "
+                f"{problem}: check [units] (mesh = '{scene.mesh_unit}', model = "
+                f"'{scene.model_unit}'), the muscle's body ('{spec.body}'), or the rest pose"
             )
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -25,13 +24,14 @@ from ..conditions import (
     SampleRotations,
     check_lines,
     cotangent_laplacian,
+    placement_problem,
     sample_lines,
 )
 from ..constants import defaults, tol
 from ..coordinates import mean_value_coordinates, rows_dot
 from ..mesh import (
-    MeshError,
     atomic_path,
+    check_memory,
     check_mesh,
     clean_mesh,
     combine_pair,
@@ -68,48 +68,6 @@ def _point_polyline_distance(Q: FloatArray, P: FloatArray) -> FloatArray:  # pra
             best = min(best, d0 * d0 + d1 * d1 + d2 * d2)
         out[q] = np.sqrt(best)
     return out
-
-
-def available_memory() -> int | None:
-    """Memory the system can still give (``MemAvailable`` on Linux), bytes; None if unknown."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, AttributeError):
-        return None
-
-
-def check_memory(n_faces: int, source: str = "mesh") -> None:
-    """Refuse a mesh whose preparation would not fit in the memory available.
-
-    The need is ``defaults.memory_per_face`` bytes per face (measured, linear in
-    the mesh size). Refusing beforehand gives a message instead of the
-    operating system killing the process part-way.
-
-    Raises
-    ------
-    musclewrap.mesh.MeshError
-        If the need exceeds the memory available.
-    """
-    need = n_faces * defaults.memory_per_face
-    have = available_memory()
-
-    def size(b: float) -> str:
-        return f"{b / 2**30:.1f} GiB" if b >= 2**30 else f"{b / 2**20:.0f} MiB"
-
-    if have is not None and need > have:
-        raise MeshError(
-            f"{source}: {n_faces:,} faces need about {size(need)} to prepare and deform "
-            f"and {size(have)} are available: decimate the mesh (a few hundred thousand "
-            "faces describe any muscle to well below a millimetre), run fewer workers, or free "
-            "memory"
-        )
 
 
 @dataclass(eq=False)
@@ -215,6 +173,7 @@ class Muscle:
         cage_offset: float | None = None,
         cage_coarsening: str = "uniform",
         source: str = "mesh",
+        cleaned: bool = False,
     ) -> Muscle:
         """Prepare a muscle from its rest-pose surface.
 
@@ -232,6 +191,10 @@ class Muscle:
             How the cage is coarsened (see `musclewrap.cage.build_cage`).
         source : str, optional
             Name quoted in messages (e.g. the file name).
+        cleaned : bool, optional
+            ``V, F`` come from `musclewrap.mesh.clean_mesh` already (a scene
+            cleans each mesh once, when reading it, and caches the result):
+            its checks are not repeated.
 
         Returns
         -------
@@ -247,8 +210,11 @@ class Muscle:
         t0 = time.perf_counter()
         V = as_vertices(V, "V")
         F = as_faces(F, len(V), "F")
-        check_memory(len(F), source)
-        V, F, notes = clean_mesh(V, F, source=source)
+        if cleaned:
+            check_memory(len(F), source)
+            notes: list[str] = []
+        else:
+            V, F, notes = clean_mesh(V, F, source=source)  # checks the memory first
         cage = build_cage(V, F, size=cage_size, offset=cage_offset, coarsening=cage_coarsening)
         W = mean_value_coordinates(V, cage.C, cage.CF)
         L = cotangent_laplacian(cage.C, cage.CF)
@@ -473,37 +439,18 @@ class Deformer:
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
 
     def _check_near(self, V: FloatArray) -> None:
-        """Refuse rest lines that cannot belong to the muscle (units or frames mixed up).
-
-        A line may leave the muscle (tendons, attachments on the bones), but one
-        whose samples lie, in the median, more than half the muscle's size
-        outside its bounding box cannot be meant for it; nor can lines whose
-        longest is shorter than 2 % of the muscle's size.
-        """
-        lo, hi = V.min(axis=0), V.max(axis=0)
-        size = float(np.linalg.norm(hi - lo))
-        span = max(
-            float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
-            for P in self.rest_lines.values()
-        )
-        if span < 0.02 * size:
+        """Refuse rest lines that cannot belong to the muscle (`placement_problem`)."""
+        samples = {
+            name: self.rest_samples[self.sample_line == i]
+            for i, name in enumerate(self.sampling.names)
+        }
+        problem = placement_problem(V, samples)
+        if problem is not None:
             raise LineError(
-                f"rest lines: the longest line measures {span:.3g} and the muscle {size:.3g} "
-                "corner to corner: lines and mesh must share units (lines in metres with a mesh "
-                "in millimetres look like this)"
+                f"rest lines: {problem}: lines and mesh must share units and coordinate frame "
+                "(a mesh in metres with lines in millimetres, lines in metres with a mesh in "
+                "millimetres, or a line given in a body's frame, looks like this)"
             )
-        for i, name in enumerate(self.sampling.names):
-            P = self.rest_samples[self.sample_line == i]
-            gap = float(
-                np.median(np.linalg.norm(np.maximum(0, np.maximum(lo - P, P - hi)), axis=1))
-            )
-            if gap > 0.5 * size:
-                raise LineError(
-                    f"rest lines: line '{name}' lies {gap:.3g} away from the muscle (its "
-                    f"bounding box; the muscle measures {size:.3g} corner to corner): lines and "
-                    "mesh must share units and coordinate frame (a mesh in metres with lines in "
-                    "millimetres, or a line given in a body's frame, looks like this)"
-                )
 
     @property
     def condition_number(self) -> float:
@@ -663,9 +610,15 @@ class Deformer:
             except (np.linalg.LinAlgError, FloatingPointError) as exc:
                 # a singular or overflowing system on this pose: an unconverged result
                 # with the reason, never an exception that would end a whole motion
-                x = np.full_like(self.muscle.cage.C, np.nan)
-                V = np.full_like(self.muscle.V, np.nan)
-                its, ok, reason, hist = 0, False, f"numerically singular: {exc}", []
+                mu = self.muscle
+                return DeformationResult.failed(
+                    len(mu.V),
+                    len(mu.cage.C),
+                    mu.volume_rest,
+                    f"numerically singular: {exc}",
+                    method=method,
+                    seconds=time.perf_counter() - t0,
+                )
             return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0)
 
     def _result(

@@ -62,6 +62,35 @@ class DeformationResult:
     seconds: float
     history: tuple[tuple[float, float], ...] = field(default=())
 
+    @classmethod
+    def failed(
+        cls,
+        n_vertices: int,
+        n_cage: int,
+        volume_rest: float,
+        reason: str,
+        *,
+        method: str = "none",
+        seconds: float = 0.0,
+    ) -> DeformationResult:
+        """An unconverged result without positions (all NaN), for a pose that could not be solved."""
+        nan = float("nan")
+        return cls(
+            V=np.full((n_vertices, 3), np.nan),
+            cage=np.full((n_cage, 3), np.nan),
+            volume_rest=volume_rest,
+            volume=nan,
+            relative_volume_error=nan,
+            iterations=0,
+            converged=False,
+            reason=reason,
+            skeleton_fit_mean=nan,
+            skeleton_fit_max=nan,
+            energy=nan,
+            method=method,
+            seconds=seconds,
+        )
+
     def summary(self) -> dict[str, object]:
         """Scalars of the result as a JSON-ready dict (no arrays)."""
         d = asdict(self)
