@@ -43,6 +43,12 @@ REPORT_FIELDS = [
 ]
 
 
+# the files a run writes at the top of its output folder (besides one folder per muscle and bone)
+PVD, REPORT, GIF = "scene.pvd", "report.csv", "scene.gif"
+PLOT_VOLUME, PLOT_CONVERGENCE = "volume_error.png", "convergence.png"
+_TOP_FILES = (PVD, REPORT, GIF, PLOT_VOLUME, PLOT_CONVERGENCE, JOURNAL)
+
+
 def default_cache_dir() -> Path:
     """``$MUSCLEWRAP_CACHE``, else ``$XDG_CACHE_HOME/musclewrap``, else ``~/.cache/musclewrap``."""
     env = os.environ.get("MUSCLEWRAP_CACHE")
@@ -70,24 +76,16 @@ class RunSummary:
 
     def text(self) -> str:
         """Human-readable summary."""
+        solved = [r for r in self.rows if np.isfinite(r["relative_volume_error"])]
+        failed = len(self.rows) - len(solved)
 
         def worst(key: str) -> float:  # over the frames with positions
-            v = [r[key] for r in self.rows if np.isfinite(r["relative_volume_error"])]
-            return max(v, default=float("nan"))
+            return max((abs(r[key]) for r in solved), default=float("nan"))
 
-        failed = sum(not np.isfinite(r["relative_volume_error"]) for r in self.rows)
-        solved_error = max(
-            (
-                abs(r["relative_volume_error"])
-                for r in self.rows
-                if np.isfinite(r["relative_volume_error"])
-            ),
-            default=float("nan"),
-        )
         lines = [
             f"{len(self.muscles)} muscle(s) x {self.n_frames} frame(s) in {self.seconds:.1f} s "
-            f"-> {self.outdir / 'scene.pvd'}",
-            f"  worst |relative volume error| {solved_error:.2e}; "
+            f"-> {self.outdir / PVD}",
+            f"  worst |relative volume error| {worst('relative_volume_error'):.2e}; "
             f"unconverged frames {self.unconverged}"
             + (f" ({failed} without positions, no mesh written)" if failed else "")
             + f"; skeleton fit mean <= {worst('skeleton_fit_mean'):.3g}; "
@@ -521,8 +519,8 @@ def run_scene(
         try:
             summary.files.append(
                 render_series(
-                    outdir / "scene.pvd",
-                    outdir / "scene.gif",
+                    outdir / PVD,
+                    outdir / GIF,
                     every=scene.gif_every,
                     size=scene.image_size,
                     bones=tuple(b.name for b in scene.bones),
@@ -594,8 +592,7 @@ def _input_files(scene: Scene) -> list[Path]:
 def _check_outputs_spare_inputs(scene: Scene, outdir: Path) -> None:
     """Refuse an output folder where the run would write over one of its inputs."""
     out = outdir.resolve()
-    files = {out / n for n in ("scene.pvd", "report.csv", "scene.gif", JOURNAL)}
-    files |= {out / n for n in ("volume_error.png", "convergence.png")}
+    files = {out / n for n in _TOP_FILES}
     folders = [out / m.name for m in scene.muscles] + [out / b.name for b in scene.bones]
     for f in _input_files(scene):
         r = f.resolve()
@@ -708,8 +705,8 @@ def _run(
             notes.append(res["note"])
     entries.sort(key=lambda e: e[0])
     files = [
-        write_pvd(outdir / "scene.pvd", [(float(drive.times[k]), f) for k, f in entries]),
-        write_csv(outdir / "report.csv", rows, REPORT_FIELDS),
+        write_pvd(outdir / PVD, [(float(drive.times[k]), f) for k, f in entries]),
+        write_csv(outdir / REPORT, rows, REPORT_FIELDS),
     ]
     files += _plots(outdir, scene, results)
     worst = max(
@@ -944,7 +941,7 @@ def _plots(outdir: Path, scene: Scene, results: list[dict[str, Any]]) -> list[Pa
     paper = {res["name"]: res["paper"] for res in results if res["paper"]}
     files = [
         plot_volume_error(
-            outdir / "volume_error.png",
+            outdir / PLOT_VOLUME,
             series,
             title=f"{scene.name}: relative volume error per frame",
             markers={
@@ -961,7 +958,7 @@ def _plots(outdir: Path, scene: Scene, results: list[dict[str, Any]]) -> list[Pa
     if conv:
         files.append(
             plot_convergence(
-                outdir / "convergence.png",
+                outdir / PLOT_CONVERGENCE,
                 conv,
                 title=f"{scene.name}: convergence on the worst frame",
             )

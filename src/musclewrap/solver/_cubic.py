@@ -13,16 +13,16 @@ __all__ = ["cubic_root_near"]
 
 
 @numba.njit(cache=True)
-def _newton(p0, p1, p2, p3, t):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
-    """Newton's method on the cubic from ``t``: (root, converged)."""
-    for _ in range(30):
+def _newton(p0, p1, p2, p3, t, steps, rtol):  # noqa: ANN001, ANN202 # pragma: no cover
+    """At most ``steps`` Newton steps on the cubic from ``t``: (root, converged to ``rtol``)."""
+    for _ in range(steps):
         f = p0 + t * (p1 + t * (p2 + t * p3))
         df = p1 + t * (2 * p2 + 3 * t * p3)
         if df == 0 or not np.isfinite(df):
             return t, False
         step = f / df
         t -= step
-        if abs(step) <= 1e-15 * max(1.0, abs(t)):
+        if abs(step) <= rtol * max(1.0, abs(t)):
             return t, True
     return t, False
 
@@ -49,7 +49,7 @@ def cubic_root_near(c: FloatArray, target: float, guess: float) -> float:
     if not all(map(math.isfinite, (p0, p1, p2, p3))) or max(abs(p1), abs(p2), abs(p3)) == 0:
         return float("nan")
     # Newton from the guess: the volume correction is a small, simple root
-    t, ok = _newton(p0, p1, p2, p3, float(guess))
+    t, ok = _newton(p0, p1, p2, p3, float(guess), 30, 1e-15)
     if ok:
         return t
     p = np.array([p0, p1, p2, p3])
@@ -58,13 +58,4 @@ def cubic_root_near(c: FloatArray, target: float, guess: float) -> float:
     if len(real) == 0:
         real = roots.real
     t = float(real[np.argmin(np.abs(real - guess))])
-    for _ in range(3):  # Newton polish to full precision
-        f = p[0] + t * (p[1] + t * (p[2] + t * p[3]))
-        df = p[1] + t * (2 * p[2] + 3 * t * p[3])
-        if df == 0:
-            break
-        step = f / df
-        t -= step
-        if abs(step) <= 1e-16 * max(1.0, abs(t)):
-            break
-    return t
+    return _newton(p0, p1, p2, p3, t, 3, 1e-16)[0]  # polish to full precision
