@@ -30,10 +30,10 @@ def _mean_rows_kernel(V):  # pragma: no cover - compiled
 
 
 def mean_rows(V: FloatArray) -> FloatArray:
-    """Mean of the rows of an (n, 3) array (``V.mean(axis=0)``, about 15x faster here).
+    """Mean of the rows of an (n, 3) array, like ``V.mean(axis=0)`` but one compiled pass.
 
-    numpy reduces an (n, 3) array along axis 0 through a slow strided loop
-    (115 us for 6,400 rows on the development machine, against 8 us).
+    numpy reduces an (n, 3) array along axis 0 through a slow strided loop:
+    103 us for 6,400 rows against 7 us here (`python benchmarks/bench_kernels.py`).
     """
     return _mean_rows_kernel(np.ascontiguousarray(V, dtype=np.float64))
 
@@ -176,8 +176,9 @@ def _det(ax, ay, az, bx, by, bz, cx, cy, cz):  # pragma: no cover - compiled
     return ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
 
 
-# Reductions over faces split them into this many fixed chunks and add the partial sums
-# in order (a fixed summation order, whatever runs them).
+# Reductions over faces split them into this many fixed chunks (run in parallel) and
+# add the partial sums in order: the result is the same bit for bit on any number of
+# threads.
 _CHUNKS = 16
 
 
@@ -265,13 +266,23 @@ def _cubic_pair_py(XU, F):  # pragma: no cover - compiled
     return out / 6.0
 
 
-# The reductions run on one thread. Compiled with threads they were no faster on their
-# own (they are bound by memory), and inside a pose each parallel region woke the thread
-# pool between BLAS calls: the capsule's pose took 12.5-14.8 ms with them and 7.2-8.5 ms
-# without (a scratch measurement in blocks against W @ X; BENCHMARKS.md has the run).
-# The chunks stay, so the sums are the same bit for bit as before.
-_volume_kernel = numba.njit(cache=True)(_volume_py)
-_cubic_pair_kernel = numba.njit(cache=True)(_cubic_pair_py)
+# Each reduction is compiled twice: threads pay off from about 10K faces (on the capsule's
+# 30K faces, 0.08 against 0.15 ms for the volume and 0.25 against 0.47 ms for the cubic:
+# `python benchmarks/bench_kernels.py`); below that the start of a parallel region costs
+# more than it saves. The chunks are the same either way, and so is every bit of the sum.
+_PARALLEL_FACES = 10000
+_volume_par = numba.njit(parallel=True, cache=True)(_volume_py)
+_volume_ser = numba.njit(cache=True)(_volume_py)
+_cubic_pair_par = numba.njit(parallel=True, cache=True)(_cubic_pair_py)
+_cubic_pair_ser = numba.njit(cache=True)(_cubic_pair_py)
+
+
+def _volume_kernel(V, F, c):  # noqa: ANN001, ANN202
+    return (_volume_par if F.shape[0] >= _PARALLEL_FACES else _volume_ser)(V, F, c)
+
+
+def _cubic_pair_kernel(XU, F):  # noqa: ANN001, ANN202
+    return (_cubic_pair_par if F.shape[0] >= _PARALLEL_FACES else _cubic_pair_ser)(XU, F)
 
 
 def volume_cubic_pair(XU: FloatArray, F: IntArray) -> FloatArray:
@@ -304,7 +315,7 @@ def _combine_kernel(XU, t, c):  # pragma: no cover - compiled
 def combine_pair(XU: FloatArray, t: float, c: FloatArray) -> FloatArray:
     """Positions ``XU[:, :3] - t * XU[:, 3:] + c`` as a new contiguous (n, 3) array.
 
-    One compiled pass (numpy's three passes over the strided halves took 10x longer).
+    One compiled pass, where numpy made three over the strided halves.
     """
     return _combine_kernel(
         np.ascontiguousarray(XU, dtype=np.float64), float(t), np.asarray(c, dtype=np.float64)
