@@ -266,10 +266,9 @@ def _cubic_pair_py(XU, F):  # pragma: no cover - compiled
     return out / 6.0
 
 
-# Each reduction is compiled twice: threads pay off from about 10K faces (on the capsule's
-# 30K faces, 0.08 against 0.15 ms for the volume and 0.25 against 0.47 ms for the cubic:
-# `python benchmarks/bench_kernels.py`); below that the start of a parallel region costs
-# more than it saves. The chunks are the same either way, and so is every bit of the sum.
+# Each reduction is compiled twice: threads pay off from about 10K faces (1.2-2x faster
+# on the capsule's 30K faces in two runs of `python benchmarks/bench_kernels.py`); below
+# that the start of a parallel region costs more than it saves. The chunks are the same either way, and so is every bit of the sum.
 _PARALLEL_FACES = 10000
 _volume_par = numba.njit(parallel=True, cache=True)(_volume_py)
 _volume_ser = numba.njit(cache=True)(_volume_py)
