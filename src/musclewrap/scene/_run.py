@@ -46,7 +46,16 @@ REPORT_FIELDS = [
 # the files a run writes at the top of its output folder (besides one folder per muscle and bone)
 PVD, REPORT, GIF = "scene.pvd", "report.csv", "scene.gif"
 PLOT_VOLUME, PLOT_CONVERGENCE = "volume_error.png", "convergence.png"
-_TOP_FILES = (PVD, REPORT, GIF, PLOT_VOLUME, PLOT_CONVERGENCE, JOURNAL)
+# (render_series also writes the GIF's middle picture beside it, as .png)
+_TOP_FILES = (
+    PVD,
+    REPORT,
+    GIF,
+    Path(GIF).with_suffix(".png").name,
+    PLOT_VOLUME,
+    PLOT_CONVERGENCE,
+    JOURNAL,
+)
 
 
 def default_cache_dir() -> Path:
