@@ -676,7 +676,7 @@ class Deformer:
         prev_step = 0.0
         # the default solve iterates plainly a few times, then switches to Newton's method
         plain = max_iterations if exact else min(max_iterations, defaults.plain_iterations)
-        iterates = []  # Newton starts from the one of least energy
+        iterates = []  # Newton starts from the one of least energy (default method only)
         for its in range(1, plain + 1):
             u = self._solve(G)
             P_u = Wd @ u
@@ -694,7 +694,8 @@ class Deformer:
             step = float(np.abs(x_new - x).max())
             x, lam = x_new, lam_new
             P = P_ls - lam * P_u
-            iterates.append(x)
+            if not exact:
+                iterates.append(x)
             if exact:
                 hist.append(
                     (self.energy(x, d_L, s_cur), volume(P, Fd, center=np.zeros(3)) / Vd0 - 1)
