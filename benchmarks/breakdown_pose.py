@@ -25,12 +25,11 @@ BLOCKS = {
     "final volume": (solver, "volume"),
     "positions": (solver, "combine_pair"),
     "targets and rotations": (solver.Deformer, "_targets"),
-    "H^-1 products": (solver.Deformer, "_solve"),
-    "proxy gradient": (solver, "volume_gradient"),
-    "proxy cubic": (solver, "volume_cubic"),
-    "cubic roots": (solver, "cubic_root_near"),
+    "proxy iterations": (solver, "plain_iterations"),
+    "small products": (solver, "mat3"),
+    "fine cubic root": (solver, "cubic_root_near"),
     "skeleton fit": (solver.Deformer, "_skeleton_fit"),
-    "energy": (solver.Deformer, "energy"),
+    "energy and samples": (solver.Deformer, "_energy_and_samples"),
 }
 
 

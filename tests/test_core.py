@@ -103,6 +103,14 @@ def test_cubic_root():
     assert cubic_root_near(np.array([1.0, -3.0, 0.0, 1.0]), 0.0, 0.3) == pytest.approx(
         0.34729635533386, rel=1e-12
     )
+    # Newton stalls at the guess (zero slope): all roots, two of them complex
+    t = cubic_root_near(np.array([3.0, -3.0, 0.0, 1.0]), 0.0, 1.0)
+    assert t**3 - 3 * t + 3 == pytest.approx(0.0, abs=1e-12) and t < -2
+    # a quadratic (both roots equally near the guess), and a line
+    assert abs(cubic_root_near(np.array([-4.0, 0.0, 1.0, 0.0]), 0.0, 0.0)) == pytest.approx(2.0)
+    assert cubic_root_near(np.array([-4.0, 2.0, 0.0, 0.0]), 0.0, 5.0) == pytest.approx(2.0)
+    assert np.isnan(cubic_root_near(np.array([1.0, 0.0, 0.0, 0.0]), 0.0, 0.0))
+    assert np.isnan(cubic_root_near(np.array([1.0, np.inf, 0.0, 0.0]), 0.0, 0.0))
 
 
 def test_lines_validation():
@@ -332,8 +340,8 @@ def test_newton_fallback_reaches_the_plain_fixed_point(small_muscle):
     rest, cur = capsule_scenario("bend_short")
     d = small_muscle.bind(rest)
     mu = small_muscle
-    _, _, _, b = d._targets(cur, None)
-    x_ls = d._solve(b)
+    _, s_cur, d_L = d._targets(cur, None)
+    x_ls = d._solve(d._rhs(d_L, s_cur))
     c = x_ls.mean(axis=0)
     P_ls = mu.proxy_W @ (x_ls - c)
 
@@ -352,3 +360,25 @@ def test_newton_fallback_reaches_the_plain_fixed_point(small_muscle):
     scale = np.abs(x_star - x_ls).max()
     assert np.abs(x_n - x_star).max() <= 1e-6 * scale
     assert lam_n == pytest.approx(lam, rel=1e-6)
+
+
+@pytest.mark.parametrize("scenario", ["bend", "bend_short", "rot"])
+def test_single_precision_proxy_products_match_double(small_muscle, scenario):
+    # the default solve steers its direction with float32 copies of the proxy's
+    # matrices; the same iteration in float64 lands on the same mesh to ~1e-9 of its size
+    from musclewrap.mesh import mean_rows, volume
+    from musclewrap.solver._proxy import mat3
+
+    mu = small_muscle
+    rest, cur = capsule_scenario(scenario)
+    d = mu.bind(rest)
+    r32 = d.deform(cur)
+    C = mu.cage.C
+    d._Wd32 = np.ascontiguousarray(mu.proxy_W)
+    d._B32 = d._Hinv @ mu.proxy_W_T
+    d._Vd32 = volume(mat3(d._Wd32, C - mean_rows(C)), mu.proxy_F, center=np.zeros(3))
+    r64 = d.deform(cur)
+    assert r32.converged and r64.converged
+    size = np.linalg.norm(mu.V.max(0) - mu.V.min(0))
+    assert np.abs(r32.V - r64.V).max() <= 1e-8 * size
+    assert r32.iterations == r64.iterations

@@ -29,6 +29,13 @@ class Tolerances:
         diagonal, below which a point is treated as lying on that vertex.
     mvc_on_face : float
         Angular tolerance (radians) for a point lying on a cage face.
+    mvc_in_plane : float
+        Sine of the angle below which a point counts as lying in the plane of
+        a cage face (outside the face), whose contribution is then dropped. Its
+        true size is proportional to that sine, while the closed formula's
+        rounding error grows as its inverse; on the VHF meshes the rest mesh is
+        reproduced to at most 3.2e-11 of its size with 1e-7, against 1.4e-10
+        (semitendinosus) with 1e-10 and 4.7e-10 with 1e-6.
     merge_vertices : float
         Distance, relative to the bounding-box diagonal, under which two mesh
         vertices are merged on load.
@@ -43,6 +50,7 @@ class Tolerances:
     direction: float = 1e-4
     mvc_on_vertex: float = 1e-12
     mvc_on_face: float = 1e-10
+    mvc_in_plane: float = 1e-7
     merge_vertices: float = 1e-10
     degenerate_area: float = 1e-14
     winding_inside: float = 0.5

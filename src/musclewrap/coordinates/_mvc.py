@@ -72,7 +72,7 @@ def mean_value_coordinates(
 
 
 @numba.njit(parallel=True, cache=True, fastmath=False)
-def _mvc_kernel(P, C, CF, E, FE, eps_vertex, eps_face, W):  # pragma: no cover - compiled
+def _mvc_kernel(P, C, CF, E, FE, eps_vertex, eps_face, eps_plane, W):  # pragma: no cover - compiled
     n = P.shape[0]
     m = C.shape[0]
     k = CF.shape[0]
@@ -133,12 +133,13 @@ def _mvc_kernel(P, C, CF, E, FE, eps_vertex, eps_face, W):  # pragma: no cover -
                 - U[i0, 1] * (U[i1, 0] * U[i2, 2] - U[i1, 2] * U[i2, 0])
                 + U[i0, 2] * (U[i1, 0] * U[i2, 1] - U[i1, 1] * U[i2, 0])
             )
-            sgn = 1.0 if det >= 0.0 else -1.0
-            q0 = sgn * np.sqrt(max(0.0, 1.0 - min(max(c0, -1.0), 1.0) ** 2))
-            q1 = sgn * np.sqrt(max(0.0, 1.0 - min(max(c1, -1.0), 1.0) ** 2))
-            q2 = sgn * np.sqrt(max(0.0, 1.0 - min(max(c2, -1.0), 1.0) ** 2))
-            if abs(q0) <= eps_face or abs(q1) <= eps_face or abs(q2) <= eps_face:
-                continue  # the point lies on this face's plane, outside the face
+            # sin psi_i (signed) by the spherical law of sines: det is sin psi_i times the
+            # sines of the two arcs at u_i (no sqrt(1 - c_i^2), which loses digits near 0)
+            q0 = det / (s1 * s2)
+            q1 = det / (s2 * s0)
+            q2 = det / (s0 * s1)
+            if abs(q0) <= eps_plane or abs(q1) <= eps_plane or abs(q2) <= eps_plane:
+                continue  # the point lies (nearly) on this face's plane, outside the face
             w0 = (th0 - c1 * th2 - c2 * th1) / (d[i0] * s1 * q2)
             w1 = (th1 - c2 * th0 - c0 * th2) / (d[i1] * s2 * q0)
             w2 = (th2 - c0 * th1 - c1 * th0) / (d[i2] * s0 * q1)
@@ -175,7 +176,7 @@ def _mvc_block(P: FloatArray, C: FloatArray, CF: IntArray) -> FloatArray:
     diag = float(np.linalg.norm(C.max(0) - C.min(0)))
     E, FE = _face_edges(CF)
     W = np.empty((len(P), len(C)))
-    _mvc_kernel(P, C, CF, E, FE, tol.mvc_on_vertex * diag, tol.mvc_on_face, W)
+    _mvc_kernel(P, C, CF, E, FE, tol.mvc_on_vertex * diag, tol.mvc_on_face, tol.mvc_in_plane, W)
     return W
 
 

@@ -13,6 +13,7 @@ import igl
 import numba
 import numpy as np
 import numpy.typing as npt
+from scipy import sparse
 from scipy.linalg import cho_factor, cho_solve
 
 from .._typing import FloatArray, IntArray, PathLike
@@ -45,6 +46,7 @@ from ..mesh import (
     volume_hessian_reduced,
 )
 from ._cubic import cubic_root_near
+from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations
 from ._result import DeformationResult
 
 __all__ = ["METHODS", "Deformer", "Muscle", "deform"]
@@ -68,6 +70,31 @@ def _point_polyline_distance(Q: FloatArray, P: FloatArray) -> FloatArray:  # pra
             best = min(best, d0 * d0 + d1 * d1 + d2 * d2)
         out[q] = np.sqrt(best)
     return out
+
+
+@numba.njit(cache=True)
+def _energy_kernel(indptr, indices, data, S, x, d_L, s_cur, w2):  # noqa: ANN001, ANN202 # pragma: no cover
+    # ||L x - d_L||^2 with L in CSR form (the cage Laplacian's 7 or so entries per row),
+    # plus w2 ||S x - s'||^2; returns S x too (the deformed skeleton samples)
+    e1 = 0.0
+    for r in range(indptr.shape[0] - 1):
+        a0 = a1 = a2 = 0.0
+        for p in range(indptr[r], indptr[r + 1]):
+            j, v = indices[p], data[p]
+            a0 += v * x[j, 0]
+            a1 += v * x[j, 1]
+            a2 += v * x[j, 2]
+        a0, a1, a2 = a0 - d_L[r, 0], a1 - d_L[r, 1], a2 - d_L[r, 2]
+        e1 += a0 * a0 + a1 * a1 + a2 * a2
+    Sx = np.zeros((S.shape[0], 3))
+    e2 = 0.0
+    for r in range(S.shape[0]):
+        for j in range(S.shape[1]):
+            for k in range(3):
+                Sx[r, k] += S[r, j] * x[j, k]
+        for k in range(3):
+            e2 += (Sx[r, k] - s_cur[r, k]) ** 2
+    return e1 + w2 * e2, Sx
 
 
 @dataclass(eq=False)
@@ -437,6 +464,24 @@ class Deformer:
         self._LT = np.ascontiguousarray(L.T)
         self._ST = np.ascontiguousarray(self.S.T)
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
+        # the default solve's matrices (`_proxy`): x_ls = HL d_L + HS s', and the proxy
+        # coordinates and B = H^-1 Wd^T that make the direction u = B g of a proxy
+        # gradient g, in single precision: they only steer the direction, the fine volume
+        # is corrected in double precision along it, and half the bytes come through
+        # the caches each pose
+        self._HL = self._Hinv @ self._LT
+        self._HS = self.weight**2 * (self._Hinv @ self._ST)
+        self._Wd32 = np.ascontiguousarray(muscle.proxy_W, dtype=np.float32)
+        self._B32 = np.ascontiguousarray(self._Hinv @ muscle.proxy_W_T, dtype=np.float32)
+        # the proxy's rest volume through the same rounded coordinates: exactly kept by a
+        # rigid motion, so that one needs no correction
+        self._Vd32 = volume(mat3(self._Wd32, C - mean_rows(C)), muscle.proxy_F, center=np.zeros(3))
+        L_csr = sparse.csr_matrix(L)
+        self._L_csr = (L_csr.indptr.astype(np.int64), L_csr.indices.astype(np.int64), L_csr.data)
+        self._line_slices = tuple(
+            slice(int(idx[0]), int(idx[-1]) + 1)
+            for idx in (np.flatnonzero(self.sample_line == i) for i in range(len(rest)))
+        )
 
     def _check_near(self, V: FloatArray) -> None:
         """Refuse rest lines that cannot belong to the muscle (`placement_problem`)."""
@@ -466,7 +511,8 @@ class Deformer:
 
     def _targets(
         self, current_lines: Mapping[str, npt.ArrayLike], reference_point: npt.ArrayLike | None
-    ) -> tuple[dict[str, FloatArray], FloatArray, FloatArray, FloatArray]:
+    ) -> tuple[dict[str, FloatArray], FloatArray, FloatArray]:
+        """Validated current lines, their samples ``s'`` and the rotated deltas ``d_L``."""
         cur = check_lines(current_lines, "current lines")
         s_cur = self.sampling.evaluate(cur, "current lines")
         if (reference_point is None) != (self.reference_rest is None):
@@ -478,28 +524,36 @@ class Deformer:
         )
         R_s = self._sample_rotations(s_cur, reference_current=ref_cur)
         d_L = self.rotation_field.rotate(R_s, self.muscle.delta_rest)
-        b = self._LT @ d_L + self.weight**2 * (self._ST @ s_cur)
-        return cur, s_cur, d_L, b
+        return cur, s_cur, d_L
 
-    def energy(
-        self, x: FloatArray, d_L: FloatArray, s_cur: FloatArray, Sx: FloatArray | None = None
-    ) -> float:
-        """``||L x - d_L||^2 + w^2 ||S x - s'||^2`` of cage positions ``x``.
+    def _rhs(self, d_L: FloatArray, s_cur: FloatArray) -> FloatArray:
+        """``A^T d = L^T d_L + w^2 S^T s'``, the right-hand side of the normal equations."""
+        return self._LT @ d_L + self.weight**2 * (self._ST @ s_cur)
 
-        ``Sx`` (``S @ x``) may be passed when already computed.
-        """
-        r1 = self.muscle.L @ x - d_L
-        r2 = (self.S @ x if Sx is None else Sx) - s_cur
-        return float(np.sum(r1 * r1) + self.weight**2 * np.sum(r2 * r2))
+    def energy(self, x: FloatArray, d_L: FloatArray, s_cur: FloatArray) -> float:
+        """``||L x - d_L||^2 + w^2 ||S x - s'||^2`` of cage positions ``x``."""
+        return self._energy_and_samples(x, d_L, s_cur)[0]
 
-    def _skeleton_fit(
-        self, x: FloatArray, cur: Mapping[str, FloatArray], Sx: FloatArray | None = None
-    ) -> tuple[float, float]:
-        Sx = self.S @ x if Sx is None else Sx
+    def _energy_and_samples(
+        self, x: FloatArray, d_L: FloatArray, s_cur: FloatArray
+    ) -> tuple[float, FloatArray]:
+        """`energy` and the deformed skeleton samples ``S x``, in one compiled pass."""
+        e, Sx = _energy_kernel(
+            *self._L_csr,
+            self.S,
+            np.ascontiguousarray(x, dtype=np.float64),
+            np.ascontiguousarray(d_L, dtype=np.float64),
+            np.ascontiguousarray(s_cur, dtype=np.float64),
+            self.weight**2,
+        )
+        return float(e), Sx
+
+    def _skeleton_fit(self, Sx: FloatArray, cur: Mapping[str, FloatArray]) -> tuple[float, float]:
+        """Mean and largest distance of the deformed samples ``S x`` to their current lines."""
         dist = np.concatenate(
             [
-                _point_polyline_distance(Sx[self.sample_line == i], cur[name])
-                for i, name in enumerate(self.sampling.names)
+                _point_polyline_distance(Sx[rows], cur[name])
+                for rows, name in zip(self._line_slices, self.sampling.names, strict=True)
             ]
         )
         return float(dist.mean()), float(dist.max())
@@ -522,7 +576,8 @@ class Deformer:
         (the energy gradient is then parallel to the constraint gradient).
         Returns 0 when the energy gradient itself vanishes (rigid motions).
         """
-        _, _, _, b = self._targets(current_lines, reference_point)
+        _, s_cur, d_L = self._targets(current_lines, reference_point)
+        b = self._rhs(d_L, s_cur)
         r = self.H @ result.cage - b
         G = self.fine_volume_gradient(result.cage)
         rn = np.linalg.norm(r)
@@ -582,14 +637,19 @@ class Deformer:
         t0 = time.perf_counter()
         with np.errstate(all="ignore"):
             # overflow (absurd coordinates) shows as non-finite values, reported below
-            cur, s_cur, d_L, b = self._targets(current_lines, reference_point)
+            cur, s_cur, d_L = self._targets(current_lines, reference_point)
             try:
-                if not np.isfinite(b).all():
-                    raise FloatingPointError("the conditions overflow (line coordinates too large)")
-                x_ls = self._solve(b)
                 if method == "paper":
                     from ._paper import solve_paper
 
+                    b = self._rhs(d_L, s_cur)
+                    x_ls = self._solve(b)
+                else:
+                    # the unconstrained solution H^-1 A^T d from the two products of its parts
+                    x_ls = mat3(self._HL, d_L) + mat3(self._HS, s_cur)
+                if not np.isfinite(x_ls).all():
+                    raise FloatingPointError("the conditions overflow (line coordinates too large)")
+                if method == "paper":
                     x, V, its, ok, reason, hist = solve_paper(
                         self,
                         x_ls,
@@ -638,9 +698,10 @@ class Deformer:
         rel = (vol - mu.volume_rest) / mu.volume_rest
         if ok and not abs(rel) <= tol.volume:
             ok, reason = False, f"volume error {rel:.3g} above tolerance {tol.volume:g}"
-        finite_x = bool(np.isfinite(x).all())
-        Sx = self.S @ x if finite_x else None
-        fit_mean, fit_max = self._skeleton_fit(x, cur, Sx) if finite_x else (np.nan, np.nan)
+        energy, fit_mean, fit_max = np.nan, np.nan, np.nan
+        if np.isfinite(x).all():
+            energy, Sx = self._energy_and_samples(x, d_L, s_cur)
+            fit_mean, fit_max = self._skeleton_fit(Sx, cur)
         return DeformationResult(
             V=V,
             cage=x,
@@ -652,35 +713,68 @@ class Deformer:
             reason=reason,
             skeleton_fit_mean=fit_mean,
             skeleton_fit_max=fit_max,
-            energy=self.energy(x, d_L, s_cur, Sx) if finite_x else float("nan"),
+            energy=energy,
             method=method,
             seconds=time.perf_counter() - t0,
             history=tuple(hist),
         )
 
     def _solve_sqp(self, x_ls, d_L, s_cur, *, exact: bool, max_iterations: int):  # noqa: ANN001, ANN202
+        if exact:
+            return self._solve_exact(x_ls, d_L, s_cur, max_iterations)
         mu = self.muscle
         c = mean_rows(x_ls)
-        if exact:
-            Wd, Fd, Vd0 = mu.W, mu.F, mu.volume_rest
-        else:
-            Wd, Fd, Vd0 = mu.proxy_W, mu.proxy_F, mu.proxy_volume_rest
-        WdT = mu.W_T if exact else mu.proxy_W_T
-        P_ls = Wd @ (x_ls - c)
-        G = WdT @ volume_gradient(P_ls, Fd)
+        # a few plain fixed-point updates of the direction on the proxy (compiled, `_proxy`)
+        lam, u, its, status, best_lam, best_u = plain_iterations(
+            mat3(self._Wd32, x_ls - c),
+            self._Wd32,
+            self._B32,
+            mu.proxy_F,
+            self._Vd32,
+            plain=min(max_iterations, defaults.plain_iterations),
+            tol_dir=tol.direction,
+            floor=1e-9 * self._diag,
+            rate=defaults.newton_rate,
+        )
+        if status == PLAIN_NO_ROOT:
+            return x_ls, np.full_like(mu.V, np.nan), its, False, "no finite volume correction", []
+        converged_dir = status == PLAIN_CONVERGED
+        if not converged_dir and its < max_iterations:
+            # Slow (rate near 1) or oscillating fixed point: damped Newton on the proxy's
+            # optimality conditions from the plain iterate of least energy.
+            x, lam, n_newton, converged_dir = self._newton(
+                x_ls - best_lam * best_u, x_ls, c, max_iterations - its
+            )
+            its += n_newton
+            u = self._solve(mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F))
+        # one pass over W: base positions and the correction direction together, then the
+        # exact correction of the FINE volume along u (a cubic)
+        XU = rows_dot(mu.W, np.hstack([x_ls - c, u]))
+        lam_f = cubic_root_near(volume_cubic_pair(XU, mu.F), mu.volume_rest, lam)
+        x = x_ls - lam_f * u
+        V = combine_pair(XU, lam_f, c)
+        reason = (
+            "converged" if converged_dir else f"direction not stationary after {its} iterations"
+        )
+        return x, V, its + 1, converged_dir, reason, []
+
+    def _solve_exact(self, x_ls, d_L, s_cur, max_iterations: int):  # noqa: ANN001, ANN202
+        """The reference iteration: the fine mesh's own volume gradient every step."""
+        mu = self.muscle
+        c = mean_rows(x_ls)
+        P_ls = mu.W @ (x_ls - c)
+        G = mu.W_T @ volume_gradient(P_ls, mu.F)
         lam = 0.0
         x = x_ls
+        P = P_ls
         hist: list[tuple[float, float]] = []
         converged_dir = False
         its = 0
         prev_step = 0.0
-        # the default solve iterates plainly a few times, then switches to Newton's method
-        plain = max_iterations if exact else min(max_iterations, defaults.plain_iterations)
-        iterates = []  # Newton starts from the one of least energy (default method only)
-        for its in range(1, plain + 1):
+        for its in range(1, max_iterations + 1):
             u = self._solve(G)
-            P_u = Wd @ u
-            lam_new = cubic_root_near(volume_cubic(P_ls, -P_u, Fd), Vd0, lam)
+            P_u = mu.W @ u
+            lam_new = cubic_root_near(volume_cubic(P_ls, -P_u, mu.F), mu.volume_rest, lam)
             if not np.isfinite(lam_new):
                 return (
                     x,
@@ -694,45 +788,24 @@ class Deformer:
             step = float(np.abs(x_new - x).max())
             x, lam = x_new, lam_new
             P = P_ls - lam * P_u
-            if not exact:
-                iterates.append(x)
-            if exact:
-                hist.append(
-                    (self.energy(x, d_L, s_cur), volume(P, Fd, center=np.zeros(3)) / Vd0 - 1)
+            hist.append(
+                (
+                    self.energy(x, d_L, s_cur),
+                    volume(P, mu.F, center=np.zeros(3)) / mu.volume_rest - 1,
                 )
-            # The fixed point converges linearly; with rate rho = step / previous step the
-            # distance to the limit is at most rho / (1 - rho) * step (a posteriori bound).
-            # The first step (from x_ls) is the whole correction, so rho needs two more.
+            )
+            # a posteriori bound of a linearly converging iteration, as in `plain_iterations`
             rho = step / prev_step if its >= 3 and prev_step > 0 else 1.0
             error = step * rho / (1.0 - rho) if rho < 0.5 else step
             prev_step = step
             if error <= tol.direction * max(float(np.abs(lam * u).max()), 1e-9 * self._diag):
                 converged_dir = True
                 break
-            if not exact and its >= 4 and rho > defaults.newton_rate:
-                break  # too slow or oscillating for plain iteration
-            G = WdT @ volume_gradient(P, Fd)
-        if not converged_dir and its < max_iterations:
-            # Slow (rate near 1) or oscillating fixed point: damped Newton on the proxy's
-            # optimality conditions from the plain iterate of least energy.
-            start = min(iterates, key=lambda y: float(np.sum((y - x_ls) * (self.H @ (y - x_ls)))))
-            x, lam, n_newton, converged_dir = self._newton(start, x_ls, c, max_iterations - its)
-            its += n_newton
-            u = self._solve(WdT @ volume_gradient(Wd @ (x - c), Fd))
-        if exact:
-            V = P + c
-            its_total = its
-        else:
-            # one pass over W: base positions and the correction direction together
-            XU = rows_dot(mu.W, np.hstack([x_ls - c, u]))
-            lam_f = cubic_root_near(volume_cubic_pair(XU, mu.F), mu.volume_rest, lam)
-            x = x_ls - lam_f * u
-            V = combine_pair(XU, lam_f, c)
-            its_total = its + 1
+            G = mu.W_T @ volume_gradient(P, mu.F)
         reason = (
             "converged" if converged_dir else f"direction not stationary after {its} iterations"
         )
-        return x, V, its_total, converged_dir, reason, hist
+        return x, P + c, its, converged_dir, reason, hist
 
     def _newton(self, x, x_ls, c, budget: int):  # noqa: ANN001, ANN202
         """Damped Newton on the proxy's KKT system ``H (x - x_ls) + lam g(x) = 0, v(x) = V0``.
