@@ -9,8 +9,12 @@ On the 15K capsule's coordinate matrix (15,074 x 300) and its 30,144 faces, medi
 2. ``rows_dot`` alone, right after a ``W @ X`` (numpy, OpenBLAS) and 0.3 s after one: OpenBLAS's
    threads keep spinning for a while after a call and take a core from the next one;
 3. the row mean of an (n, 3) array: numpy's ``mean(axis=0)`` against `musclewrap.mesh.mean_rows`;
-4. the volume and volume-cubic reductions over the faces, compiled for one thread (as used)
-   and with threads.
+4. the volume and volume-cubic reductions over the faces, compiled for one thread and with
+   threads (the solver takes threads from 10K faces), and the cubic compiled without the
+   multiply-add fusion and reordering it is allowed (``_FACE_MATH``);
+5. the products of the cage's and the proxy's size in a pose (three columns): compiled on
+   one thread (`musclewrap.solver._proxy`) against numpy (OpenBLAS), each with its matrix in
+   the cache and right after a ``rows_dot`` pass (which pushes it out of the cache).
 """
 
 from __future__ import annotations
@@ -23,8 +27,9 @@ import numpy as np
 
 from musclewrap.coordinates import rows_dot
 from musclewrap.mesh import mean_rows
-from musclewrap.mesh._volume import _cubic_pair_py, _volume_py
+from musclewrap.mesh._volume import _FACE_MATH, _cubic_pair_py, _volume_py
 from musclewrap.solver import Muscle
+from musclewrap.solver._proxy import _mat3_kernel, mat3
 from musclewrap.synthetic import capsule
 
 
@@ -93,15 +98,47 @@ def main(repeats: int) -> None:
         )
     c = mean_rows(V)
     XU = np.ascontiguousarray(np.hstack([V - c, 0.01 * V]))
-    for label, py, args in (
-        ("volume", _volume_py, (V, F, c)),
-        ("volume cubic", _cubic_pair_py, (XU, F)),
+    for label, py, args, flags in (
+        ("volume", _volume_py, (V, F, c), _FACE_MATH),
+        ("volume cubic", _cubic_pair_py, (XU, F), _FACE_MATH),
+        ("volume cubic, no fast math", _cubic_pair_py, (XU, F), False),
     ):
-        one, par = numba.njit(py), numba.njit(parallel=True)(py)
+        one = numba.njit(fastmath=flags)(py)
+        par = numba.njit(parallel=True, fastmath=flags)(py)
         one(*args), par(*args)
         a = median_ms(lambda f=one, a=args: f(*a), repeats)
         b = median_ms(lambda f=par, a=args: f(*a), repeats)
         print(f"4. {label} over {len(F)} faces: one thread {a:.2f} ms, threads {b:.2f} ms")
+    H, G = rng.random((300, 300)), rng.random((300, 3))
+    B32 = rng.random((300, 500)).astype(np.float32)
+    g, g32T, u32 = (
+        rng.random((500, 3)),
+        rng.random((3, 500)).astype(np.float32),
+        np.empty((300, 3), np.float32),
+    )
+    g32 = np.ascontiguousarray(g32T.T)
+    cases = (
+        ("300 x 300, double", lambda: mat3(H, G), lambda: H @ G),
+        ("300 x 500, single", lambda: _mat3_kernel(B32, g32T, u32), lambda: B32 @ g32),
+        (
+            "300 x 500, single matrix, double sums",
+            lambda: mat3(B32, g),
+            lambda: B32.astype(float) @ g,
+        ),
+    )
+    for label, ours, blas in cases:
+
+        def evict() -> None:
+            rows_dot(W, X6)
+
+        blas(), ours()
+        r = [
+            median_ms(f, repeats * 10, before=b) * 1e3 for f in (ours, blas) for b in (None, evict)
+        ]
+        print(
+            f"5. {label}, 3 columns: compiled {r[0]:.0f} us (after rows_dot {r[1]:.0f} us), "
+            f"numpy {r[2]:.0f} us (after rows_dot {r[3]:.0f} us)"
+        )
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 import numpy.typing as npt
 
@@ -57,9 +58,7 @@ def check_lines(lines: Mapping[str, npt.ArrayLike], name: str = "lines") -> dict
             P = as_points(pts, f"{name}: line '{key}'")
         except ValueError as exc:
             raise LineError(str(exc)) from None
-        keep = np.ones(len(P), dtype=bool)
-        keep[1:] = np.linalg.norm(np.diff(P, axis=0), axis=1) > 0
-        P = P[keep]
+        P = _distinct_consecutive(P)
         if len(P) < 2:
             raise LineError(
                 f"{name}: line '{key}' needs at least two distinct points, got {len(P)}"
@@ -68,9 +67,44 @@ def check_lines(lines: Mapping[str, npt.ArrayLike], name: str = "lines") -> dict
     return out
 
 
-def _arclength(P: FloatArray) -> FloatArray:
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+@numba.njit(cache=True)
+def _distinct_consecutive(P):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    # the rows of P without those equal to the row before them
+    keep = np.ones(P.shape[0], dtype=np.bool_)
+    for i in range(1, P.shape[0]):
+        keep[i] = P[i, 0] != P[i - 1, 0] or P[i, 1] != P[i - 1, 1] or P[i, 2] != P[i - 1, 2]
+    return P[keep]
+
+
+@numba.njit(cache=True)
+def _arclength_kernel(P):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    s = np.zeros(P.shape[0])
+    for i in range(1, P.shape[0]):
+        d0, d1, d2 = P[i, 0] - P[i - 1, 0], P[i, 1] - P[i - 1, 1], P[i, 2] - P[i - 1, 2]
+        s[i] = s[i - 1] + np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     return s / s[-1]
+
+
+@numba.njit(cache=True)
+def _polyline_at_kernel(P, t, out):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    # linear interpolation in normalized arc length, clamped to the ends (as np.interp)
+    s = _arclength_kernel(P)
+    last = P.shape[0] - 1
+    for i in range(t.shape[0]):
+        ti = t[i]
+        if ti <= s[0]:
+            out[i] = P[0]
+        elif ti >= s[last]:
+            out[i] = P[last]
+        else:
+            j = np.searchsorted(s, ti, side="right") - 1
+            f = (ti - s[j]) / (s[j + 1] - s[j])
+            for k in range(3):
+                out[i, k] = P[j, k] + f * (P[j + 1, k] - P[j, k])
+
+
+def _arclength(P: FloatArray) -> FloatArray:
+    return _arclength_kernel(np.ascontiguousarray(P, dtype=np.float64))
 
 
 def polyline_at(P: FloatArray, t: FloatArray) -> FloatArray:
@@ -87,8 +121,10 @@ def polyline_at(P: FloatArray, t: FloatArray) -> FloatArray:
     -------
     (s, 3) float64 array
     """
-    s = _arclength(P)
-    return np.column_stack([np.interp(t, s, P[:, k]) for k in range(3)])
+    t = np.asarray(t, dtype=np.float64)
+    out = np.empty((len(t), 3))
+    _polyline_at_kernel(np.ascontiguousarray(P, dtype=np.float64), t, out)
+    return out
 
 
 @dataclass(frozen=True)
@@ -141,9 +177,12 @@ class LineSampling:
                 f"{label}: action lines must be the rest lines {sorted(self.names)}; "
                 f"missing {missing}, unexpected {extra}"
             )
-        return np.vstack(
-            [polyline_at(lines[n], t) for n, t in zip(self.names, self.params, strict=True)]
-        )
+        out = np.empty((self.count, 3))
+        start = 0
+        for n, t in zip(self.names, self.params, strict=True):
+            _polyline_at_kernel(lines[n], t, out[start : start + len(t)])
+            start += len(t)
+        return out
 
 
 def sample_lines(

@@ -172,8 +172,9 @@ def volume_cubic(A: FloatArray, B: FloatArray, F: IntArray) -> FloatArray:
 
 
 # The face loops may fuse multiplies and adds and reorder the additions of one face's
-# terms: 1.4-1.6x faster (`python benchmarks/bench_kernels.py`), and no less accurate.
-# Without the other fast-math flags, so NaN and infinity still propagate and are caught.
+# terms: the volume cubic is 1.4-2x faster (`python benchmarks/bench_kernels.py`, item 4),
+# and its coefficients move by about 5e-15 relative. Without the other fast-math flags, so
+# NaN and infinity still propagate and are caught.
 _FACE_MATH = {"contract", "reassoc"}
 
 
@@ -274,7 +275,8 @@ def _cubic_pair_py(XU, F):  # pragma: no cover - compiled
 
 # Each reduction is compiled twice: threads pay off from about 10K faces (1.2-2x faster
 # on the capsule's 30K faces in two runs of `python benchmarks/bench_kernels.py`); below
-# that the start of a parallel region costs more than it saves. The chunks are the same either way, and so is every bit of the sum.
+# that the start of a parallel region costs more than it saves. The chunks are the same
+# either way, and so is every bit of the sum.
 _PARALLEL_FACES = 10000
 _volume_par = numba.njit(parallel=True, fastmath=_FACE_MATH, cache=True)(_volume_py)
 _volume_ser = numba.njit(fastmath=_FACE_MATH, cache=True)(_volume_py)

@@ -646,7 +646,7 @@ class Deformer:
                     x_ls = self._solve(b)
                 else:
                     # the unconstrained solution H^-1 A^T d from the two products of its parts
-                    x_ls = mat3(self._HL, d_L) + mat3(self._HS, s_cur)
+                    x_ls = self._HL @ d_L + self._HS @ s_cur
                 if not np.isfinite(x_ls).all():
                     raise FloatingPointError("the conditions overflow (line coordinates too large)")
                 if method == "paper":

@@ -1,12 +1,13 @@
-"""Compiled parts of the default per-pose solve: small products and the proxy's fixed point.
+"""Compiled parts of the default per-pose solve: the proxy's fixed point and its products.
 
-A pose of the default solver makes one pass over the fine coordinates ``W`` (`rows_dot`,
-threaded) and otherwise works with matrices of the cage's and the proxy's size (300 and
-about 500 rows). Those products run here, on one thread, and so does the whole fixed-point
-iteration on the proxy: OpenBLAS runs products from about 300 x 300 x 3 on two threads,
-whose threads then keep spinning and take a core from the threaded passes that follow
-(`python benchmarks/bench_kernels.py` measures this), and each Python-level step of the
-iteration costs more than its arithmetic at this size.
+A pose of the default solver makes one pass over the fine coordinates ``W`` (`rows_dot`)
+and otherwise works with matrices of the cage's and the proxy's size (300 and about 500
+rows), where each Python-level step costs as much as its arithmetic. The whole plain
+fixed-point iteration on the proxy is therefore one compiled call, and its two products per
+iteration run in single precision from float32 copies of the matrices (half the bytes through
+the caches). On one thread the compiled products are as fast as numpy's at this size, and
+a float32 matrix with double-precision sums, which numpy can only do by copying the matrix
+to float64, twice as fast (`python benchmarks/bench_kernels.py`, item 5).
 """
 
 from __future__ import annotations
