@@ -382,3 +382,22 @@ def test_single_precision_proxy_products_match_double(small_muscle, scenario):
     size = np.linalg.norm(mu.V.max(0) - mu.V.min(0))
     assert np.abs(r32.V - r64.V).max() <= 1e-8 * size
     assert r32.iterations == r64.iterations
+
+
+def test_line_sampling_matches_numpy_interpolation():
+    # the compiled arc-length sampling against np.interp on the normalized arc length
+    from musclewrap.conditions import polyline_at
+
+    rng = np.random.default_rng(3)
+    for k in (2, 3, 7):
+        P = np.cumsum(rng.normal(size=(k, 3)), axis=0)
+        P = np.vstack([P[:1], P[:1], P])  # a repeated point, dropped by the check
+        Q = check_lines({"a": P})["a"]
+        assert len(Q) == k
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
+        s /= s[-1]
+        t = np.concatenate([[-0.1, 0.0, 1.0, 1.2], rng.random(50), s])
+        ref = np.column_stack([np.interp(t, s, Q[:, j]) for j in range(3)])
+        got = polyline_at(Q, t)
+        assert np.abs(got - ref).max() <= 1e-13 * np.abs(Q).max()
+        assert np.array_equal(got[[1, 2]], Q[[0, -1]])
