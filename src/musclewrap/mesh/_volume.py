@@ -172,7 +172,7 @@ def volume_cubic(A: FloatArray, B: FloatArray, F: IntArray) -> FloatArray:
 
 
 # The face loops may fuse multiplies and adds and reorder the additions of one face's
-# terms: the volume cubic is 1.4-2x faster (`python benchmarks/bench_kernels.py`, item 4),
+# terms: the volume cubic is 1.2-2x faster (`python benchmarks/bench_kernels.py`, item 4),
 # and its coefficients move by about 5e-15 relative. Without the other fast-math flags, so
 # NaN and infinity still propagate and are caught.
 _FACE_MATH = {"contract", "reassoc"}
