@@ -14,7 +14,10 @@ On the 15K capsule's coordinate matrix (15,074 x 300) and its 30,144 faces, medi
    multiply-add fusion and reordering it is allowed (``_FACE_MATH``);
 5. the products of the cage's and the proxy's size in a pose (three columns): compiled on
    one thread (`musclewrap.solver._proxy`) against numpy (OpenBLAS), each with its matrix in
-   the cache and right after a ``rows_dot`` pass (which pushes it out of the cache).
+   the cache and right after a ``rows_dot`` pass (which pushes it out of the cache);
+6. whole poses (capsule ``bend``) of capsules of 12.8K, 20K and 30K faces with the face
+   reductions on threads and on one thread, in alternating blocks of 10 poses 0.2 s apart:
+   where threads start to pay off inside a pose (the solver's ``_PARALLEL_FACES``).
 """
 
 from __future__ import annotations
@@ -25,12 +28,13 @@ import time
 import numba
 import numpy as np
 
+import musclewrap.mesh._volume as volume_module
 from musclewrap.coordinates import rows_dot
 from musclewrap.mesh import mean_rows
 from musclewrap.mesh._volume import _FACE_MATH, _cubic_pair_py, _volume_py
 from musclewrap.solver import Muscle
 from musclewrap.solver._proxy import _mat3_kernel, mat3
-from musclewrap.synthetic import capsule
+from musclewrap.synthetic import capsule, capsule_scenario
 
 
 @numba.njit(parallel=True, fastmath=True)
@@ -138,6 +142,27 @@ def main(repeats: int) -> None:
         print(
             f"5. {label}, 3 columns: compiled {r[0]:.0f} us (after rows_dot {r[1]:.0f} us), "
             f"numpy {r[2]:.0f} us (after rows_dot {r[3]:.0f} us)"
+        )
+
+    rest, cur = capsule_scenario("bend")
+    for n_around, cap_rings, segments in ((64, 16, 84), (80, 20, 105), (96, 24, 110)):
+        d = Muscle.from_mesh(*capsule(n_around=n_around, cap_rings=cap_rings, segments=segments))
+        deformer = d.bind(rest)
+        times: dict[str, list[float]] = {"threads": [], "one thread": []}
+        saved = volume_module._PARALLEL_FACES
+        for _ in range(max(3, repeats // 3)):
+            for label, threshold in (("threads", 0), ("one thread", 10**12)):
+                volume_module._PARALLEL_FACES = threshold
+                time.sleep(0.2)
+                deformer.deform(cur)
+                for _ in range(10):
+                    t = time.perf_counter()
+                    deformer.deform(cur)
+                    times[label].append(time.perf_counter() - t)
+        volume_module._PARALLEL_FACES = saved
+        a, b = (float(np.median(v)) * 1e3 for v in times.values())
+        print(
+            f"6. pose, {len(d.F)} faces: face reductions on threads {a:.2f} ms, one thread {b:.2f} ms"
         )
 
 
