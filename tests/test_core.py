@@ -363,21 +363,14 @@ def test_newton_fallback_reaches_the_plain_fixed_point(small_muscle):
 
 
 @pytest.mark.parametrize("scenario", ["bend", "bend_short", "rot"])
-def test_single_precision_proxy_products_match_double(small_muscle, scenario):
+def test_single_precision_proxy_products_match_double(small_muscle, scenario, double_proxy):
     # the default solve steers its direction with float32 copies of the proxy's
     # matrices; the same iteration in float64 lands on the same mesh to ~1e-9 of its size
-    from musclewrap.mesh import mean_rows, volume
-    from musclewrap.solver._proxy import mat3
-
     mu = small_muscle
     rest, cur = capsule_scenario(scenario)
     d = mu.bind(rest)
     r32 = d.deform(cur)
-    C = mu.cage.C
-    d._Wd32 = np.ascontiguousarray(mu.proxy_W)
-    d._B32 = d._Hinv @ mu.proxy_W_T
-    d._Vd32 = volume(mat3(d._Wd32, C - mean_rows(C)), mu.proxy_F, center=np.zeros(3))
-    r64 = d.deform(cur)
+    r64 = double_proxy(d).deform(cur)
     assert r32.converged and r64.converged
     size = np.linalg.norm(mu.V.max(0) - mu.V.min(0))
     assert np.abs(r32.V - r64.V).max() <= 1e-8 * size

@@ -34,10 +34,17 @@ def test_vhf_preparation(vhf_muscle):
 
 
 @pytest.mark.parametrize("scenario", CAPSULE_SCENARIOS)
-def test_vhf_scenarios_meet_targets(vhf_muscle, scenario):
+def test_vhf_scenarios_meet_targets(vhf_muscle, scenario, double_proxy):
     """Issue 2 targets on every VHF muscle: volume, iterations, skeleton fit, no spikes."""
     rest, cur = principal_axis_scenario(vhf_muscle.V, scenario)
-    r = vhf_muscle.bind(rest).deform(cur)
+    d = vhf_muscle.bind(rest)
+    r = d.deform(cur)
+    # the float32 proxy products only steer: the same iteration in double lands on the
+    # same mesh (at most 1.8e-9 of the size on the adductor longus and rectus femoris)
+    r64 = double_proxy(d).deform(cur)
+    size = np.linalg.norm(np.ptp(vhf_muscle.V, axis=0))
+    assert np.abs(r.V - r64.V).max() <= 1e-8 * size
+    assert r.iterations == r64.iterations
     assert r.converged, r.reason
     assert abs(r.relative_volume_error) <= 1e-9
     assert np.isfinite(r.V).all()
