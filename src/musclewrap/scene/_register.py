@@ -7,6 +7,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._typing import FloatArray
+from ..conditions._rotation import _minimal_rotation, kabsch
+from ..mesh import face_areas
 from ._errors import SceneError
 
 __all__ = ["axes_rotation", "fit_sphere", "similarity", "surface_centroid"]
@@ -33,9 +35,8 @@ def fit_sphere(P: FloatArray) -> tuple[FloatArray, float, float]:
 
 def surface_centroid(V: FloatArray, F: np.ndarray) -> FloatArray:
     """Area-weighted centroid of a triangle surface (independent of vertex density)."""
-    T = V[F]
-    area = 0.5 * np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
-    return (T.mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
+    area = face_areas(V, F)
+    return (V[F].mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
 
 
 def axes_rotation(axes: Sequence[str]) -> FloatArray:
@@ -50,20 +51,6 @@ def axes_rotation(axes: Sequence[str]) -> FloatArray:
         sign = -1.0 if a.startswith("-") else 1.0
         R[i, unit[a.lstrip("+-")]] = sign
     return R
-
-
-def _rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
-    """The smallest rotation taking direction ``a`` to direction ``b``."""
-    a = a / np.linalg.norm(a)
-    b = b / np.linalg.norm(b)
-    v = np.cross(a, b)
-    c = float(a @ b)
-    if c < -1 + 1e-12:  # opposite: half a turn about any axis normal to a
-        n = np.cross(a, [1.0, 0, 0] if abs(a[0]) < 0.9 else [0, 1.0, 0])
-        n /= np.linalg.norm(n)
-        return 2 * np.outer(n, n) - np.eye(3)
-    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + K + K @ K / (1 + c)
 
 
 def similarity(P: FloatArray, Q: FloatArray, axes: FloatArray | None = None) -> FloatArray:
@@ -94,15 +81,14 @@ def similarity(P: FloatArray, Q: FloatArray, axes: FloatArray | None = None) -> 
         R0 = np.eye(3) if axes is None else axes
         a, b = R0 @ (P[1] - P[0]), Q[1] - Q[0]
         s = float(np.linalg.norm(b) / np.linalg.norm(a))
-        R = _rotation_between(a, b) @ R0
+        unit = np.array([a / np.linalg.norm(a), b / np.linalg.norm(b)])
+        R = _minimal_rotation(unit[:1], unit[1:])[0] @ R0
         t = Q[0] - s * R @ P[0]
     else:
         mp, mq = P.mean(axis=0), Q.mean(axis=0)
         X, Y = P - mp, Q - mq
-        U, S, Wt = np.linalg.svd(Y.T @ X / len(P))
-        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt))])
-        R = U @ D @ Wt
-        s = float(np.trace(np.diag(S) @ D) / (X * X).sum(axis=1).mean())
+        R = kabsch(X, Y)[0]  # Umeyama's rotation is Kabsch's; the scale follows from it
+        s = float(np.sum((X @ R.T) * Y) / np.sum(X * X))
         t = mq - s * R @ mp
     T = np.eye(4)
     T[:3, :3] = s * R
