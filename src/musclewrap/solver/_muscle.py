@@ -46,7 +46,7 @@ from ..mesh import (
     volume_hessian_reduced,
 )
 from ._cubic import cubic_root_near
-from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations
+from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
 from ._result import DeformationResult
 
 __all__ = ["METHODS", "Deformer", "Muscle", "deform"]
@@ -659,13 +659,13 @@ class Deformer:
                         max_iterations=max_iterations or defaults.paper_max_iterations,
                         alpha=alpha,
                     )
+                elif method == "exact":
+                    x, V, its, ok, reason, hist = self._solve_exact(
+                        x_ls, d_L, s_cur, max_iterations or defaults.max_iterations
+                    )
                 else:
-                    x, V, its, ok, reason, hist = self._solve_sqp(
-                        x_ls,
-                        d_L,
-                        s_cur,
-                        exact=(method == "exact"),
-                        max_iterations=max_iterations or defaults.max_iterations,
+                    x, V, its, ok, reason, hist = self._solve_default(
+                        x_ls, max_iterations or defaults.max_iterations
                     )
             except (np.linalg.LinAlgError, FloatingPointError) as exc:
                 # a singular or overflowing system on this pose: an unconverged result
@@ -719,9 +719,8 @@ class Deformer:
             history=tuple(hist),
         )
 
-    def _solve_sqp(self, x_ls, d_L, s_cur, *, exact: bool, max_iterations: int):  # noqa: ANN001, ANN202
-        if exact:
-            return self._solve_exact(x_ls, d_L, s_cur, max_iterations)
+    def _solve_default(self, x_ls: FloatArray, max_iterations: int):  # noqa: ANN202
+        """The default solve (``"sqp"``): the proxy's fixed point, then the fine volume."""
         mu = self.muscle
         c = mean_rows(x_ls)
         # a few plain fixed-point updates of the direction on the proxy (compiled, `_proxy`)
@@ -794,11 +793,10 @@ class Deformer:
                     volume(P, mu.F, center=np.zeros(3)) / mu.volume_rest - 1,
                 )
             )
-            # a posteriori bound of a linearly converging iteration, as in `plain_iterations`
-            rho = step / prev_step if its >= 3 and prev_step > 0 else 1.0
-            error = step * rho / (1.0 - rho) if rho < 0.5 else step
+            size = float(np.abs(lam * u).max())
+            done, _ = stationary(step, prev_step, its, size, 1e-9 * self._diag, tol.direction)
             prev_step = step
-            if error <= tol.direction * max(float(np.abs(lam * u).max()), 1e-9 * self._diag):
+            if done:
                 converged_dir = True
                 break
             G = mu.W_T @ volume_gradient(P, mu.F)

@@ -19,7 +19,14 @@ from .._typing import FloatArray, IntArray
 from ..mesh._volume import _cubic_pair_ser, _gradient_kernel, _mean_rows_kernel
 from ._cubic import root_near
 
-__all__ = ["PLAIN_CONVERGED", "PLAIN_NO_ROOT", "PLAIN_SLOW", "mat3", "plain_iterations"]
+__all__ = [
+    "PLAIN_CONVERGED",
+    "PLAIN_NO_ROOT",
+    "PLAIN_SLOW",
+    "mat3",
+    "plain_iterations",
+    "stationary",
+]
 
 #: `plain_iterations` outcomes: stationary; too slow or out of iterations (Newton's turn);
 #: no finite volume correction.
@@ -74,9 +81,25 @@ def mat3(A: FloatArray, X: FloatArray) -> FloatArray:
 
 
 @numba.njit(cache=True)
-def _plain_iterations(
-    P_ls, Wd, B, Fd, Vd0, plain, tol_dir, floor, rate, newton_after
-):  # pragma: no cover
+def stationary(step, prev_step, its, size, floor, tol_dir):  # noqa: ANN001, ANN201 # pragma: no cover
+    """Whether a linearly converging fixed point has settled, and its observed rate.
+
+    With rate ``rho`` = step / previous step, the distance to the limit is at most
+    ``rho / (1 - rho) * step`` (a posteriori bound); it must be below ``tol_dir`` of the
+    correction's size (at least ``floor``). The first step (from ``x_ls``) is the whole
+    correction, so ``rho`` needs two more. Serves the default and the exact iteration.
+    """
+    rho = step / prev_step if its >= 3 and prev_step > 0 else 1.0
+    error = step * rho / (1.0 - rho) if rho < 0.5 else step
+    return error <= tol_dir * max(size, floor), rho
+
+
+#: plain iterations before their rate is judged for Newton's method
+_NEWTON_AFTER = 4
+
+
+@numba.njit(cache=True)
+def _plain_iterations(P_ls, Wd, B, Fd, Vd0, plain, tol_dir, floor, rate):  # pragma: no cover
     n, m = Wd.shape
     XU = np.empty((n, 6))  # [P_ls, P_u]: the proxy's volume along -P_u is a cubic
     XU[:, :3] = P_ls
@@ -125,16 +148,12 @@ def _plain_iterations(
         if e < best_e:
             best_e, best_lam = e, lam
             best_u[:] = u_prev
-        # The fixed point converges linearly; with rate rho = step / previous step the
-        # distance to the limit is at most rho / (1 - rho) * step (a posteriori bound).
-        # The first step (from x_ls) is the whole correction, so rho needs two more.
-        rho = step / prev_step if its >= 3 and prev_step > 0 else 1.0
-        error = step * rho / (1.0 - rho) if rho < 0.5 else step
+        done, rho = stationary(step, prev_step, its, size, floor, tol_dir)
         prev_step = step
-        if error <= tol_dir * max(size, floor):
+        if done:
             status = PLAIN_CONVERGED
             break
-        if its >= newton_after and rho > rate:
+        if its >= _NEWTON_AFTER and rho > rate:
             break  # too slow or oscillating for plain iteration
         if its < plain:
             g = _gradient_kernel(P, Fd, _mean_rows_kernel(P))
@@ -152,7 +171,6 @@ def plain_iterations(
     tol_dir: float,
     floor: float,
     rate: float,
-    newton_after: int = 4,
 ) -> tuple[float, FloatArray, int, int, float, FloatArray]:
     """Fixed point of the least squares constrained to the proxy's rest volume.
 
@@ -180,9 +198,8 @@ def plain_iterations(
     floor : float
         Smallest correction size the tolerance is taken of (a rigid pose has none).
     rate : float
-        Observed convergence rate above which the iteration stops for Newton's method.
-    newton_after : int, optional
-        Iterations before the rate is judged.
+        Observed convergence rate above which the iteration stops for Newton's method
+        (judged from the fourth iteration).
 
     Returns
     -------
@@ -216,5 +233,4 @@ def plain_iterations(
         float(tol_dir),
         float(floor),
         float(rate),
-        int(newton_after),
     )
