@@ -3,30 +3,16 @@
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from .._hashing import digest, digest_arrays
 from ..mesh import atomic_path
 
 __all__ = ["cached_arrays", "digest"]
-
-
-def digest(*parts: bytes | str | np.ndarray) -> str:
-    """SHA-256 (hex) of byte strings, strings and arrays (their raw bytes) in order."""
-    h = hashlib.sha256()
-    for p in parts:
-        if isinstance(p, np.ndarray):
-            h.update(np.ascontiguousarray(p).tobytes())
-        elif isinstance(p, str):
-            h.update(p.encode())
-        else:
-            h.update(p)
-        h.update(b"|")
-    return h.hexdigest()
 
 
 def cached_arrays(
@@ -54,7 +40,7 @@ def cached_arrays(
             with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
                 arrays = {n: z[n] for n in z.files if n != "sha256"}
                 sha = str(z["sha256"])
-            if sha == _digest_arrays(arrays):
+            if sha == digest_arrays(arrays):
                 return arrays
         except (OSError, ValueError, KeyError, zipfile.BadZipFile):
             pass  # damaged: rebuilt below
@@ -63,9 +49,5 @@ def cached_arrays(
         with contextlib.suppress(OSError):
             path.parent.mkdir(parents=True, exist_ok=True)
             with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-                np.savez(fh, sha256=np.array(_digest_arrays(arrays)), **arrays)
+                np.savez(fh, sha256=np.array(digest_arrays(arrays)), **arrays)
     return arrays
-
-
-def _digest_arrays(arrays: dict[str, np.ndarray]) -> str:
-    return digest(*(x for n in sorted(arrays) for x in (n, str(arrays[n].dtype), arrays[n])))

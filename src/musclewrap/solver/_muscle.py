@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 import time
 from collections.abc import Mapping
@@ -16,6 +15,7 @@ import numpy.typing as npt
 from scipy import sparse
 from scipy.linalg import cho_factor, cho_solve
 
+from .._hashing import digest_arrays
 from .._typing import FloatArray, IntArray, PathLike
 from .._validation import as_faces, as_points, as_vertices
 from ..cage import Cage, build_cage
@@ -284,14 +284,7 @@ class Muscle:
     # ------------------------------------------------------------- save/load
     def content_hash(self) -> str:
         """SHA-256 over every array of the preparation (names, dtypes, shapes and bytes)."""
-        arrays = self._arrays()
-        h = hashlib.sha256()
-        for k in sorted(arrays):
-            a = np.ascontiguousarray(arrays[k])
-            h.update(k.encode())
-            h.update(str(a.dtype).encode() + str(a.shape).encode())
-            h.update(a.tobytes())
-        return h.hexdigest()
+        return digest_arrays(self._arrays())
 
     def _arrays(self) -> dict[str, np.ndarray]:
         c = self.cage

@@ -1,0 +1,39 @@
+"""SHA-256 hashes of inputs and arrays: cache keys and integrity checks of stored arrays."""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Mapping
+
+import numpy as np
+
+__all__ = ["digest", "digest_arrays"]
+
+
+def digest(*parts: bytes | str | np.ndarray) -> str:
+    """SHA-256 (hex) of byte strings, strings and arrays (their raw bytes) in order."""
+    h = hashlib.sha256()
+    for p in parts:
+        if isinstance(p, np.ndarray):
+            h.update(np.ascontiguousarray(p).tobytes())
+        elif isinstance(p, str):
+            h.update(p.encode())
+        else:
+            h.update(p)
+        h.update(b"|")
+    return h.hexdigest()
+
+
+def digest_arrays(arrays: Mapping[str, np.ndarray]) -> str:
+    """SHA-256 (hex) of named arrays: names, dtypes, shapes and bytes, in name order.
+
+    What a stored preparation (`musclewrap.Muscle.save`) and a cache file keep to
+    find damage.
+    """
+    h = hashlib.sha256()
+    for k in sorted(arrays):
+        a = np.ascontiguousarray(arrays[k])
+        h.update(k.encode())
+        h.update(str(a.dtype).encode() + str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
