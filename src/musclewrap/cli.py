@@ -9,6 +9,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from ._paths import overwrite_clash
+
 __all__ = ["main"]
 
 
@@ -113,20 +115,13 @@ def _parser() -> argparse.ArgumentParser:
 
 def _spare_inputs(inputs: Sequence[str | None], outputs: Sequence[str | None]) -> None:
     """Refuse an output path that names an input file (or another output)."""
-    seen: dict[Path, str] = {}
-    for p in inputs:
-        if p is not None:
-            seen[Path(p).resolve()] = "an input"
-    for p in outputs:
-        if p is None:
-            continue
-        r = Path(p).resolve()
-        if r in seen:
-            raise ValueError(
-                f"{p}: this is {seen[r]} file of the command; musclewrap never writes over its "
-                "inputs or one output over another: choose another output path"
-            )
-        seen[r] = "another output"
+    clash = overwrite_clash(inputs, outputs)
+    if clash is not None:
+        p, what = clash
+        raise ValueError(
+            f"{p}: this is {what} file of the command; musclewrap never writes over its "
+            "inputs or one output over another: choose another output path"
+        )
 
 
 def _cmd_prepare(a: argparse.Namespace) -> int:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
+from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
 from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
 from ._cache import cached_arrays, digest
@@ -600,17 +601,17 @@ def _input_files(scene: Scene) -> list[Path]:
 
 def _check_outputs_spare_inputs(scene: Scene, outdir: Path) -> None:
     """Refuse an output folder where the run would write over one of its inputs."""
-    out = outdir.resolve()
-    files = {out / n for n in _TOP_FILES}
-    folders = [out / m.name for m in scene.muscles] + [out / b.name for b in scene.bones]
-    for f in _input_files(scene):
-        r = f.resolve()
-        if r in files or any(r.is_relative_to(d) for d in folders):
-            raise SceneError(
-                f"{f}: an input of the scene lies where the run writes its outputs (in "
-                f"{outdir}); musclewrap never writes over its inputs: choose another output "
-                "folder (-o)"
-            )
+    clash = overwrite_clash(
+        _input_files(scene),
+        [outdir / n for n in _TOP_FILES],
+        [outdir / m.name for m in scene.muscles] + [outdir / b.name for b in scene.bones],
+    )
+    if clash is not None:
+        raise SceneError(
+            f"{clash[0]}: an input of the scene lies where the run writes its outputs (in "
+            f"{outdir}); musclewrap never writes over its inputs: choose another output "
+            "folder (-o)"
+        )
 
 
 def _run_key(scene: Scene, drive: Drive) -> str:
