@@ -23,14 +23,4 @@ def double_proxy():
 
     The same iteration in double precision: the reference for the float32 products.
     """
-    from musclewrap.mesh import mean_rows, volume
-    from musclewrap.solver._proxy import mat3
-
-    def convert(d):  # noqa: ANN001, ANN202
-        mu, C = d.muscle, d.muscle.cage.C
-        d._Wd32 = np.ascontiguousarray(mu.proxy_W)
-        d._B32 = d._Hinv @ mu.proxy_W_T
-        d._Vd32 = volume(mat3(d._Wd32, C - mean_rows(C)), mu.proxy_F, center=np.zeros(3))
-        return d
-
-    return convert
+    return lambda d: d._proxy_matrices(np.float64)

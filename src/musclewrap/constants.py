@@ -35,7 +35,8 @@ class Tolerances:
         true size is proportional to that sine, while the closed formula's
         rounding error grows as its inverse; on the VHF meshes the rest mesh is
         reproduced to at most 3.2e-11 of its size with 1e-7, against 1.4e-10
-        (semitendinosus) with 1e-10 and 4.7e-10 with 1e-6.
+        (semitendinosus) with 1e-10 and 4.7e-10 with 1e-6
+        (``python benchmarks/bench_accuracy.py``).
     merge_vertices : float
         Distance, relative to the bounding-box diagonal, under which two mesh
         vertices are merged on load.

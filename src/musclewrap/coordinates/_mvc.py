@@ -172,11 +172,14 @@ def _mvc_kernel(P, C, CF, E, FE, eps_vertex, eps_face, eps_plane, W):  # pragma:
                 W[r, j] /= total
 
 
-def _mvc_block(P: FloatArray, C: FloatArray, CF: IntArray) -> FloatArray:
+def _mvc_block(
+    P: FloatArray, C: FloatArray, CF: IntArray, in_plane: float = tol.mvc_in_plane
+) -> FloatArray:
+    """Coordinates of ``P``; ``in_plane`` other than the tolerance: its benchmark only."""
     diag = float(np.linalg.norm(C.max(0) - C.min(0)))
     E, FE = _face_edges(CF)
     W = np.empty((len(P), len(C)))
-    _mvc_kernel(P, C, CF, E, FE, tol.mvc_on_vertex * diag, tol.mvc_on_face, tol.mvc_in_plane, W)
+    _mvc_kernel(P, C, CF, E, FE, tol.mvc_on_vertex * diag, tol.mvc_on_face, in_plane, W)
     return W
 
 

@@ -457,24 +457,36 @@ class Deformer:
         self._LT = np.ascontiguousarray(L.T)
         self._ST = np.ascontiguousarray(self.S.T)
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
-        # the default solve's matrices (`_proxy`): x_ls = HL d_L + HS s', and the proxy
-        # coordinates and B = H^-1 Wd^T that make the direction u = B g of a proxy
-        # gradient g, in single precision: they only steer the direction, the fine volume
-        # is corrected in double precision along it, and half the bytes come through
-        # the caches each pose
+        # the default solve's matrices (`_proxy`): x_ls = HL d_L + HS s', and the proxy's
+        # coordinates Wd and B = H^-1 Wd^T that make the direction u = B g of a proxy
+        # gradient g (`_proxy_matrices`)
         self._HL = self._Hinv @ self._LT
         self._HS = self.weight**2 * (self._Hinv @ self._ST)
-        self._Wd32 = np.ascontiguousarray(muscle.proxy_W, dtype=np.float32)
-        self._B32 = np.ascontiguousarray(self._Hinv @ muscle.proxy_W_T, dtype=np.float32)
-        # the proxy's rest volume through the same rounded coordinates: exactly kept by a
-        # rigid motion, so that one needs no correction
-        self._Vd32 = volume(mat3(self._Wd32, C - mean_rows(C)), muscle.proxy_F, center=np.zeros(3))
+        self._proxy_matrices(np.float32)
         L_csr = sparse.csr_matrix(L)
         self._L_csr = (L_csr.indptr.astype(np.int64), L_csr.indices.astype(np.int64), L_csr.data)
         self._line_slices = tuple(
             slice(int(idx[0]), int(idx[-1]) + 1)
             for idx in (np.flatnonzero(self.sample_line == i) for i in range(len(rest)))
         )
+
+    def _proxy_matrices(self, dtype: type) -> Deformer:
+        """Make the proxy's matrices that steer the default solve, in ``dtype``.
+
+        float32 (the default): they only steer the direction, the fine volume is
+        corrected in double precision along it, and half the bytes come through the
+        caches each pose. float64 gives the same iteration in double precision, the
+        reference of the tests and of ``benchmarks/bench_accuracy.py``.
+        """
+        mu, C = self.muscle, self.muscle.cage.C
+        self._steer_Wd = np.ascontiguousarray(mu.proxy_W, dtype=dtype)
+        self._steer_B = np.ascontiguousarray(self._Hinv @ mu.proxy_W_T, dtype=dtype)
+        # the proxy's rest volume through the same rounded coordinates: exactly kept by a
+        # rigid motion, so that one needs no correction
+        self._steer_V0 = volume(
+            mat3(self._steer_Wd, C - mean_rows(C)), mu.proxy_F, center=np.zeros(3)
+        )
+        return self
 
     def _check_near(self, V: FloatArray) -> None:
         """Refuse rest lines that cannot belong to the muscle (`placement_problem`)."""
@@ -718,11 +730,11 @@ class Deformer:
         c = mean_rows(x_ls)
         # a few plain fixed-point updates of the direction on the proxy (compiled, `_proxy`)
         lam, u, its, status, best_lam, best_u = plain_iterations(
-            mat3(self._Wd32, x_ls - c),
-            self._Wd32,
-            self._B32,
+            mat3(self._steer_Wd, x_ls - c),
+            self._steer_Wd,
+            self._steer_B,
             mu.proxy_F,
-            self._Vd32,
+            self._steer_V0,
             plain=min(max_iterations, defaults.plain_iterations),
             tol_dir=tol.direction,
             floor=1e-9 * self._diag,
