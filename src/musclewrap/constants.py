@@ -45,6 +45,10 @@ class Tolerances:
         which a face counts as degenerate.
     winding_inside : float
         Generalized winding number above which a point counts as enclosed.
+    contact : float
+        Slack of the contact finish, in mean edge lengths of the muscle: a vertex
+        is pushed to the margin plus this much, and counts as violating the
+        margin only when it is closer than the margin less this much.
     """
 
     volume: float = 1e-9
@@ -55,6 +59,7 @@ class Tolerances:
     merge_vertices: float = 1e-10
     degenerate_area: float = 1e-14
     winding_inside: float = 0.5
+    contact: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -99,6 +104,11 @@ class Defaults:
         ``benchmarks/bench_large.py --scene`` (1.25M and 3.1M faces: 3.5 and
         8.3 GiB, a slope of 2.6 KiB per face, with margin). A muscle that
         needs more than the memory available is refused before preparation.
+    contact_rounds : int
+        Most push-out rounds of the contact finish per pose.
+    contact_spread : float
+        Radius over which a vertex's push out of an obstacle is spread to its
+        neighbours, in multiples of the push (plus one ring), at most 12 rings.
     """
 
     cage_size: int = 300
@@ -113,6 +123,8 @@ class Defaults:
     newton_rate: float = 0.85
     paper_max_iterations: int = 200
     memory_per_face: float = 3000.0
+    contact_rounds: int = 12
+    contact_spread: float = 1.0
 
 
 tol = Tolerances()

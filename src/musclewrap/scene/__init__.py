@@ -5,12 +5,10 @@ from ._drive import Drive, drive_scene, parse_frames
 from ._errors import SceneError
 from ._motion import Motion, read_motion
 from ._opensim import OpenSimModel
-from ._penetration import BoneProbe
 from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_scene
 
 __all__ = [
     "REPORT_FIELDS",
-    "BoneProbe",
     "BoneSpec",
     "Drive",
     "Motion",

@@ -19,7 +19,7 @@ from .. import __version__
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
 from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
-from ._cache import cached_arrays, digest
+from .._cache import cached_arrays, digest
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
@@ -188,12 +188,12 @@ def _prepare(job: dict[str, Any]) -> tuple[Any, bool, str | None]:
 
 
 def _bone_probe(V: FloatArray, F: IntArray, name: str, cache: str | None) -> Any:
-    """The bone's probe (``name``: its `BoneProbe.cache_name`): kept per process, cached."""
-    from ._penetration import BoneProbe
+    """The bone's probe (``name``: its `Obstacle.cache_name`): kept per process, cached."""
+    from ..contact import Obstacle
 
     key = (name, cache)
     if key not in _probes:
-        _probes[key] = BoneProbe.cached(V, F, None if cache is None else Path(cache), name=name)
+        _probes[key] = Obstacle.cached(V, F, None if cache is None else Path(cache), name=name)
     return _probes[key]
 
 
@@ -637,11 +637,11 @@ def _run(
 
     outdir.mkdir(parents=True, exist_ok=True)
     n = len(drive.frames)
-    from ._penetration import BoneProbe
+    from ..contact import Obstacle
 
     # per bone: mesh in its body frame, its transforms to the output frame, its probe's name
     bone_local = {
-        b.name: (*bones[b.name], drive.to_output[b.body], BoneProbe.cache_name(*bones[b.name]))
+        b.name: (*bones[b.name], drive.to_output[b.body], Obstacle.cache_name(*bones[b.name]))
         for b in scene.bones
     }
     jobs = []
@@ -771,7 +771,7 @@ def _warm_up() -> None:
     import igl  # noqa: F401
 
     from ..solver import Muscle  # noqa: F401
-    from . import _penetration  # noqa: F401
+    from .. import contact  # noqa: F401
 
 
 def _import_matplotlib() -> None:

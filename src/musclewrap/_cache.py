@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._hashing import digest, digest_arrays
-from ..mesh import atomic_path
+from ._hashing import digest, digest_arrays
+from .mesh import atomic_path
 
 __all__ = ["cached_arrays", "digest"]
 

@@ -1,4 +1,4 @@
-"""Muscle-bone penetration: which muscle vertices lie inside a bone, and how deep."""
+"""A rigid closed surface (a bone) as an obstacle: signed distance, closest points, depth."""
 
 from __future__ import annotations
 
@@ -8,18 +8,21 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 
-__all__ = ["BoneProbe"]
+__all__ = ["Obstacle"]
 
 #: version of the stored grid; part of the cache key
 _FORMAT = 1
 
 
-class BoneProbe:
-    """Inside test and depth of query points against one closed bone surface.
+class Obstacle:
+    """Signed distance, closest points and inside test against one closed bone surface.
 
     Built once per bone (in the bone's own frame, or read back with `cached`);
-    `measure` is called per frame with the muscle's vertices expressed in that
-    frame. Its answer is exact: the count of points inside and the largest
+    `query` and `measure` are called per pose with the muscle's vertices
+    expressed in that frame. `query` gives the exact signed distance, closest
+    point and outward direction of every point that comes within a given
+    reach of the surface (the contact solve, `musclewrap.contact.push_out`).
+    `measure`'s answer is exact: the count of points inside and the largest
     distance to the surface among them, as a closest-point query with the
     angle-weighted pseudo-normal sign (Baerentzen & Aanaes 2005) on every
     point would give; the grid only decides which points need that query.
@@ -161,7 +164,7 @@ class BoneProbe:
     @staticmethod
     def cache_name(V: FloatArray, F: IntArray) -> str:
         """File name of the bone's grid in a cache folder (a hash of its content)."""
-        from ._cache import digest
+        from .._cache import digest
 
         V = np.ascontiguousarray(V, dtype=np.float64)
         F = np.ascontiguousarray(F, dtype=np.int64)
@@ -170,17 +173,17 @@ class BoneProbe:
     @classmethod
     def cached(
         cls, V: FloatArray, F: IntArray, cache_dir: Path | None, *, name: str | None = None
-    ) -> BoneProbe:
+    ) -> Obstacle:
         """Build, or read back from ``cache_dir`` (keyed by the bone's content).
 
         ``name``: the `cache_name` of ``V, F`` where the caller has it already.
         """
-        from ._cache import cached_arrays
+        from .._cache import cached_arrays
 
         V = np.ascontiguousarray(V, dtype=np.float64)
         F = np.ascontiguousarray(F, dtype=np.int64)
         path = None if cache_dir is None else Path(cache_dir) / (name or cls.cache_name(V, F))
-        built: list[BoneProbe] = []
+        built: list[Obstacle] = []
 
         def build() -> dict[str, np.ndarray]:
             built.append(cls(V, F))
@@ -227,6 +230,94 @@ class BoneProbe:
         return np.sqrt(sq), self._pseudo_normal_sign(P, C, face)
 
     # ------------------------------------------------------------------ query
+    def bounds(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Lower and upper bounds of the signed distance of each point (< 0 inside).
+
+        From the grid alone (no closest-point query): the signed distance at
+        ``p`` lies within every corner interval of its cell widened by
+        ``|p - corner|``. Outside the grid's box the lower bound is the
+        distance to the box and the upper bound infinite.
+
+        Parameters
+        ----------
+        Q : (k, 3) float64 array
+            Points in the bone's frame.
+
+        Returns
+        -------
+        lower, upper : (k,) float64 arrays
+        """
+        Q = np.asarray(Q, dtype=np.float64)
+        lower = np.linalg.norm(np.maximum(np.maximum(self.lo - Q, Q - self.hi), 0.0), axis=1)
+        upper = np.full(len(Q), np.inf)
+        box = lower == 0.0
+        if box.any():
+            lower[box], upper[box] = self._grid_bounds(Q[box])
+        return lower, upper
+
+    def _grid_bounds(self, P: FloatArray) -> tuple[FloatArray, FloatArray]:
+        U = (P - self.lo) / self.h
+        base = np.clip(U.astype(np.int64), 0, self._shape - 2)
+        # corner-major (8, n) arrays: numpy reduces over a short last axis slowly
+        flat = self._corner_offsets[:, None] + (base @ self._strides)[None, :]
+        f = (U - base).T  # position in the cell, 0..1 per axis
+        a = np.stack([f * f, (1 - f) ** 2]) * (self.h * self.h)  # (corner bit, axis, n)
+        d = np.sqrt(
+            (a[:, None, None, 0] + a[None, :, None, 1] + a[None, None, :, 2]).reshape(8, -1)
+        )
+        lower = (self._lo_sd[flat] - d).max(axis=0)
+        upper = (self._hi_sd[flat] + d).min(axis=0)
+        return lower, upper
+
+    def query(
+        self, Q: FloatArray, reach: float | FloatArray
+    ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+        """Exact signed distance, closest point and outward direction near the surface.
+
+        Only points whose signed distance may be below ``reach`` (by `bounds`)
+        take the exact closest-point query; of those, the ones whose distance
+        is below ``reach`` are returned.
+
+        Parameters
+        ----------
+        Q : (k, 3) float64 array
+            Points in the bone's frame.
+        reach : float or (k,) float64 array
+            Signed distance below which a point is returned (mesh units).
+
+        Returns
+        -------
+        index : (j,) int64 array
+            Rows of ``Q`` with signed distance below ``reach``.
+        phi : (j,) float64 array
+            Their signed distance (< 0 inside the bone).
+        C : (j, 3) float64 array
+            Closest points on the bone surface.
+        N : (j, 3) float64 array
+            Unit outward directions at ``C``: ``(Q - C) / phi`` where the point is
+            off the surface, the pseudo-normal where it lies on it.
+        """
+        Q = np.ascontiguousarray(Q, dtype=np.float64)
+        reach = np.broadcast_to(np.asarray(reach, dtype=np.float64), (len(Q),))
+        lower, _ = self.bounds(Q)
+        idx = np.flatnonzero(lower < reach)
+        if not len(idx):
+            return idx, np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+        P = np.ascontiguousarray(Q[idx])
+        sq, face, C = self._tree.squared_distance(self.V, self.F, P)
+        side = self._pseudo_normal_sign(P, C, face)
+        dist = np.sqrt(sq)
+        phi = np.where(side < 0, -dist, dist)
+        keep = phi < reach[idx]
+        idx, phi, C, P, face, dist = idx[keep], phi[keep], C[keep], P[keep], face[keep], dist[keep]
+        N = np.empty_like(P)
+        off = dist > 1e-12 * (1.0 + np.abs(P).max(initial=0.0))
+        N[off] = (P[off] - C[off]) / phi[off, None]
+        if (~off).any():
+            on = self._FN[face[~off]]
+            N[~off] = on / np.linalg.norm(on, axis=1)[:, None]
+        return idx, phi, C, N
+
     def measure(self, Q: FloatArray) -> tuple[int, float]:
         """Count the points inside the bone and return the deepest one's depth.
 
@@ -245,18 +336,7 @@ class BoneProbe:
         P = Q[((Q >= self.lo) & (Q <= self.hi)).all(axis=1)]
         if not len(P):
             return 0, 0.0
-        # the signed distance at p lies within every corner's interval widened by |p - corner|
-        U = (P - self.lo) / self.h
-        base = np.minimum(U.astype(np.int64), self._shape - 2)
-        # corner-major (8, n) arrays: numpy reduces over a short last axis slowly
-        flat = self._corner_offsets[:, None] + (base @ self._strides)[None, :]
-        f = (U - base).T  # position in the cell, 0..1 per axis
-        a = np.stack([f * f, (1 - f) ** 2]) * (self.h * self.h)  # (corner bit, axis, n)
-        d = np.sqrt(
-            (a[:, None, None, 0] + a[None, :, None, 1] + a[None, None, :, 2]).reshape(8, -1)
-        )
-        lower = (self._lo_sd[flat] - d).max(axis=0)
-        upper = (self._hi_sd[flat] + d).min(axis=0)
+        lower, upper = self._grid_bounds(P)
         inside = upper < 0
         unsure = ~inside & (lower <= 0)
         n_inside = int(inside.sum())

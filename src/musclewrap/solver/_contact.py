@@ -1,0 +1,280 @@
+"""The fine-level contact finish: muscle vertices out of obstacles, the fine volume exact."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._typing import FloatArray, IntArray
+from ..constants import defaults, tol
+from ..contact import Obstacle
+from ..mesh import mean_edge_length, mean_rows, volume, volume_cubic
+from ._cubic import cubic_root_near
+
+__all__ = ["ContactReport", "Placed", "adjacency", "push_out"]
+
+
+@dataclass(frozen=True)
+class Placed:
+    """An obstacle in a pose: ``T`` maps the muscle's frame into the obstacle's frame.
+
+    Attributes
+    ----------
+    obstacle : Obstacle
+        The bone, in its own frame (built once, `Obstacle.cached`).
+    T : (4, 4) float64 array or None
+        Rigid transform from the frame of the muscle's vertices to the
+        obstacle's frame (None: the same frame).
+    allowance : (n,) float64 array or None
+        Per muscle vertex, the smallest signed distance to this obstacle that is
+        accepted in place of the margin where it is smaller (a rest overlap kept
+        with ``rest_overlap = "keep"``: no vertex goes deeper than it was).
+    name : str
+        Quoted in reasons.
+    """
+
+    obstacle: Obstacle
+    T: FloatArray | None = None
+    allowance: FloatArray | None = None
+    name: str = "obstacle"
+
+    def to_obstacle(self, P: FloatArray) -> FloatArray:
+        """Points of the muscle's frame in the obstacle's frame."""
+        if self.T is None:
+            return P
+        return P @ self.T[:3, :3].T + self.T[:3, 3]
+
+    def to_muscle(self, P: FloatArray, *, direction: bool = False) -> FloatArray:
+        """Points (or, with ``direction``, vectors) of the obstacle's frame in the muscle's."""
+        if self.T is None:
+            return P
+        R = self.T[:3, :3]
+        return P @ R if direction else (P - self.T[:3, 3]) @ R
+
+
+@dataclass(frozen=True)
+class ContactReport:
+    """What the contact finish did to one pose.
+
+    Attributes
+    ----------
+    contact_vertices : int
+        Vertices held on an obstacle (at the margin) in the result.
+    depth_before : float
+        Deepest vertex inside an obstacle before the finish (0 if none), mesh units.
+    depth_after : float
+        Deepest vertex inside an obstacle after it (0 if none).
+    clearance : float
+        Smallest signed distance of a vertex to an obstacle it came near, less
+        the margin (>= 0 when every vertex keeps the margin; 0 when none came near).
+    moved_max : float
+        Largest displacement of a vertex by the finish.
+    rounds : int
+        Push-out rounds (0: nothing to do).
+    ok : bool
+        Whether every vertex keeps the margin (to ``tol.contact`` mean edge lengths).
+    reason : str
+        Why it is not ok, naming the obstacle; empty when ok.
+    """
+
+    contact_vertices: int = 0
+    depth_before: float = 0.0
+    depth_after: float = 0.0
+    clearance: float = 0.0
+    moved_max: float = 0.0
+    rounds: int = 0
+    ok: bool = True
+    reason: str = ""
+
+
+def adjacency(F: IntArray, n: int) -> sp.csr_matrix:
+    """Vertex adjacency of a triangle mesh (symmetric, ones), CSR."""
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    return ((A + A.T) > 0).astype(np.float64).tocsr()
+
+
+def _rings(A: sp.csr_matrix, seeds: np.ndarray, k: int) -> np.ndarray:
+    """Ring distance (in edges) from the ``seeds`` of every vertex up to ``k``; k + 1 beyond."""
+    level = np.full(A.shape[0], k + 1, dtype=np.int64)
+    level[seeds] = 0
+    front = np.zeros(A.shape[0])
+    front[seeds] = 1.0
+    for r in range(1, k + 1):
+        reached = (A @ front > 0) & (level > k)
+        if not reached.any():
+            break
+        level[reached] = r
+        front = reached.astype(np.float64)
+    return level
+
+
+def _violations(
+    P: FloatArray, placed: Sequence[Placed], margin: float, slack: float
+) -> tuple[np.ndarray, FloatArray, FloatArray, list[float]]:
+    """Vertices closer than the margin (less ``slack``) to an obstacle, and where they go.
+
+    Returns the vertex indices, their targets (on the obstacle's surface at the
+    margin plus ``slack``, along the shortest way out, in the muscle's frame),
+    their signed distance less the allowed one (negative), and per obstacle the
+    deepest vertex inside it (0 if none). A vertex too close to two obstacles
+    takes the larger violation.
+    """
+    n = len(P)
+    worst = np.full(n, np.inf)
+    target = np.zeros((n, 3))
+    depths = []
+    for pl in placed:
+        allowed = np.full(n, margin)
+        if pl.allowance is not None:
+            allowed = np.minimum(allowed, pl.allowance)
+        idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P), allowed - slack)
+        depths.append(float(max(-phi.min(initial=0.0), 0.0)))
+        if not len(idx):
+            continue
+        gap = phi - allowed[idx]
+        t = pl.to_muscle(C + N * (allowed[idx] + slack)[:, None])
+        take = gap < worst[idx]
+        worst[idx[take]] = gap[take]
+        target[idx[take]] = t[take]
+    hit = np.flatnonzero(np.isfinite(worst))
+    return hit, target[hit], worst[hit], depths
+
+
+def _normals(P: FloatArray, F: IntArray) -> FloatArray:
+    """Area-weighted vertex normals (unit)."""
+    FN = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
+    Fr = F.ravel()
+    N = np.stack(
+        [np.bincount(Fr, np.repeat(FN[:, k], 3), minlength=len(P)) for k in range(3)], axis=1
+    )
+    return N / np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+
+
+def push_out(
+    V: FloatArray,
+    F: IntArray,
+    placed: Sequence[Placed],
+    *,
+    volume_target: float,
+    margin: float = 0.0,
+    direction: FloatArray | None = None,
+    A: sp.csr_matrix | None = None,
+    max_rounds: int = defaults.contact_rounds,
+) -> tuple[FloatArray, ContactReport]:
+    """Move a muscle's vertices out of obstacles, keeping its volume exact.
+
+    Each round finds the vertices closer than ``margin`` to an obstacle (exact
+    closest points, `Obstacle.query`), moves them onto the obstacle's surface
+    at the margin along the shortest way out, spreads that displacement
+    smoothly over the surrounding rings of the mesh (harmonic, by Jacobi
+    sweeps, zero beyond a radius that grows with the depth), and restores the
+    volume exactly along ``direction`` masked to zero on every vertex held so
+    far (the volume along a line is a cubic: its root). Vertices moved onto an
+    obstacle stay there; vertices the volume correction brings too near join
+    them in the next round.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+        Positions of the muscle's vertices (closed, outward oriented mesh).
+    F : (k, 3) int array
+        Triangles.
+    placed : sequence of Placed
+        The obstacles in this pose.
+    volume_target : float
+        The volume the result must have.
+    margin : float, optional
+        Smallest distance a vertex must keep from every obstacle (mesh units).
+    direction : (n, 3) float64 array, optional
+        Volume-correcting displacement field (the solver's ``W u``); default the
+        vertex normals.
+    A : scipy.sparse.csr_matrix, optional
+        The mesh's `adjacency` (built here when not given).
+    max_rounds : int, optional
+        Most push-out rounds.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+        New positions (``V`` itself when nothing was near an obstacle).
+    ContactReport
+    """
+    edge = mean_edge_length(V, F)
+    slack = tol.contact * edge
+    hit, target, gap, depths = _violations(V, placed, margin, slack)
+    depth_before = max(depths, default=0.0)
+    if not len(hit):
+        return V, ContactReport(depth_before=depth_before)
+    n = len(V)
+    if A is None:
+        A = adjacency(F, n)
+    deg = np.asarray(A.sum(axis=1)).ravel()
+    P = V.copy()
+    held = np.zeros(n, dtype=bool)
+    rounds = 0
+    ok = True
+    for rounds in range(1, max_rounds + 1):
+        D = target - P[hit]
+        depth = float(np.linalg.norm(D, axis=1).max())
+        # harmonic spread of the push over the rings around the contact (zero beyond)
+        radius = int(min(np.ceil(defaults.contact_spread * depth / edge) + 1, 12))
+        level = _rings(A, hit, radius)
+        region = np.flatnonzero((level > 0) & (level <= radius) & ~held)
+        Dall = np.zeros((n, 3))
+        Dall[hit] = D
+        if len(region):
+            M = A[region]  # rows of the free vertices; columns: all (fixed ones hold values)
+            inv = 1.0 / deg[region]
+            for _ in range(2 * radius * radius):
+                Dall[region] = (M @ Dall) * inv[:, None]
+        P += Dall
+        P[hit] = target
+        held[hit] = True
+        # exact volume along the correction direction, away from the held vertices
+        Z = _normals(P, F) if direction is None else np.asarray(direction, dtype=np.float64)
+        ramp = min(radius + 2, 12)
+        level = _rings(A, np.flatnonzero(held), ramp)
+        mask = np.clip(level / (ramp + 1.0), 0.0, 1.0)
+        Zm = Z * mask[:, None]
+        c = mean_rows(P)
+        t = cubic_root_near(volume_cubic(P - c, Zm, F), volume_target, 0.0)
+        if not np.isfinite(t):
+            ok = False
+            break
+        P += t * Zm
+        hit, target, gap, depths = _violations(P, placed, margin, slack)
+        if not len(hit):
+            break
+    else:
+        ok = False
+    reason = ""
+    if len(hit):
+        ok = False
+        names = {}
+        # the deepest remaining violation per obstacle, for the reason
+        for pl, d in zip(placed, depths, strict=True):
+            if d > 0:
+                names[pl.name] = d
+        reason = (
+            f"contact not met after {rounds} rounds: {len(hit)} vertices within the margin, "
+            + ", ".join(f"{k} {v:.3g} deep" for k, v in names.items())
+        ).rstrip(", ")
+    rel = abs(volume(P, F) - volume_target) / abs(volume_target)
+    if rel > tol.volume:
+        ok = False
+        reason = (reason + "; " if reason else "") + f"volume error {rel:.3g} after contact"
+    report = ContactReport(
+        contact_vertices=int(held.sum()),
+        depth_before=depth_before,
+        depth_after=max(depths, default=0.0),
+        clearance=float(gap.min()) if len(hit) else 0.0,
+        moved_max=float(np.linalg.norm(P - V, axis=1).max()),
+        rounds=rounds,
+        ok=ok,
+        reason=reason,
+    )
+    return P, report
