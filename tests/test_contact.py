@@ -50,3 +50,107 @@ def test_obstacle_grid_is_exact_and_cached(tmp_path):
     path.write_bytes(path.read_bytes()[:-100])
     c = Obstacle.cached(V, F, tmp_path)
     assert c.measure(Q) == _brute_force(c, Q)
+
+
+# ------------------------------------------------------------------ the contact finish
+def _box(lo, hi):
+    """A closed, outward box mesh (12 triangles)."""
+    import trimesh
+
+    b = trimesh.creation.box(bounds=np.array([lo, hi], dtype=float))
+    return np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces, dtype=np.int64)
+
+
+@pytest.fixture(scope="module")
+def capsule_muscle():
+    from musclewrap.solver import Muscle
+
+    # radius 20, along +z from 0 to 200
+    V, F = capsule(n_around=48, cap_rings=10, segments=50)
+    return Muscle.from_mesh(V, F, cage_size=200)
+
+
+@pytest.fixture(scope="module")
+def bent(capsule_muscle):
+    rest = {"a": [[0.0, 0.0, 0.0], [0.0, 0.0, 200.0]]}
+    d = capsule_muscle.bind(rest)
+    # the far half bent 30 degrees toward +y
+    a = np.radians(30)
+    cur = {"a": [[0.0, 0.0, 0.0], [0, 0, 100.0], [0, 100 * np.sin(a), 100 + 100 * np.cos(a)]]}
+    return d, cur
+
+
+@pytest.mark.parametrize("margin", [0.0, 1.5])
+def test_capsule_pressed_into_a_plane(bent, margin):
+    from musclewrap.mesh import volume
+
+    d, cur = bent
+    free = d.deform(cur)
+    # a half-space x >= 12 (a large box): the muscle reaches x = 20, 8 into it
+    box = Obstacle(*_box([12.0, -300, -300], [400, 300, 500]))
+    res = d.deform(cur, obstacles=[box], margin=margin)
+    assert res.converged, res.reason
+    assert abs(volume(res.V, d.muscle.F) / d.muscle.volume_rest - 1) <= 1e-12
+    assert abs(res.relative_volume_error) <= 1e-12
+    edge = 0.01 * np.mean(np.linalg.norm(np.diff(d.muscle.V[d.muscle.F[:, :2]], axis=1), axis=2))
+    # every vertex keeps the margin from the plane, the contact vertices lie on it
+    assert res.V[:, 0].max() <= 12.0 - margin + 2 * edge
+    on = np.abs(res.V[:, 0] - (12.0 - margin)) <= 2 * edge
+    assert on.sum() >= res.contact_vertices > 50
+    assert res.penetration_depth_before == pytest.approx(free.V[:, 0].max() - 12.0, abs=1e-6)
+    assert res.penetration_depth == 0.0
+    # the rest of the muscle takes the lost volume: it grows elsewhere, by little
+    assert res.contact_moved <= 9.0 + margin
+    assert d.muscle.shape_change(res.V).max() <= 0.5 + 0.2 * margin
+
+
+def test_capsule_pressed_into_a_sphere(bent):
+    d, cur = bent
+    centre = np.array([0.0, -28.0, 60.0])  # 8 into the capsule's side (radius 20 + 15 - 28)
+    S, SF = capsule(radius=15.0, length=0.0, n_around=64, cap_rings=32, segments=1)
+    S = S - S.mean(axis=0) + centre
+    res = d.deform(cur, obstacles=[Obstacle(S, SF)], margin=0.5)
+    assert res.converged, res.reason
+    assert abs(res.relative_volume_error) <= 1e-12
+    r = np.linalg.norm(res.V - centre, axis=1)
+    # the polygonal sphere lies within 0.02 of radius 15
+    assert r.min() >= 15.0 + 0.5 - 0.05
+    assert res.contact_vertices > 10
+
+
+def test_no_contact_gives_the_result_without_obstacles(bent):
+    d, cur = bent
+    far = Obstacle(*_box([100.0, 100, 100], [150, 150, 150]))
+    a, b = d.deform(cur), d.deform(cur, obstacles=[far], margin=2.0)
+    assert np.array_equal(a.V, b.V) and b.contact_vertices == 0 and b.converged
+
+
+def test_lines_dragging_the_muscle_deep_into_a_bone(bent):
+    from musclewrap.solver import Placed
+
+    d, _ = bent
+    # the whole muscle dragged 15 into a slab that it cannot leave sideways within the margin
+    cur = {"a": [[0.0, 0.0, 0.0], [15.0, 0.0, 200.0]]}
+    slab = Obstacle(*_box([12.0, -300, -300], [400, 300, 500]))
+    # placed by a transform: the slab's frame is the muscle's shifted by 5 along x
+    T = np.eye(4)
+    T[0, 3] = 5.0
+    res = d.deform(cur, obstacles=[Placed(slab, T, name="slab")], margin=0.0)
+    assert res.converged, res.reason
+    assert res.V[:, 0].max() <= 7.0 + 0.05
+    assert res.penetration_depth_before > 20
+    assert abs(res.relative_volume_error) <= 1e-12
+
+
+def test_contact_that_cannot_be_met_is_reported(bent):
+    from musclewrap.solver import Placed
+
+    d, cur = bent
+    # two slabs 1 apart across the muscle, with a margin of 2: no place keeps it from both
+    a = Obstacle(*_box([0.5, -300, -300], [400, 300, 500]))
+    b = Obstacle(*_box([-400.0, -300, -300], [-0.5, 300, 500]))
+    res = d.deform(cur, obstacles=[Placed(a, name="left"), Placed(b, name="right")], margin=2.0)
+    assert not res.converged
+    assert "contact not met" in res.reason and ("left" in res.reason or "right" in res.reason)
+    # still volume-exact
+    assert abs(res.relative_volume_error) <= 1e-9

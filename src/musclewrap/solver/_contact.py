@@ -132,7 +132,7 @@ def _violations(
         if pl.allowance is not None:
             allowed = np.minimum(allowed, pl.allowance)
         idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P), allowed - slack)
-        depths.append(float(max(-phi.min(initial=0.0), 0.0)))
+        depths.append(float(max(0.0, -phi.min(initial=0.0))))
         if not len(idx):
             continue
         gap = phi - allowed[idx]
@@ -264,6 +264,16 @@ def push_out(
             + ", ".join(f"{k} {v:.3g} deep" for k, v in names.items())
         ).rstrip(", ")
     rel = abs(volume(P, F) - volume_target) / abs(volume_target)
+    if rel > tol.volume:
+        # no volume left to take where nothing is held: the volume is restored over the
+        # whole surface (the contact stays unmet, and is reported)
+        Z = _normals(P, F) if direction is None else np.asarray(direction, dtype=np.float64)
+        c = mean_rows(P)
+        t = cubic_root_near(volume_cubic(P - c, Z, F), volume_target, 0.0)
+        if np.isfinite(t):
+            P = P + t * Z
+            _, _, _, depths = _violations(P, placed, margin, slack)
+        rel = abs(volume(P, F) - volume_target) / abs(volume_target)
     if rel > tol.volume:
         ok = False
         reason = (reason + "; " if reason else "") + f"volume error {rel:.3g} after contact"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +29,7 @@ from ..conditions import (
     sample_lines,
 )
 from ..constants import defaults, tol
+from ..contact import Obstacle
 from ..coordinates import mean_value_coordinates, rows_dot
 from ..mesh import (
     atomic_path,
@@ -45,6 +46,7 @@ from ..mesh import (
     volume_gradient,
     volume_hessian_reduced,
 )
+from ._contact import Placed, adjacency, push_out
 from ._cubic import cubic_root_near
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
 from ._result import DeformationResult
@@ -188,6 +190,13 @@ class Muscle:
         if V.shape != self.V.shape:
             raise ValueError(f"V has shape {V.shape}, the muscle has {self.V.shape}")
         return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / edge
+
+    @property
+    def adjacency(self) -> sparse.csr_matrix:
+        """Vertex adjacency of the fine mesh (built on first use; the contact finish)."""
+        if getattr(self, "_adjacency", None) is None:
+            self._adjacency = adjacency(self.F, len(self.V))
+        return self._adjacency
 
     # ------------------------------------------------------------------ build
     @classmethod
@@ -600,6 +609,8 @@ class Deformer:
         method: str = "sqp",
         max_iterations: int | None = None,
         alpha: float | None = None,
+        obstacles: Sequence[Placed | Obstacle] | None = None,
+        margin: float = 0.0,
     ) -> DeformationResult:
         """Deform the muscle so that it follows the current action lines.
 
@@ -625,6 +636,15 @@ class Deformer:
             Iteration limit (defaults per method in `musclewrap.constants`).
         alpha : float, optional
             ``"paper"`` only: a fixed step; default adaptive from 0.5.
+        obstacles : sequence of Placed or Obstacle, optional
+            Bones in this pose (an `musclewrap.contact.Obstacle` alone is in the
+            muscle's frame; a `Placed` carries the transform from the muscle's
+            frame into the bone's). After the solve, every fine vertex closer
+            than ``margin`` to one of them is moved out onto it and the fine
+            volume is restored exactly (`musclewrap.solver.push_out`); a pose
+            where that fails is unconverged, with the reason.
+        margin : float, optional
+            Distance every fine vertex keeps from every obstacle (mesh units).
 
         Returns
         -------
@@ -684,10 +704,26 @@ class Deformer:
                     method=method,
                     seconds=time.perf_counter() - t0,
                 )
-            return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0)
+            contact = None
+            if obstacles and np.isfinite(V).all():
+                placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
+                V, contact = push_out(
+                    V,
+                    self.muscle.F,
+                    placed,
+                    volume_target=self.muscle.volume_rest,
+                    margin=margin,
+                    A=self.muscle.adjacency,
+                )
+                if not contact.ok:
+                    reason = contact.reason if ok else f"{reason}; {contact.reason}"
+                    ok = False
+            return self._result(
+                x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact
+            )
 
     def _result(
-        self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0
+        self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact=None
     ) -> DeformationResult:  # noqa: ANN001
         mu = self.muscle
         if not np.isfinite(V).all():
@@ -722,6 +758,16 @@ class Deformer:
             method=method,
             seconds=time.perf_counter() - t0,
             history=tuple(hist),
+            **(
+                {}
+                if contact is None
+                else {
+                    "contact_vertices": contact.contact_vertices,
+                    "penetration_depth": contact.depth_after,
+                    "penetration_depth_before": contact.depth_before,
+                    "contact_moved": contact.moved_max,
+                }
+            ),
         )
 
     def _solve_default(self, x_ls: FloatArray, max_iterations: int):  # noqa: ANN202

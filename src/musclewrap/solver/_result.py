@@ -45,6 +45,16 @@ class DeformationResult:
     history : tuple of (float, float)
         Per iteration: energy and relative fine-volume error (``paper`` and
         ``exact`` methods; empty for the default).
+    contact_vertices : int
+        Vertices held on an obstacle at the margin by the contact finish (0
+        without obstacles).
+    penetration_depth : float
+        Deepest vertex inside an obstacle after the contact finish (0 if none),
+        mesh units.
+    penetration_depth_before : float
+        The same before the finish: what the solve without contact gave.
+    contact_moved : float
+        Largest displacement of a vertex by the contact finish.
     """
 
     V: FloatArray
@@ -61,6 +71,10 @@ class DeformationResult:
     method: str
     seconds: float
     history: tuple[tuple[float, float], ...] = field(default=())
+    contact_vertices: int = 0
+    penetration_depth: float = 0.0
+    penetration_depth_before: float = 0.0
+    contact_moved: float = 0.0
 
     @classmethod
     def failed(
