@@ -244,6 +244,7 @@ def test_lhdl_walk_subset_meets_targets(data_dir, tmp_path):
     scene = load_scene(EXAMPLES / "lhdl_walk.toml")
 
     def run(out):
+        # the solve's own targets, without contact (tested with it in test_contact.py)
         return run_scene(
             scene,
             tmp_path / out,
@@ -252,6 +253,7 @@ def test_lhdl_walk_subset_meets_targets(data_dir, tmp_path):
             cache_dir=tmp_path / "c",
             progress=None,
             render=False,
+            collisions=False,
         )
 
     s = run("walk")

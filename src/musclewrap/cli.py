@@ -71,7 +71,9 @@ def _parser() -> argparse.ArgumentParser:
             "Read a scene file (TOML; see examples/ and the README), compute each muscle's "
             "action lines per frame with OpenSim (or read them from a CSV), deform every "
             "muscle, and write OUTDIR/<muscle>/<muscle>_<frame>.vtp, bones, action lines, "
-            "scene.pvd (ParaView), report.csv, volume_error.png, convergence.png and scene.gif."
+            "scene.pvd (ParaView), report.csv, volume_error.png, convergence.png, "
+            "penetration.png (scenes with bones) and scene.gif. Muscles are kept out of the "
+            "scene's bones unless --no-collisions or [collisions] enabled = false."
         ),
     )
     ru.add_argument("scene", help="scene file (.toml)")
@@ -87,6 +89,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     ru.add_argument("--no-cache", action="store_true", help="prepare every muscle afresh")
     ru.add_argument("--no-gif", action="store_true", help="skip scene.gif")
+    ru.add_argument(
+        "--no-collisions",
+        action="store_true",
+        help="let muscles pass through bones (penetration is still measured and reported)",
+    )
     ru.add_argument(
         "--allow-unconverged", action="store_true", help="exit 0 even if a frame did not converge"
     )
@@ -331,6 +338,7 @@ def _cmd_run(a: argparse.Namespace) -> int:
             render=False if a.no_gif else None,
             log=lambda m: print(m, file=sys.stderr),
             resume=a.resume,
+            collisions=False if a.no_collisions else None,
         )
         print(summary.text())
         unconverged += summary.unconverged

@@ -109,6 +109,13 @@ class Defaults:
     contact_spread : float
         Radius over which a vertex's push out of an obstacle is spread to its
         neighbours, in multiples of the push (plus one ring), at most 12 rings.
+    contact_relax : int
+        Relaxation sweeps of the pushes with their neighbours' in the first
+        rounds (each sweep halves the difference from the 1-ring mean), so that
+        neighbours pushed in different directions do not cross.
+    contact_relax_rounds : int
+        The first rounds, which relax; the later ones project the vertices
+        still too near exactly.
     """
 
     cage_size: int = 300
@@ -125,6 +132,8 @@ class Defaults:
     memory_per_face: float = 3000.0
     contact_rounds: int = 12
     contact_spread: float = 1.0
+    contact_relax: int = 4
+    contact_relax_rounds: int = 3
 
 
 tol = Tolerances()

@@ -263,6 +263,30 @@ def build_cage(
         raise ValueError(f"size must be at least 20 cage vertices, got {size}")
     if coarsening not in ("uniform", "quadric"):
         raise ValueError(f"coarsening must be 'uniform' or 'quadric', got {coarsening!r}")
+    # Where the verified cage cannot be had at the requested size (a vertex still too near
+    # after the push rounds: seen on a muscle flattened against a bone by the contact
+    # finish), other sizes and then quadric decimation are tried before giving up.
+    tries = [(size, coarsening)]
+    if coarsening == "uniform":
+        tries += [(int(round(1.3 * size)), "uniform"), (int(round(0.8 * size)), "uniform")]
+        tries += [(size, "quadric")]
+    for k, (n, how) in enumerate(tries):
+        try:
+            return _build_cage(V, F, n, offset, how, max_push_rounds)
+        except CageError:
+            if k == len(tries) - 1:
+                raise
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _build_cage(
+    V: FloatArray,
+    F: IntArray,
+    size: int,
+    offset: float | None,
+    coarsening: str,
+    max_push_rounds: int,
+) -> Cage:
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))

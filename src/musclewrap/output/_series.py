@@ -171,3 +171,59 @@ def plot_convergence(
     axes[0, 0].legend(fontsize="small")
     fig.suptitle(title, fontsize="medium")
     return _save_png(fig, path)
+
+
+def plot_penetration(
+    path: PathLike,
+    after: Mapping[str, tuple[Sequence[float], Sequence[float]]],
+    *,
+    title: str,
+    before: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
+    limit: float | None = None,
+    unit: str = "mm",
+) -> Path:
+    """Plot the deepest muscle vertex inside a bone per frame, one colour per muscle.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination PNG.
+    after : mapping of str to (frames, depths)
+        Depth per frame in the written meshes (after the contact finish).
+    title : str
+        Plot title.
+    before : mapping of str to (frames, depths), optional
+        The same before the contact finish (what the solve alone gave), drawn
+        thin and dashed in the muscle's colour.
+    limit : float, optional
+        A horizontal line: the depth a target allows.
+    unit : str, optional
+        Mesh unit, for the axis label.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
+    for i, (label, (x, y)) in enumerate(after.items()):
+        colour = f"C{i % 10}"
+        ax.plot(list(x), list(y), marker=".", ms=3, color=colour, label=label)
+        if before and label in before:
+            bx, by = before[label]
+            ax.plot(list(bx), list(by), ls="--", lw=0.8, color=colour, alpha=0.7)
+    if before:
+        ax.plot([], [], ls="--", lw=0.8, color="0.4", label="before contact (dashed)")
+    if limit is not None:
+        ax.axhline(limit, color="k", ls=":", lw=0.8, label=f"target {limit:g} {unit}")
+    ax.set_xlabel("frame")
+    ax.set_ylabel(f"deepest muscle vertex inside a bone ({unit})")
+    ax.set_ylim(bottom=0.0)
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small", ncol=2 if len(after) > 4 else 1)
+    return _save_png(fig, path)

@@ -30,14 +30,16 @@ _TOP = {
     "bones",
     "cache_dir",
     "registration",
+    "collisions",
 }
 _MODEL = {"osim", "motion", "rest_pose", "angle_unit", "coordinates", "output_frame", "mesh_frame"}
 _LINES = {"csv", "rest_frame"}
 _OUTPUT = {"bone_display_faces", "paper_frames", "gif", "image_size", "gif_every"}
 _MUSCLE = {
     "mesh", "paths", "body", "reference", "cage_size", "cage_coarsening", "method",
-    "max_iterations", "repair", "frame",
+    "max_iterations", "repair", "frame", "bones",
 }  # fmt: skip
+_COLLISIONS = {"enabled", "margin", "rest_overlap"}
 _BONE = {"mesh", "body", "frame"}
 _LANDMARK = {"name", "mesh", "fit", "body", "point"}
 
@@ -76,11 +78,12 @@ class MuscleSpec:
     max_iterations: int | None
     repair: bool
     frame: str
+    bones: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)
 class BoneSpec:
-    """One bone carried rigidly by a body (display and penetration)."""
+    """One bone carried rigidly by a body (display, penetration and contact)."""
 
     name: str
     mesh: Path
@@ -113,6 +116,9 @@ class Scene:
     image_size: tuple[int, int]
     cache_dir: Path | None
     registration: Registration | None = None
+    collisions: bool = True
+    margin: float = 0.0
+    rest_overlap: str = "resolve"
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -295,6 +301,19 @@ def load_scene(path: PathLike) -> Scene:
         )
     bone_names = {b.name for b in bones}
 
+    coll = _table(raw.get("collisions", {}), "collisions", src)
+    _keys(coll, _COLLISIONS, "[collisions]", src)
+    collisions = _get(coll, "enabled", bool, "[collisions]", src) if "enabled" in coll else True
+    margin = _get(coll, "margin", float, "[collisions]", src) if "margin" in coll else 0.0
+    if not (np.isfinite(margin) and margin >= 0):
+        raise SceneError(f"{src}: [collisions] margin must be >= 0 (mesh units), got {margin}")
+    rest_overlap = coll.get("rest_overlap", "resolve")
+    if rest_overlap not in ("resolve", "keep"):
+        raise SceneError(
+            f"{src}: [collisions] rest_overlap = {rest_overlap!r}; use 'resolve' (push the "
+            "muscles out of the bones once, at preparation) or 'keep' (prevent new penetration only)"
+        )
+
     muscles = []
     table = _table(raw.get("muscles", {}), "muscles", src)
     if not table:
@@ -336,6 +355,17 @@ def load_scene(path: PathLike) -> Scene:
         body = m.get("body", "ground")
         if osim is None and body != "ground":
             raise SceneError(f"{src}: {where} body needs an OpenSim model ([model] osim)")
+        mbones = m.get("bones")
+        if mbones is not None:
+            if not isinstance(mbones, list) or not all(isinstance(b, str) for b in mbones):
+                raise SceneError(f"{src}: {where} bones must be a list of bone names")
+            for b in mbones:
+                if b not in bone_names:
+                    raise SceneError(
+                        f"{src}: {where} bones: '{b}' is not a bone of the scene; "
+                        + suggest(b, sorted(bone_names))
+                    )
+            mbones = tuple(mbones)
         muscles.append(
             MuscleSpec(
                 name=_name(mname, "muscle", src),
@@ -349,6 +379,7 @@ def load_scene(path: PathLike) -> Scene:
                 max_iterations=its,
                 repair=_get(m, "repair", bool, where, src) if "repair" in m else True,
                 frame=body if m.get("frame", mesh_frame) == "body" else m.get("frame", mesh_frame),
+                bones=mbones,
             )
         )
     clash = bone_names & {m.name for m in muscles}
@@ -378,6 +409,9 @@ def load_scene(path: PathLike) -> Scene:
         image_size=(size[0], size[1]),
         cache_dir=cache_dir,
         registration=registration,
+        collisions=collisions and bool(bones),
+        margin=margin,
+        rest_overlap=rest_overlap,
     )
 
 

@@ -16,10 +16,11 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
+from .._cache import cached_arrays, digest
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
+from ..contact import Obstacle
 from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
-from .._cache import cached_arrays, digest
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
@@ -40,6 +41,8 @@ REPORT_FIELDS = [
     "shape_change_max",
     "penetration_share",
     "penetration_depth_max",
+    "contact_vertices",
+    "penetration_depth_before",
     "reason",
 ]
 
@@ -47,6 +50,7 @@ REPORT_FIELDS = [
 # the files a run writes at the top of its output folder (besides one folder per muscle and bone)
 PVD, REPORT, GIF = "scene.pvd", "report.csv", "scene.gif"
 PLOT_VOLUME, PLOT_CONVERGENCE = "volume_error.png", "convergence.png"
+PLOT_PENETRATION = "penetration.png"
 # (render_series also writes the GIF's middle picture beside it, as .png)
 _TOP_FILES = (
     PVD,
@@ -55,6 +59,7 @@ _TOP_FILES = (
     Path(GIF).with_suffix(".png").name,
     PLOT_VOLUME,
     PLOT_CONVERGENCE,
+    PLOT_PENETRATION,
     JOURNAL,
 )
 
@@ -100,7 +105,13 @@ class RunSummary:
             + (f" ({failed} without positions, no mesh written)" if failed else "")
             + f"; skeleton fit mean <= {worst('skeleton_fit_mean'):.3g}; "
             f"shape change <= {worst('shape_change_max'):.3g} edge lengths; deepest bone "
-            f"penetration {worst('penetration_depth_max'):.3g}",
+            f"penetration {worst('penetration_depth_max'):.3g}"
+            + (
+                f" (without contact {worst('penetration_depth_before'):.3g}; up to "
+                f"{max((r['contact_vertices'] for r in solved), default=0)} contact vertices)"
+                if any(r["contact_vertices"] for r in solved)
+                else ""
+            ),
             "  preparation: "
             + ", ".join(
                 f"{m} {'cached' if m in self.cache_hits else f'{s:.2f} s'}"
@@ -237,7 +248,7 @@ _PER_FRAME = ("frames", "times", "lines", "references", "to_output")
 def _slice(job: dict[str, Any], ks: range) -> dict[str, Any]:
     """The job for frames ``ks`` only (what a worker needs of a chunk)."""
     part = {**job, **{k: job[k][ks.start : ks.stop] for k in _PER_FRAME}, "offset": ks.start}
-    part["bones"] = [(V, F, T[ks.start : ks.stop], name) for V, F, T, name in job["bones"]]
+    part["bones"] = [(V, F, T[ks.start : ks.stop], *rest) for V, F, T, *rest in job["bones"]]
     return part
 
 
@@ -247,13 +258,27 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     from ..solver import DeformationResult
 
     muscle, d, hit, note, seconds_prepare = _deformer(job)
-    probes = [(_bone_probe(V, F, name, job["cache_dir"]), T) for V, F, T, name in job["bones"]]
+    probes = [
+        (_bone_probe(V, F, key, job["cache_dir"]), T, bname) for V, F, T, key, bname in job["bones"]
+    ]
+    contact = job["contact"]  # None (no collisions), or {bone: allowance or None}
     out = Path(job["outdir"])
     name = job["name"]
     rows, entries = [], []
     kw = {"method": job["method"], "max_iterations": job["max_iterations"]}
     for k in range(len(job["frames"])):
         frame = job["frames"][k]
+        T = job["to_output"][k]
+        if contact is not None:
+            from ..solver import Placed
+
+            kw["margin"] = job["margin"]
+            kw["obstacles"] = [
+                # muscle's body frame -> bone's body frame in one transform
+                Placed(probe, invert_rigid(TB[k]) @ T, contact[bname], bname)
+                for probe, TB, bname in probes
+                if bname in contact
+            ]
         try:
             res = d.deform(job["lines"][k], reference_point=job["references"][k], **kw)
         except LineError as exc:
@@ -265,14 +290,12 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
                 muscle.volume_rest,
                 f"invalid action lines in this frame: {exc}",
             )
-        T = job["to_output"][k]
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
         n_in, depth = (0, 0.0) if ok_values else (float("nan"), float("nan"))
         if ok_values:
             Vo = apply(T, res.V)
-            for probe, TB in probes:
-                # muscle's body frame -> bone's body frame in one transform
+            for probe, TB, _ in probes:
                 n, dep = probe.measure(apply(invert_rigid(TB[k]) @ T, res.V))
                 n_in += n
                 depth = max(depth, dep)
@@ -301,6 +324,10 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
                 "shape_change_max": shape,
                 "penetration_share": n_in / len(muscle.V),
                 "penetration_depth_max": depth,
+                "contact_vertices": res.contact_vertices,
+                "penetration_depth_before": (
+                    res.penetration_depth_before if contact is not None else depth
+                ),
                 "reason": res.reason,
             }
         )
@@ -477,6 +504,7 @@ def run_scene(
     render: bool | None = None,
     log: Callable[[str], None] | None = None,
     resume: bool = False,
+    collisions: bool | None = None,
 ) -> RunSummary:
     """Deform every muscle of a scene for every selected frame and write all outputs.
 
@@ -505,6 +533,9 @@ def run_scene(
         run; refused if the scene, a file it names or the frames changed. The
         outputs are the same as those of an uninterrupted run with the same
         number of workers.
+    collisions : bool, optional
+        Keep the muscles out of the scene's bones (default: the scene's
+        ``[collisions] enabled``, on whenever it has bones).
 
     Returns
     -------
@@ -520,8 +551,9 @@ def run_scene(
         if workers > 1 and len(scene.muscles) > 1:
             # started first: the workers import while this process reads meshes and OpenSim
             pool = stack.enter_context(_Pool(min(workers, len(scene.muscles))))
+        on = scene.collisions if collisions is None else bool(collisions and scene.bones)
         summary = _run_scene(
-            scene, outdir, frames, pool, cache_dir, progress, say, notes, stack, resume
+            scene, outdir, frames, pool, cache_dir, progress, say, notes, stack, resume, on
         )
     if render if render is not None else scene.gif:
         from ..output import render_series
@@ -554,6 +586,7 @@ def _run_scene(
     notes: list[str],
     stack: contextlib.ExitStack,
     resume: bool,
+    collisions: bool,
 ) -> RunSummary:
     if cache_dir is True:
         cache = scene.cache_dir or default_cache_dir()
@@ -585,8 +618,88 @@ def _run_scene(
     if cache is None and pool is not None:
         # the workers still share what they build, for this run only
         cache = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="musclewrap-")))
-    key = _run_key(scene, drive)
-    return _run(scene, outdir, drive, muscles, bones, cache, pool, progress, notes, key, resume)
+    contact = None
+    if collisions:
+        muscles, contact = _rest_overlap(scene, drive, muscles, bones, cache, say, notes)
+    key = _run_key(scene, drive, collisions)
+    return _run(
+        scene, outdir, drive, muscles, bones, cache, pool, progress, notes, key, resume, contact
+    )
+
+
+def _rest_overlap(
+    scene: Scene,
+    drive: Drive,
+    muscles: dict[str, tuple[FloatArray, IntArray]],
+    bones: dict[str, tuple[FloatArray, IntArray]],
+    cache: Path | None,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> tuple[dict[str, tuple[FloatArray, IntArray]], dict[str, dict[str, FloatArray | None]]]:
+    """Muscles out of their bones at the rest pose (or their overlap kept), once per run.
+
+    Every mesh is in its body's frame. With ``rest_overlap = "resolve"`` each
+    muscle's vertices inside (or within the margin of) a bone at the rest pose
+    are pushed out, volume-exact (`musclewrap.solver.push_out`), and the pushed
+    mesh is the one prepared; with ``"keep"`` each vertex may stay as deep as it
+    was. A muscle with most of its vertices inside one bone is refused: its
+    mesh, frame or units do not match the bone's. Returns the muscles and, per
+    muscle, the bones it is kept out of with each one's allowance (``"keep"``).
+    """
+    from ..mesh import volume
+    from ..solver import Placed, push_out
+
+    cache_str = None if cache is None else str(cache)
+    probes = {
+        b: _bone_probe(V, F, Obstacle.cache_name(V, F), cache_str) for b, (V, F) in bones.items()
+    }
+    out_muscles = dict(muscles)
+    contact: dict[str, dict[str, FloatArray | None]] = {}
+    for spec in scene.muscles:
+        V, F = muscles[spec.name]
+        names = list(spec.bones) if spec.bones is not None else list(bones)
+        to_body = drive.to_body
+        placed = []
+        allowance: dict[str, FloatArray | None] = {}
+        for b in names:
+            T = to_body[b] @ np.linalg.inv(to_body[spec.name])
+            pl = Placed(probes[b], T, None, b)
+            n_in, depth = probes[b].measure(pl.to_obstacle(V))
+            if n_in > 0.5 * len(V):
+                raise SceneError(
+                    f"{spec.mesh}: {n_in} of the {len(V)} vertices of '{spec.name}' lie inside "
+                    f"the bone '{b}' ({depth:.3g} {scene.mesh_unit} deep) at the rest pose: the "
+                    "muscle and bone meshes must be the same subject's, in the same frame and "
+                    "units (or leave this bone out of the muscle's [muscles] bones)"
+                )
+            allowance[b] = None
+            if scene.rest_overlap == "keep":
+                idx, phi, _, _ = probes[b].query(pl.to_obstacle(V), scene.margin)
+                if len(idx):
+                    a = np.full(len(V), np.inf)
+                    a[idx] = phi
+                    allowance[b] = a
+            placed.append(pl)
+        contact[spec.name] = allowance
+        if scene.rest_overlap == "keep" or not placed:
+            continue
+        P, rep = push_out(V, F, placed, volume_target=volume(V, F), margin=scene.margin)
+        if rep.rounds == 0:
+            continue
+        if not rep.ok:
+            raise SceneError(
+                f"{spec.mesh}: the overlap of '{spec.name}' with its bones at the rest pose "
+                f"cannot be resolved ({rep.reason}); set [collisions] rest_overlap = 'keep'"
+            )
+        msg = (
+            f"{spec.name}: rest overlap with bones resolved: {rep.contact_vertices} vertices "
+            f"moved out (up to {rep.depth_before:.3g} {scene.mesh_unit} deep; largest "
+            f"displacement {rep.moved_max:.3g} {scene.mesh_unit}), volume kept"
+        )
+        notes.append(msg)
+        say(msg)
+        out_muscles[spec.name] = (P, F)
+    return out_muscles, contact
 
 
 def _input_files(scene: Scene) -> list[Path]:
@@ -614,10 +727,14 @@ def _check_outputs_spare_inputs(scene: Scene, outdir: Path) -> None:
         )
 
 
-def _run_key(scene: Scene, drive: Drive) -> str:
+def _run_key(scene: Scene, drive: Drive, collisions: bool) -> str:
     """Hash of everything a run's outputs depend on: files, settings, frames, version."""
     files = _input_files(scene)
-    return digest(*(f.read_bytes() for f in files), np.asarray(drive.frames), __version__)
+    return digest(
+        *(f.read_bytes() for f in files),
+        np.asarray(drive.frames),
+        f"{__version__}|collisions={collisions}",
+    )
 
 
 def _run(
@@ -632,16 +749,20 @@ def _run(
     notes: list[str],
     key: str,
     resume: bool,
+    contact: dict[str, dict[str, FloatArray | None]] | None,
 ) -> RunSummary:
     from ..output import write_csv, write_pvd
 
     outdir.mkdir(parents=True, exist_ok=True)
     n = len(drive.frames)
-    from ..contact import Obstacle
-
     # per bone: mesh in its body frame, its transforms to the output frame, its probe's name
     bone_local = {
-        b.name: (*bones[b.name], drive.to_output[b.body], Obstacle.cache_name(*bones[b.name]))
+        b.name: (
+            *bones[b.name],
+            drive.to_output[b.body],
+            Obstacle.cache_name(*bones[b.name]),
+            b.name,
+        )
         for b in scene.bones
     }
     jobs = []
@@ -667,6 +788,8 @@ def _run(
                 "frames": drive.frames,
                 "times": drive.times,
                 "bones": list(bone_local.values()),
+                "contact": None if contact is None else contact[spec.name],
+                "margin": scene.margin,
                 "outdir": str(outdir),
                 "paper_frames": scene.paper_frames,
                 "run": run,
@@ -677,7 +800,7 @@ def _run(
 
     def write_bones() -> None:
         # one file per frame where the bone moves in the output frame, else one file
-        for bname, (V, F, T, _) in bone_local.items():
+        for bname, (V, F, T, *_) in bone_local.items():
             DV, DF = _bone_display(V, F, scene.bone_display_faces, cache)
             if np.allclose(T, T[0], atol=1e-9 * (1 + np.abs(T).max())):
                 fname = f"{bname}/{bname}.vtp"
@@ -698,7 +821,7 @@ def _run(
     if cache is not None:
         fill += [
             ("bone", (V, F, name, str(cache)))
-            for V, F, _, name in bone_local.values()
+            for V, F, _, name, _ in bone_local.values()
             if not (cache / name).is_file()
         ]
     chunks = _chunks(n, len(jobs), 0 if pool is None else pool.n)
@@ -718,7 +841,7 @@ def _run(
         write_pvd(outdir / PVD, [(float(drive.times[k]), f) for k, f in entries]),
         write_csv(outdir / REPORT, rows, REPORT_FIELDS),
     ]
-    files += _plots(outdir, scene, results)
+    files += _plots(outdir, scene, results, contact is not None)
     worst = max(
         (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
         for r in rows
@@ -770,8 +893,8 @@ class _Pool:
 def _warm_up() -> None:
     import igl  # noqa: F401
 
-    from ..solver import Muscle  # noqa: F401
     from .. import contact  # noqa: F401
+    from ..solver import Muscle  # noqa: F401
 
 
 def _import_matplotlib() -> None:
@@ -938,8 +1061,10 @@ def _check_units(
             )
 
 
-def _plots(outdir: Path, scene: Scene, results: list[dict[str, Any]]) -> list[Path]:
-    from ..output import plot_convergence, plot_volume_error
+def _plots(
+    outdir: Path, scene: Scene, results: list[dict[str, Any]], collisions: bool
+) -> list[Path]:
+    from ..output import plot_convergence, plot_penetration, plot_volume_error
 
     series = {}
     for res in results:
@@ -971,6 +1096,24 @@ def _plots(outdir: Path, scene: Scene, results: list[dict[str, Any]]) -> list[Pa
                 outdir / PLOT_CONVERGENCE,
                 conv,
                 title=f"{scene.name}: convergence on the worst frame",
+            )
+        )
+    if scene.bones:
+
+        def depth(key: str) -> dict[str, tuple[list[int], list[float]]]:
+            return {
+                res["name"]: ([r["frame"] for r in res["rows"]], [r[key] for r in res["rows"]])
+                for res in results
+            }
+
+        files.append(
+            plot_penetration(
+                outdir / PLOT_PENETRATION,
+                depth("penetration_depth_max"),
+                before=depth("penetration_depth_before") if collisions else None,
+                title=f"{scene.name}: muscles in bones"
+                + ("" if collisions else " (collisions off)"),
+                unit=scene.mesh_unit,
             )
         )
     return files

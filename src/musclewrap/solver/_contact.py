@@ -62,7 +62,8 @@ class ContactReport:
     Attributes
     ----------
     contact_vertices : int
-        Vertices held on an obstacle (at the margin) in the result.
+        Vertices in contact in the result: within twice ``tol.contact`` mean
+        edge lengths of the margin of an obstacle.
     depth_before : float
         Deepest vertex inside an obstacle before the finish (0 if none), mesh units.
     depth_after : float
@@ -217,6 +218,8 @@ def push_out(
     held = np.zeros(n, dtype=bool)
     rounds = 0
     ok = True
+    # the first rounds relax every push with its neighbours; the last ones project exactly
+    relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
     for rounds in range(1, max_rounds + 1):
         D = target - P[hit]
         depth = float(np.linalg.norm(D, axis=1).max())
@@ -231,8 +234,19 @@ def push_out(
             inv = 1.0 / deg[region]
             for _ in range(2 * radius * radius):
                 Dall[region] = (M @ Dall) * inv[:, None]
-        P += Dall
-        P[hit] = target
+        if rounds <= relax_rounds:
+            # Relax the pushed vertices too: neighbours projected onto different sheets of a
+            # concave bone (or along converging normals) would cross; what the relaxation
+            # leaves inside is pushed again in the next round.
+            moving = np.flatnonzero(level <= radius)
+            M = A[moving]
+            inv = 1.0 / deg[moving]
+            for _ in range(defaults.contact_relax):
+                Dall[moving] = 0.5 * Dall[moving] + 0.5 * (M @ Dall) * inv[:, None]
+            P += Dall
+        else:
+            P += Dall
+            P[hit] = target
         held[hit] = True
         # exact volume along the correction direction, away from the held vertices
         Z = _normals(P, F) if direction is None else np.asarray(direction, dtype=np.float64)
@@ -277,8 +291,15 @@ def push_out(
     if rel > tol.volume:
         ok = False
         reason = (reason + "; " if reason else "") + f"volume error {rel:.3g} after contact"
+    # the vertices in contact: within the slack of the margin of an obstacle
+    touching = np.zeros(n, dtype=bool)
+    for pl in placed:
+        allowed = np.full(n, margin)
+        if pl.allowance is not None:
+            allowed = np.minimum(allowed, pl.allowance)
+        touching[pl.obstacle.query(pl.to_obstacle(P), allowed + 2.0 * slack)[0]] = True
     report = ContactReport(
-        contact_vertices=int(held.sum()),
+        contact_vertices=int(touching.sum()),
         depth_before=depth_before,
         depth_after=max(depths, default=0.0),
         clearance=float(gap.min()) if len(hit) else 0.0,

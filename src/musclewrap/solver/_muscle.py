@@ -718,9 +718,7 @@ class Deformer:
                 if not contact.ok:
                     reason = contact.reason if ok else f"{reason}; {contact.reason}"
                     ok = False
-            return self._result(
-                x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact
-            )
+            return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact)
 
     def _result(
         self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact=None

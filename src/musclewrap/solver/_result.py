@@ -46,8 +46,8 @@ class DeformationResult:
         Per iteration: energy and relative fine-volume error (``paper`` and
         ``exact`` methods; empty for the default).
     contact_vertices : int
-        Vertices held on an obstacle at the margin by the contact finish (0
-        without obstacles).
+        Vertices in contact with an obstacle after the contact finish (at its
+        margin, to twice ``tol.contact`` mean edge lengths; 0 without obstacles).
     penetration_depth : float
         Deepest vertex inside an obstacle after the contact finish (0 if none),
         mesh units.
