@@ -213,10 +213,9 @@ def test_collision_settings_are_checked(data_dir, tmp_path):
 
 @pytest.mark.realdata
 def test_a_muscle_inside_a_bone_at_rest_is_refused(data_dir, tmp_path):
-    from musclewrap.scene import SceneError, load_scene, run_scene
-
     # a bone that encloses the whole psoas (a box around it): wrong frame or wrong mesh
     from musclewrap.mesh import read_mesh, write_mesh
+    from musclewrap.scene import SceneError, load_scene, run_scene
 
     lhdl = data_dir / "lhdl"
     V, _ = read_mesh(lhdl / "muscles" / "LHDL_R_Psoas.vtk")
