@@ -3,6 +3,7 @@
 import json
 import re
 
+import numpy as np
 import pytest
 
 from musclewrap.cli import main
@@ -144,3 +145,27 @@ def test_demo_writes_the_series(tmp_path):
     assert {"scene.pvd", "report.csv", "volume_error.png", "muscle"} <= names
     assert len(list((out / "muscle").glob("*.vtp"))) == 3
     assert main(["demo", "-o", str(out), "--frames", "1"]) == 2
+
+
+def test_deform_keeps_the_muscle_out_of_a_bone(files, capsys):
+    import trimesh
+
+    tmp, mesh, rest, cur = files
+    # a slab x >= 15: the bent capsule (radius 20) reaches well into it
+    box = trimesh.creation.box(bounds=np.array([[15.0, -300, -300], [400, 300, 500]]))
+    write_mesh(tmp / "bone.vtp", np.asarray(box.vertices, float), np.asarray(box.faces))
+    out, rep = tmp / "out.vtp", tmp / "r.json"
+    args = ["deform", mesh, "--rest", rest, "--current", cur, "-o", str(out), "--report", str(rep)]
+    assert main([*args, "--bone", str(tmp / "bone.vtp"), "--margin", "1"]) == 0
+    report = json.loads(rep.read_text())
+    assert report["converged"] and report["contact_vertices"] > 0
+    assert report["penetration_depth_before"] > 5 and report["penetration_depth"] == 0
+    V, F = read_mesh(out)
+    assert V[:, 0].max() <= 14.0 + 0.1  # the slack: tol.contact of 6-7 mm edges
+    assert abs(volume(V, F) / report["volume_rest"] - 1) <= 1e-9
+    # an open bone has no inside: refused, naming the file, nothing written
+    write_mesh(tmp / "open.vtp", np.asarray(box.vertices, float), np.asarray(box.faces)[:-1])
+    out.unlink()
+    assert main([*args, "--bone", str(tmp / "open.vtp")]) == 2
+    assert "open.vtp: the bone is not closed" in capsys.readouterr().err
+    assert not out.exists()

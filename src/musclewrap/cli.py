@@ -58,6 +58,17 @@ def _parser() -> argparse.ArgumentParser:
         "--method", choices=("sqp", "exact", "paper"), default="sqp", help="solver (default sqp)"
     )
     de.add_argument(
+        "--bone",
+        action="append",
+        default=[],
+        metavar="MESH",
+        help="a bone as it is in the current pose (same frame and units as the lines); the "
+        "muscle is kept out of it (repeatable)",
+    )
+    de.add_argument(
+        "--margin", type=float, default=0.0, help="distance kept from every --bone (mesh units)"
+    )
+    de.add_argument(
         "--allow-unconverged",
         action="store_true",
         help="write the result and exit 0 even if the solve did not converge (a result "
@@ -148,6 +159,24 @@ def _cmd_prepare(a: argparse.Namespace) -> int:
     return 0
 
 
+def _read_obstacle(path: str):  # noqa: ANN202
+    """A bone file as an obstacle: merged, tidied and oriented outward (named in errors)."""
+    from .contact import Obstacle
+    from .mesh import MeshError, check_mesh, read_mesh, tidy_mesh
+    from .solver import Placed
+
+    V, F, _ = tidy_mesh(*read_mesh(path))
+    check = check_mesh(V, F)
+    if check.boundary_edges or not len(F):
+        raise MeshError(
+            f"{path}: the bone is not closed ({check.boundary_edges} boundary edges): its inside "
+            "is not defined; close it first (e.g. PyMeshFix)"
+        )
+    if check.volume < 0:
+        F = F[:, ::-1].copy()
+    return Placed(Obstacle(V, F), name=Path(path).name)
+
+
 def _cmd_deform(a: argparse.Namespace) -> int:
     import numpy as np
 
@@ -163,7 +192,10 @@ def _cmd_deform(a: argparse.Namespace) -> int:
             f"{a.output}: unknown output format '{Path(a.output).suffix}'; use one of "
             + ", ".join(FORMATS)
         )
-    _spare_inputs([a.mesh, a.rest, a.current, a.prepared], [a.output, a.report])
+    _spare_inputs([a.mesh, a.rest, a.current, a.prepared, *a.bone], [a.output, a.report])
+    if not (np.isfinite(a.margin) and a.margin >= 0):
+        raise ValueError(f"--margin must be >= 0 (mesh units), got {a.margin}")
+    obstacles = [_read_obstacle(b) for b in a.bone]
     rest = read_lines_csv(a.rest)
     cur = read_lines_csv(a.current)
     t0 = time.perf_counter()
@@ -186,7 +218,13 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         muscle = Muscle.from_file(a.mesh, cage_size=a.cage_size or defaults.cage_size)
         seconds_prepare = muscle.seconds_prepare
     d = muscle.bind(rest, reference_point=a.reference_rest)
-    res = d.deform(cur, reference_point=a.reference_current, method=a.method)
+    res = d.deform(
+        cur,
+        reference_point=a.reference_current,
+        method=a.method,
+        obstacles=obstacles,
+        margin=a.margin,
+    )
     ok = res.converged  # includes the volume tolerance
     finite = bool(np.isfinite(res.V).all())
     if (ok or a.allow_unconverged) and finite:
@@ -204,6 +242,9 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         "skeleton_fit_max": res.skeleton_fit_max,
         "energy": res.energy,
         "method": res.method,
+        "contact_vertices": res.contact_vertices,
+        "penetration_depth": res.penetration_depth,
+        "penetration_depth_before": res.penetration_depth_before,
         "shape_change_max": float(muscle.shape_change(res.V).max())
         if np.isfinite(res.V).all()
         else None,

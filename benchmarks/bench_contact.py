@@ -1,0 +1,71 @@
+"""Contact with bones on a whole scene: time with and without, and the independent check.
+
+    python benchmarks/bench_contact.py [SCENE] [--frames 0:211:1] [--check-every 10]
+
+Runs the scene warm (preparations cached by a first run) with contact on and with
+``--no-collisions``, alternately, three times each, and prints the medians and their ratio;
+then checks the written meshes of the contact run against the full-resolution bones
+(`musclewrap.scene._verify.verify_run`: exact winding numbers and distances) on every
+``--check-every``-th frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(scene: str, out: Path, frames: str, extra: list[str]) -> float:
+    cmd = [sys.executable, "-m", "musclewrap.cli", "run", scene, "-o", str(out), "--no-gif"]
+    cmd += ["--frames", frames, *extra]
+    t0 = time.perf_counter()
+    subprocess.run(cmd, check=True, capture_output=True)
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
+    p.add_argument("--frames", default="0:211:1")
+    p.add_argument("--check-every", type=int, default=10)
+    p.add_argument("--repeats", type=int, default=3)
+    a = p.parse_args()
+    from musclewrap.scene import load_scene
+    from musclewrap.scene._verify import verify_run
+
+    with tempfile.TemporaryDirectory() as tmp:
+        on, off = Path(tmp) / "on", Path(tmp) / "off"
+        _run(a.scene, on, a.frames, [])  # warm the cache
+        _run(a.scene, off, a.frames, ["--no-collisions"])
+        t_on, t_off = [], []
+        for _ in range(a.repeats):
+            t_on.append(_run(a.scene, on, a.frames, []))
+            t_off.append(_run(a.scene, off, a.frames, ["--no-collisions"]))
+        m_on, m_off = float(np.median(t_on)), float(np.median(t_off))
+        print(f"{a.scene} frames {a.frames}, warm, no GIF, {a.repeats} runs each, alternating")
+        print(f"  contact on: median {m_on:.1f} s; --no-collisions: {m_off:.1f} s; {m_on / m_off:.2f}x")
+        scene = load_scene(a.scene)
+        start, stop, *step = (int(x) for x in a.frames.split(":"))
+        step = (step[0] if step else 1) * a.check_every
+        for label, out in (("contact on", on), ("--no-collisions", off)):
+            rows = verify_run(scene, out, f"{start}:{stop}:{step}")
+            print(f"  {label}: independent check on {len(rows) // len(scene.muscles)} frames")
+            for m in scene.muscles:
+                r = [x for x in rows if x["muscle"] == m.name]
+                print(
+                    f"    {m.name:<18} muscle vertex in bone <= "
+                    f"{max(x['muscle_in_bone'] for x in r):6.3f}, bone vertex in muscle <= "
+                    f"{max(x['bone_in_muscle'] for x in r):6.3f}"
+                )
+
+
+if __name__ == "__main__":
+    main()
