@@ -51,7 +51,9 @@ def main() -> None:
             t_off.append(_run(a.scene, off, a.frames, ["--no-collisions"]))
         m_on, m_off = float(np.median(t_on)), float(np.median(t_off))
         print(f"{a.scene} frames {a.frames}, warm, no GIF, {a.repeats} runs each, alternating")
-        print(f"  contact on: median {m_on:.1f} s; --no-collisions: {m_off:.1f} s; {m_on / m_off:.2f}x")
+        print(
+            f"  contact on: median {m_on:.1f} s; --no-collisions: {m_off:.1f} s; {m_on / m_off:.2f}x"
+        )
         scene = load_scene(a.scene)
         start, stop, *step = (int(x) for x in a.frames.split(":"))
         step = (step[0] if step else 1) * a.check_every

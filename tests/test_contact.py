@@ -115,7 +115,7 @@ def test_capsule_pressed_into_a_sphere(bent):
     r = np.linalg.norm(res.V - centre, axis=1)
     # the polygonal sphere lies within 0.02 of radius 15
     assert r.min() >= 15.0 + 0.5 - 0.05
-    assert res.contact_vertices > 10
+    assert res.contact_vertices > 0 and res.penetration_depth_before > 5
 
 
 def test_no_contact_gives_the_result_without_obstacles(bent):

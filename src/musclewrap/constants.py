@@ -116,6 +116,19 @@ class Defaults:
     contact_relax_rounds : int
         The first rounds, which relax; the later ones project the vertices
         still too near exactly.
+    contact_cage_steps : int
+        Most linearised contact steps of the cage (before the fine finish),
+        taken while a vertex is more than a mean fine edge too near a bone.
+    contact_band : float
+        Vertices within this many mean fine edge lengths of an obstacle's
+        margin enter the cage's contact step as inequality conditions.
+    contact_cage_reach : float
+        Longest displacement of a fine vertex near the contact by one cage
+        contact step, in multiples of the deepest vertex's need (the step is
+        scaled down to it).
+    contact_softness : float
+        Regularisation of the cage's contact conditions, relative to the mean
+        of their own diagonal (0: hard conditions).
     """
 
     cage_size: int = 300
@@ -134,6 +147,10 @@ class Defaults:
     contact_spread: float = 1.0
     contact_relax: int = 4
     contact_relax_rounds: int = 3
+    contact_cage_steps: int = 3
+    contact_band: float = 2.0
+    contact_softness: float = 0.1
+    contact_cage_reach: float = 1.25
 
 
 tol = Tolerances()

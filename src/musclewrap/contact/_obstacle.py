@@ -269,6 +269,52 @@ class Obstacle:
         upper = (self._hi_sd[flat] + d).min(axis=0)
         return lower, upper
 
+    def interpolate(self, Q: FloatArray, reach: float) -> tuple[IntArray, FloatArray, FloatArray]:
+        """Signed distance and its gradient from the grid (trilinear), near the surface.
+
+        Cheap and approximate (the grid's spacing ``h`` sets the error, about
+        ``h^2`` times the surface's curvature): for linearised conditions, not for
+        a verdict (that is `query`'s). Only points whose cell has exact values
+        at all eight corners (near the surface or inside) and whose interpolated
+        distance is below ``reach`` are returned.
+
+        Returns
+        -------
+        index : (j,) int64 array
+        phi : (j,) float64 array
+        G : (j, 3) float64 array
+            Unit gradients (outward).
+        """
+        Q = np.asarray(Q, dtype=np.float64)
+        box = np.flatnonzero(((Q >= self.lo) & (Q <= self.hi)).all(axis=1))
+        if not len(box):
+            return box, np.zeros(0), np.zeros((0, 3))
+        U = (Q[box] - self.lo) / self.h
+        base = np.clip(U.astype(np.int64), 0, self._shape - 2)
+        f = U - base
+        flat = self._corner_offsets[:, None] + (base @ self._strides)[None, :]
+        vals = self._lo_sd[flat].astype(np.float64)  # (8, k), corner bits (i, j, l)
+        exact = np.isfinite(self._hi_sd[flat]).all(axis=0)
+        v = vals.reshape(2, 2, 2, -1)
+        fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
+        # trilinear value and its derivatives
+        c00 = v[0, 0, 0] * (1 - fz) + v[0, 0, 1] * fz
+        c01 = v[0, 1, 0] * (1 - fz) + v[0, 1, 1] * fz
+        c10 = v[1, 0, 0] * (1 - fz) + v[1, 0, 1] * fz
+        c11 = v[1, 1, 0] * (1 - fz) + v[1, 1, 1] * fz
+        c0 = c00 * (1 - fy) + c01 * fy
+        c1 = c10 * (1 - fy) + c11 * fy
+        phi = c0 * (1 - fx) + c1 * fx
+        gx = c1 - c0
+        gy = (c01 - c00) * (1 - fx) + (c11 - c10) * fx
+        dz = [v[i, j, 1] - v[i, j, 0] for i in (0, 1) for j in (0, 1)]
+        gz = (dz[0] * (1 - fy) + dz[1] * fy) * (1 - fx) + (dz[2] * (1 - fy) + dz[3] * fy) * fx
+        G = np.stack([gx, gy, gz], axis=1)
+        norm = np.linalg.norm(G, axis=1)
+        keep = exact & (phi < reach) & (norm > 0)
+        G = G[keep] / norm[keep, None]
+        return box[keep], phi[keep], G
+
     def query(
         self, Q: FloatArray, reach: float | FloatArray
     ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Mapping, Sequence
@@ -46,7 +47,7 @@ from ..mesh import (
     volume_gradient,
     volume_hessian_reduced,
 )
-from ._contact import Placed, adjacency, push_out
+from ._contact import Placed, adjacency, cage_push, contact_candidates, push_out
 from ._cubic import cubic_root_near
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
 from ._result import DeformationResult
@@ -466,6 +467,9 @@ class Deformer:
         self._LT = np.ascontiguousarray(L.T)
         self._ST = np.ascontiguousarray(self.S.T)
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
+        # the contact step's groups (each fine vertex's dominant cage vertex) and scale
+        self._dominant = np.argmax(muscle.W, axis=1)
+        self._fine_edge = mean_edge_length(muscle.V, muscle.F)
         # the default solve's matrices (`_proxy`): x_ls = HL d_L + HS s', and the proxy's
         # coordinates Wd and B = H^-1 Wd^T that make the direction u = B g of a proxy
         # gradient g (`_proxy_matrices`)
@@ -707,6 +711,7 @@ class Deformer:
             contact = None
             if obstacles and np.isfinite(V).all():
                 placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
+                x, V, before = self._cage_contact(x, V, placed, margin)
                 V, contact = push_out(
                     V,
                     self.muscle.F,
@@ -715,10 +720,58 @@ class Deformer:
                     margin=margin,
                     A=self.muscle.adjacency,
                 )
+                contact = dataclasses.replace(
+                    contact, depth_before=max(before, contact.depth_before)
+                )
                 if not contact.ok:
                     reason = contact.reason if ok else f"{reason}; {contact.reason}"
                     ok = False
             return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact)
+
+    def _cage_contact(
+        self, x: FloatArray, V: FloatArray, placed: Sequence[Placed], margin: float
+    ) -> tuple[FloatArray, FloatArray, float]:
+        """Move the cage so that the fine vertices leave the obstacles (`cage_push`).
+
+        Repeated on the new positions while a vertex is more than a mean fine edge
+        too near; each step ends on the exact fine volume (a cubic along
+        ``-H^-1 g``). What remains is left to the fine finish (`push_out`).
+        Returns the cage, the fine positions and the deepest vertex inside an
+        obstacle before the first step.
+        """
+        mu = self.muscle
+        edge = self._fine_edge
+        slack = tol.contact * edge
+        band = defaults.contact_band * edge
+        before = 0.0
+        for step in range(defaults.contact_cage_steps):
+            idx, gap, N = contact_candidates(V, placed, margin, band)
+            if step == 0:
+                before = float(max(0.0, -(gap + margin).min(initial=0.0)))
+            if not len(idx) or gap.min() >= -edge:
+                break
+            c = mean_rows(x)
+            g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
+            Hg = self._Hinv @ g
+            dx = cage_push(mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack)
+            if not np.abs(dx).max() > 0:
+                break
+            # no vertex near the contact moves much further than the deepest one must: where
+            # the conditions conflict (a muscle squeezed between two bones) the least-energy
+            # step can be several times longer, and the fine finish does better there
+            need = float(-gap.min())
+            longest = float(np.linalg.norm(mu.W[idx] @ dx, axis=1).max())
+            if longest > defaults.contact_cage_reach * need:
+                dx = dx * (defaults.contact_cage_reach * need / longest)
+            D = rows_dot(mu.W, np.hstack([dx, Hg]))
+            P = V + D[:, :3]
+            cP = mean_rows(P)
+            t = cubic_root_near(volume_cubic(P - cP, -D[:, 3:], mu.F), mu.volume_rest, 0.0)
+            if not np.isfinite(t):
+                break
+            x = x + dx - t * Hg
+            V = P - t * D[:, 3:]
+        return x, V, before
 
     def _result(
         self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact=None
