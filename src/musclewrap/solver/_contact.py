@@ -162,6 +162,83 @@ def _violations(
     return hit, target, worst[hit], depths
 
 
+def _with_bone_vertices(
+    P: FloatArray,
+    F: IntArray,
+    placed: Sequence[Placed],
+    margin: float,
+    slack: float,
+    hit: IntArray,
+    target: FloatArray,
+    gap: FloatArray,
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """`_violations` plus the pushes that take obstacle vertices out of the muscle.
+
+    An obstacle vertex inside the muscle (winding number > 0.5) or within the
+    margin of its surface moves the nearest muscle triangle past it: its
+    vertices by the least displacement (barycentric weights) that carries the
+    nearest point to the margin beyond the obstacle vertex.
+    """
+    import igl
+
+    lo, hi = P.min(axis=0) - margin, P.max(axis=0) + margin
+    n = len(P)
+    push = np.zeros((n, 3))
+    size = np.zeros(n)
+    for pl in placed:
+        B = pl.to_muscle(pl.obstacle.V)
+        B = B[((B >= lo) & (B <= hi)).all(axis=1)]
+        if not len(B):
+            continue
+        B = np.ascontiguousarray(B)
+        inside = igl.fast_winding_number(P, F, B) > 0.5
+        sq, fi, C = igl.point_mesh_squared_distance(B, P, F)
+        dist = np.sqrt(sq)
+        # bone vertices deeper than the margin plus a tenth of a mean edge: the shallow ones
+        # sit between the muscle's vertices on the bone (chords of its curved surface)
+        bad = inside & (dist > margin + 10.0 * slack)
+        if not bad.any():
+            continue
+        B, C, fi, dist, inside = B[bad], C[bad], fi[bad], dist[bad], inside[bad]
+        # into the muscle from the bone vertex: the nearest surface point goes past it
+        u = (B - C) / np.maximum(dist, 1e-300)[:, None]
+        d = dist + margin + slack
+        w = _barycentric(C, P[F[fi]])
+        w = w / np.sum(w * w, axis=1)[:, None]
+        disp = (w[:, :, None] * (d[:, None] * u)[:, None, :]).reshape(-1, 3)
+        verts = F[fi].ravel()
+        norm = np.linalg.norm(disp, axis=1)
+        order = np.argsort(norm)  # the longest push per vertex is written last
+        push[verts[order]] = disp[order]
+        size[verts[order]] = norm[order]
+    extra = np.flatnonzero(size > slack)
+    if not len(extra):
+        return hit, target, gap
+    # merged with the vertex pushes: the longer displacement wins
+    T = np.full((n, 3), np.nan)
+    G = np.full(n, np.inf)
+    T[hit], G[hit] = target, gap
+    longer = np.isnan(T[extra, 0]) | (size[extra] > np.linalg.norm(T[extra] - P[extra], axis=1))
+    e = extra[longer]
+    T[e] = P[e] + push[e]
+    G[e] = np.minimum(G[e], -size[e])
+    hit = np.flatnonzero(~np.isnan(T[:, 0]))
+    return hit, T[hit], G[hit]
+
+
+def _barycentric(C: FloatArray, tri: FloatArray) -> FloatArray:
+    """Barycentric coordinates of points ``C`` in triangles ``tri`` (k, 3, 3), clipped to >= 0."""
+    v0, v1, v2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], C - tri[:, 0]
+    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
+    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+    den = d00 * d11 - d01 * d01
+    den = np.where(den > 0, den, 1.0)
+    b1 = (d11 * d20 - d01 * d21) / den
+    b2 = (d00 * d21 - d01 * d20) / den
+    b = np.clip(np.stack([1 - b1 - b2, b1, b2], axis=1), 0.0, None)
+    return b / np.maximum(b.sum(1), 1e-300)[:, None]
+
+
 def _normals(P: FloatArray, F: IntArray) -> FloatArray:
     """Area-weighted vertex normals (unit)."""
     FN = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
@@ -182,6 +259,7 @@ def push_out(
     direction: FloatArray | None = None,
     A: sp.csr_matrix | None = None,
     max_rounds: int = defaults.contact_rounds,
+    bone_vertices: bool = False,
 ) -> tuple[FloatArray, ContactReport]:
     """Move a muscle's vertices out of obstacles, keeping its volume exact.
 
@@ -214,6 +292,13 @@ def push_out(
         The mesh's `adjacency` (built here when not given).
     max_rounds : int, optional
         Most push-out rounds.
+    bone_vertices : bool, optional
+        Also take the obstacles' own vertices out of the muscle (a bone ridge or
+        a bone's edge inside the muscle between its vertices): each one inside
+        (generalized winding number of the muscle) pushes the muscle triangle
+        nearest to it past it. Robust but not cheap (a winding-number and a
+        closest-point query over the muscle per round): used once, for the
+        rest overlap at preparation.
 
     Returns
     -------
@@ -224,6 +309,8 @@ def push_out(
     edge = mean_edge_length(V, F)
     slack = tol.contact * edge
     hit, target, gap, depths = _violations(V, placed, margin, slack)
+    if bone_vertices:
+        hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap)
     depth_before = max(depths, default=0.0)
     if not len(hit):
         return V, ContactReport(depth_before=depth_before)
@@ -237,6 +324,8 @@ def push_out(
     ok = True
     # the first rounds relax every push with its neighbours; the last ones project exactly
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
+    if bone_vertices:  # once per muscle: relax longer, fewer folds
+        relax_rounds = max(relax_rounds, max_rounds // 2)
     for rounds in range(1, max_rounds + 1):
         D = target - P[hit]
         depth = float(np.linalg.norm(D, axis=1).max())
@@ -278,6 +367,8 @@ def push_out(
             break
         P += t * Zm
         hit, target, gap, depths = _violations(P, placed, margin, slack)
+        if bone_vertices:
+            hit, target, gap = _with_bone_vertices(P, F, placed, margin, slack, hit, target, gap)
         if not len(hit):
             break
     else:
