@@ -255,9 +255,10 @@ def test_lhdl_walk_subset_stays_out_of_the_bones(data_dir, tmp_path):
         assert r["converged"], r
         assert abs(r["relative_volume_error"]) <= 1e-9, r
         assert r["skeleton_fit_mean"] <= 1.5, r
-        # the run's own measure, after contact; without contact these frames reach 6-8 mm
+        # the run's own measure, after contact
         assert r["penetration_depth_max"] <= 0.5, r
-        assert r["penetration_depth_before"] > 1.0 or r["muscle"] == "psoas", r
+    # without contact the solve put vertices several mm into the bones on these frames
+    assert max(r["penetration_depth_before"] for r in s.rows) > 3.0
     assert (tmp_path / "o" / "penetration.png").is_file()
     # the independent check: exact winding numbers and distances, full-resolution bones
     rows = verify_run(scene, tmp_path / "o", frames)
