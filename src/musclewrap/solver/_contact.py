@@ -41,6 +41,13 @@ class Placed:
     allowance: FloatArray | None = None
     name: str = "obstacle"
 
+    def allowed(self, margin: float, n: int, rows: IntArray | None = None) -> FloatArray:
+        """Smallest accepted signed distance per muscle vertex (``rows`` of them, or all)."""
+        a = np.full(n, float(margin))
+        if self.allowance is not None:
+            a = np.minimum(a, self.allowance)
+        return a if rows is None else a[rows]
+
     def to_obstacle(self, P: FloatArray) -> FloatArray:
         """Points of the muscle's frame in the obstacle's frame."""
         if self.T is None:
@@ -129,9 +136,7 @@ def _violations(
     target = np.zeros((n, 3))
     depths = []
     for pl in placed:
-        allowed = np.full(n, margin)
-        if pl.allowance is not None:
-            allowed = np.minimum(allowed, pl.allowance)
+        allowed = pl.allowed(margin, n)
         idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P), allowed - slack)
         depths.append(float(max(0.0, -phi.min(initial=0.0))))
         if not len(idx):
@@ -150,9 +155,7 @@ def _violations(
         for _ in range(8):
             moved = False
             for pl in placed:
-                allowed = np.full(len(hit), margin)
-                if pl.allowance is not None:
-                    allowed = np.minimum(allowed, pl.allowance[hit])
+                allowed = pl.allowed(margin, len(P), hit)
                 idx, _, C, N = pl.obstacle.query(pl.to_obstacle(target), allowed - slack)
                 if len(idx):
                     target[idx] = pl.to_muscle(C + N * (allowed[idx] + slack)[:, None])
@@ -402,9 +405,7 @@ def push_out(
     # the vertices in contact: within the slack of the margin of an obstacle
     touching = np.zeros(n, dtype=bool)
     for pl in placed:
-        allowed = np.full(n, margin)
-        if pl.allowance is not None:
-            allowed = np.minimum(allowed, pl.allowance)
+        allowed = pl.allowed(margin, n)
         touching[pl.obstacle.query(pl.to_obstacle(P), allowed + 2.0 * slack)[0]] = True
     report = ContactReport(
         contact_vertices=int(touching.sum()),
@@ -432,9 +433,7 @@ def contact_candidates(
     out_i, out_g, out_n = [], [], []
     n = len(P)
     for pl in placed:
-        allowed = np.full(n, margin)
-        if pl.allowance is not None:
-            allowed = np.minimum(allowed, pl.allowance)
+        allowed = pl.allowed(margin, n)
         # the grid's interpolated distance: linearised conditions need no exact one
         idx, phi, N = pl.obstacle.interpolate(pl.to_obstacle(P), margin + band)
         gap = phi - allowed[idx]
