@@ -84,6 +84,13 @@ class Defaults:
         gradient direction.
     skeleton_weight : float
         Weight of the skeleton condition relative to the Laplacian condition.
+    anchor_weight : float
+        Weight of the anchors (fine vertices held at their rest positions, where
+        a muscle lies on a bone of its own body) relative to the Laplacian, as
+        the skeleton's: scaled by ``sqrt(m / k)`` for ``k`` anchors.
+    anchor_reach : float
+        A muscle vertex within this many mean edge lengths of the margin of a bone
+        of its own body at the rest pose is an anchor (scenes with contact).
     samples_per_line : int
         Minimum number of arc-length samples per action line.
     max_iterations : int
@@ -140,6 +147,8 @@ class Defaults:
     cage_margin: float = 0.25
     proxy_size: int = 1000
     skeleton_weight: float = 1.0
+    anchor_weight: float = 1.0
+    anchor_reach: float = 0.5
     samples_per_line: int = 33
     max_iterations: int = 60
     plain_iterations: int = 30

@@ -238,7 +238,9 @@ def _deformer(job: dict[str, Any]) -> tuple[Any, Any, bool, str | None, float]:
     t0 = time.perf_counter()
     muscle, hit, note = _prepare(job)
     seconds = time.perf_counter() - t0
-    d = muscle.bind(job["rest_lines"], reference_point=job["rest_reference"])
+    d = muscle.bind(
+        job["rest_lines"], reference_point=job["rest_reference"], anchors=job.get("anchors")
+    )
     _deformers.clear()  # one muscle at a time is enough
     _deformers[key] = (muscle, d)
     return muscle, d, hit, note, seconds
@@ -620,13 +622,62 @@ def _run_scene(
     if cache is None and pool is not None:
         # the workers still share what they build, for this run only
         cache = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="musclewrap-")))
-    contact = None
+    contact = anchors = None
     if collisions:
         muscles, contact = _rest_overlap(scene, drive, muscles, bones, cache, say, notes)
+        anchors = _anchors(scene, muscles, bones, drive, cache)
     key = _run_key(scene, drive, collisions)
     return _run(
-        scene, outdir, drive, muscles, bones, cache, pool, progress, notes, key, resume, contact
+        scene,
+        outdir,
+        drive,
+        muscles,
+        bones,
+        cache,
+        pool,
+        progress,
+        notes,
+        key,
+        resume,
+        contact,
+        anchors,
     )
+
+
+def _anchors(
+    scene: Scene,
+    muscles: dict[str, tuple[FloatArray, IntArray]],
+    bones: dict[str, tuple[FloatArray, IntArray]],
+    drive: Drive,
+    cache: Path | None,
+) -> dict[str, IntArray]:
+    """Per muscle, the fine vertices that lie on a bone of its own body at the rest pose.
+
+    Within ``defaults.anchor_reach`` mean edge lengths of the margin of a bone
+    that the same body carries: an origin, which moves with that bone. They
+    keep their rest positions in the body's frame (`Muscle.bind`'s anchors),
+    so the deformation does not drive the muscle into the bone it starts from.
+    """
+    from ..constants import defaults
+    from ..mesh import mean_edge_length
+
+    cache_str = None if cache is None else str(cache)
+    body_of = {b.name: b.body for b in scene.bones}
+    out = {}
+    for spec in scene.muscles:
+        V, F = muscles[spec.name]
+        names = list(spec.bones) if spec.bones is not None else list(bones)
+        reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
+        found = []
+        for b in names:
+            if body_of[b] != spec.body:
+                continue
+            BV, BF = bones[b]
+            probe = _bone_probe(BV, BF, Obstacle.cache_name(BV, BF), cache_str)
+            T = drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name])
+            found.append(probe.query(apply(T, V), reach)[0])
+        out[spec.name] = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
+    return out
 
 
 def _push_out_rest(
@@ -816,6 +867,7 @@ def _run(
     key: str,
     resume: bool,
     contact: dict[str, dict[str, FloatArray | None]] | None,
+    anchors: dict[str, IntArray] | None = None,
 ) -> RunSummary:
     from ..output import write_csv, write_pvd
 
@@ -855,6 +907,7 @@ def _run(
                 "times": drive.times,
                 "bones": list(bone_local.values()),
                 "contact": None if contact is None else contact[spec.name],
+                "anchors": None if anchors is None else anchors[spec.name],
                 "margin": scene.margin,
                 "outdir": str(outdir),
                 "paper_frames": scene.paper_frames,

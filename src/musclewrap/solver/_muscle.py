@@ -386,6 +386,7 @@ class Muscle:
         *,
         reference_point: npt.ArrayLike | None = None,
         skeleton_weight: float = defaults.skeleton_weight,
+        anchors: npt.ArrayLike | None = None,
     ) -> Deformer:
         """Attach the rest-pose action lines; returns the per-pose solver.
 
@@ -399,13 +400,21 @@ class Muscle:
             `Deformer.deform` call.
         skeleton_weight : float, optional
             Weight of the skeleton condition relative to the Laplacian.
+        anchors : (k,) int array_like, optional
+            Fine vertices that keep their rest positions (soft, like the skeleton
+            condition): where the muscle lies on a bone of the body that carries
+            it (an origin), in the frame in which it is deformed.
 
         Returns
         -------
         Deformer
         """
         return Deformer(
-            self, rest_lines, reference_point=reference_point, skeleton_weight=skeleton_weight
+            self,
+            rest_lines,
+            reference_point=reference_point,
+            skeleton_weight=skeleton_weight,
+            anchors=anchors,
         )
 
 
@@ -426,6 +435,10 @@ class Deformer:
         Rest reference point.
     skeleton_weight : float, optional
         Weight of the skeleton condition.
+    anchors : (k,) int array_like, optional
+        Fine vertices held at their rest positions by a soft condition
+        ``w_a W_a x = w_a V_a`` (rows of ``A`` like the skeleton's; weight
+        ``defaults.anchor_weight * sqrt(m / k)``).
     """
 
     def __init__(
@@ -435,6 +448,7 @@ class Deformer:
         *,
         reference_point: npt.ArrayLike | None = None,
         skeleton_weight: float = defaults.skeleton_weight,
+        anchors: npt.ArrayLike | None = None,
     ) -> None:
         if not skeleton_weight > 0:
             raise ValueError(f"skeleton_weight must be positive, got {skeleton_weight}")
@@ -454,6 +468,20 @@ class Deformer:
         self.weight = skeleton_weight * np.sqrt(m / k)
         L = muscle.L
         self.H = L.T @ L + self.weight**2 * (self.S.T @ self.S)
+        # anchors: fine vertices held at their rest positions (an origin on a bone)
+        self.anchors = np.zeros(0, dtype=np.int64)
+        self._anchor_rhs = np.zeros((m, 3))
+        self._anchor_W = np.zeros((0, m))
+        if anchors is not None and len(np.atleast_1d(anchors)):
+            a = np.unique(np.asarray(anchors, dtype=np.int64).ravel())
+            if a.min() < 0 or a.max() >= len(muscle.V):
+                raise ValueError(f"anchors must index the {len(muscle.V)} fine vertices")
+            self.anchors = a
+            self._anchor_W = muscle.W[a]
+            self.anchor_weight = defaults.anchor_weight * np.sqrt(m / len(a))
+            w2 = self.anchor_weight**2
+            self.H = self.H + w2 * (self._anchor_W.T @ self._anchor_W)
+            self._anchor_rhs = w2 * (self._anchor_W.T @ muscle.V[a])
         # explicit inverse for the 3-column solves of the per-pose loop (cond(H) ~ 1e5)
         chol = cho_factor(self.H, lower=False, check_finite=False)
         self._Hinv = cho_solve(chol, np.eye(m), check_finite=False)
@@ -475,6 +503,7 @@ class Deformer:
         # gradient g (`_proxy_matrices`)
         self._HL = self._Hinv @ self._LT
         self._HS = self.weight**2 * (self._Hinv @ self._ST)
+        self._x_anchor = self._Hinv @ self._anchor_rhs
         self._proxy_matrices(np.float32)
         L_csr = sparse.csr_matrix(L)
         self._L_csr = (L_csr.indptr.astype(np.int64), L_csr.indices.astype(np.int64), L_csr.data)
@@ -546,10 +575,10 @@ class Deformer:
 
     def _rhs(self, d_L: FloatArray, s_cur: FloatArray) -> FloatArray:
         """``A^T d = L^T d_L + w^2 S^T s'``, the right-hand side of the normal equations."""
-        return self._LT @ d_L + self.weight**2 * (self._ST @ s_cur)
+        return self._LT @ d_L + self.weight**2 * (self._ST @ s_cur) + self._anchor_rhs
 
     def energy(self, x: FloatArray, d_L: FloatArray, s_cur: FloatArray) -> float:
-        """``||L x - d_L||^2 + w^2 ||S x - s'||^2`` of cage positions ``x``."""
+        """``||L x - d_L||^2 + w^2 ||S x - s'||^2`` (+ the anchors') of cage positions ``x``."""
         return self._energy_and_samples(x, d_L, s_cur)[0]
 
     def _energy_and_samples(
@@ -564,6 +593,9 @@ class Deformer:
             np.ascontiguousarray(s_cur, dtype=np.float64),
             self.weight**2,
         )
+        if len(self.anchors):
+            r = self._anchor_W @ x - self.muscle.V[self.anchors]
+            e += self.anchor_weight**2 * float(np.sum(r * r))
         return float(e), Sx
 
     def _skeleton_fit(self, Sx: FloatArray, cur: Mapping[str, FloatArray]) -> tuple[float, float]:
@@ -676,6 +708,8 @@ class Deformer:
                 else:
                     # the unconstrained solution H^-1 A^T d from the two products of its parts
                     x_ls = self._HL @ d_L + self._HS @ s_cur
+                    if len(self.anchors):
+                        x_ls = x_ls + self._x_anchor
                 if not np.isfinite(x_ls).all():
                     raise FloatingPointError("the conditions overflow (line coordinates too large)")
                 if method == "paper":
