@@ -14,7 +14,15 @@ from ..contact import Obstacle
 from ..mesh import mean_edge_length, mean_rows, volume, volume_cubic
 from ._cubic import cubic_root_near
 
-__all__ = ["ContactReport", "Placed", "adjacency", "cage_push", "contact_candidates", "push_out"]
+__all__ = [
+    "ContactReport",
+    "Near",
+    "Placed",
+    "adjacency",
+    "cage_push",
+    "contact_candidates",
+    "push_out",
+]
 
 
 @dataclass(frozen=True)
@@ -120,8 +128,36 @@ def _rings(A: sp.csr_matrix, seeds: np.ndarray, k: int) -> np.ndarray:
     return level
 
 
+class Near:
+    """Which vertices can be within reach of each obstacle, by the 1-Lipschitz bound.
+
+    The grid's lower bound of the signed distance (`Obstacle.bounds`) is taken
+    once, at positions ``V``; after the vertices moved to ``P``, a vertex can be
+    nearer an obstacle than its allowed distance only if its lower bound less
+    ``|P - V|`` is, so only those are queried again.
+    """
+
+    def __init__(self, V: FloatArray, placed: Sequence[Placed], margin: float) -> None:
+        self.V = V
+        n = len(V)
+        self.lower = [pl.obstacle.bounds(pl.to_obstacle(V))[0] for pl in placed]
+        self.allowed = [pl.allowed(margin, n) for pl in placed]
+
+    def rows(self, P: FloatArray, reach: float) -> list[IntArray]:
+        """Per obstacle, the vertices whose distance may be below the allowed one + reach."""
+        moved = np.sqrt(np.einsum("ij,ij->i", P - self.V, P - self.V))
+        return [
+            np.flatnonzero(lo - moved < a + reach)
+            for lo, a in zip(self.lower, self.allowed, strict=True)
+        ]
+
+
 def _violations(
-    P: FloatArray, placed: Sequence[Placed], margin: float, slack: float
+    P: FloatArray,
+    placed: Sequence[Placed],
+    margin: float,
+    slack: float,
+    near: Near | None = None,
 ) -> tuple[np.ndarray, FloatArray, FloatArray, list[float]]:
     """Vertices closer than the margin (less ``slack``) to an obstacle, and where they go.
 
@@ -129,15 +165,21 @@ def _violations(
     margin plus ``slack``, along the shortest way out, in the muscle's frame),
     their signed distance less the allowed one (negative), and per obstacle the
     deepest vertex inside it (0 if none). A vertex too close to two obstacles
-    takes the larger violation.
+    takes the larger violation. ``near`` (`Near`) limits the queries to the
+    vertices that can be that close.
     """
     n = len(P)
     worst = np.full(n, np.inf)
     target = np.zeros((n, 3))
     depths = []
-    for pl in placed:
+    rows = near.rows(P, slack) if near is not None else [None] * len(placed)
+    for pl, r in zip(placed, rows, strict=True):
         allowed = pl.allowed(margin, n)
-        idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P), allowed - slack)
+        if r is None:
+            idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P), allowed - slack)
+        else:
+            idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P[r]), allowed[r] - slack)
+            idx = r[idx]
         depths.append(float(max(0.0, -phi.min(initial=0.0))))
         if not len(idx):
             continue
@@ -263,6 +305,8 @@ def push_out(
     A: sp.csr_matrix | None = None,
     max_rounds: int = defaults.contact_rounds,
     bone_vertices: bool = False,
+    edge: float | None = None,
+    near: Near | None = None,
 ) -> tuple[FloatArray, ContactReport]:
     """Move a muscle's vertices out of obstacles, keeping its volume exact.
 
@@ -302,6 +346,11 @@ def push_out(
         nearest to it past it. Robust but not cheap (a winding-number and a
         closest-point query over the muscle per round): used once, for the
         rest overlap at preparation.
+    edge : float, optional
+        The mesh's mean edge length (computed when not given).
+    near : Near, optional
+        Lower bounds of the distances taken earlier (built here when not given):
+        only vertices that can come within reach are queried.
 
     Returns
     -------
@@ -309,9 +358,12 @@ def push_out(
         New positions (``V`` itself when nothing was near an obstacle).
     ContactReport
     """
-    edge = mean_edge_length(V, F)
+    if edge is None:
+        edge = mean_edge_length(V, F)
     slack = tol.contact * edge
-    hit, target, gap, depths = _violations(V, placed, margin, slack)
+    if near is None:
+        near = Near(V, placed, margin)
+    hit, target, gap, depths = _violations(V, placed, margin, slack, near)
     if bone_vertices:
         hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap)
     depth_before = max(depths, default=0.0)
@@ -325,6 +377,9 @@ def push_out(
     held = np.zeros(n, dtype=bool)
     rounds = 0
     ok = True
+    # the volume is corrected along the normals at the start (any direction is exact: the
+    # volume along it is a cubic; these stay smooth)
+    Z = _normals(P, F) if direction is None else np.asarray(direction, dtype=np.float64)
     # the first rounds relax every push with its neighbours; the last ones project exactly
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
     if bone_vertices:  # once per muscle: relax longer, fewer folds
@@ -358,7 +413,6 @@ def push_out(
             P[hit] = target
         held[hit] = True
         # exact volume along the correction direction, away from the held vertices
-        Z = _normals(P, F) if direction is None else np.asarray(direction, dtype=np.float64)
         ramp = min(radius + 2, 12)
         level = _rings(A, np.flatnonzero(held), ramp)
         mask = np.clip(level / (ramp + 1.0), 0.0, 1.0)
@@ -369,7 +423,7 @@ def push_out(
             ok = False
             break
         P += t * Zm
-        hit, target, gap, depths = _violations(P, placed, margin, slack)
+        hit, target, gap, depths = _violations(P, placed, margin, slack, near)
         if bone_vertices:
             hit, target, gap = _with_bone_vertices(P, F, placed, margin, slack, hit, target, gap)
         if not len(hit):
@@ -397,16 +451,16 @@ def push_out(
         t = cubic_root_near(volume_cubic(P - c, Z, F), volume_target, 0.0)
         if np.isfinite(t):
             P = P + t * Z
-            _, _, _, depths = _violations(P, placed, margin, slack)
+            _, _, _, depths = _violations(P, placed, margin, slack, near)
         rel = abs(volume(P, F) - volume_target) / abs(volume_target)
     if rel > tol.volume:
         ok = False
         reason = (reason + "; " if reason else "") + f"volume error {rel:.3g} after contact"
     # the vertices in contact: within the slack of the margin of an obstacle
     touching = np.zeros(n, dtype=bool)
-    for pl in placed:
-        allowed = pl.allowed(margin, n)
-        touching[pl.obstacle.query(pl.to_obstacle(P), allowed + 2.0 * slack)[0]] = True
+    for pl, r in zip(placed, near.rows(P, 2.0 * slack), strict=True):
+        allowed = pl.allowed(margin, n)[r]
+        touching[r[pl.obstacle.query(pl.to_obstacle(P[r]), allowed + 2.0 * slack)[0]]] = True
     report = ContactReport(
         contact_vertices=int(touching.sum()),
         depth_before=depth_before,
@@ -421,7 +475,11 @@ def push_out(
 
 
 def contact_candidates(
-    P: FloatArray, placed: Sequence[Placed], margin: float, band: float
+    P: FloatArray,
+    placed: Sequence[Placed],
+    margin: float,
+    band: float,
+    near: Near | None = None,
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """Vertices within ``band`` of the margin of an obstacle: index, gap, outward direction.
 
@@ -432,10 +490,12 @@ def contact_candidates(
     """
     out_i, out_g, out_n = [], [], []
     n = len(P)
-    for pl in placed:
+    rows = near.rows(P, band) if near is not None else [np.arange(n)] * len(placed)
+    for pl, r in zip(placed, rows, strict=True):
         allowed = pl.allowed(margin, n)
         # the grid's interpolated distance: linearised conditions need no exact one
-        idx, phi, N = pl.obstacle.interpolate(pl.to_obstacle(P), margin + band)
+        idx, phi, N = pl.obstacle.interpolate(pl.to_obstacle(P[r]), margin + band)
+        idx = r[idx]
         gap = phi - allowed[idx]
         near = gap < band
         out_i.append(idx[near])

@@ -47,7 +47,7 @@ from ..mesh import (
     volume_gradient,
     volume_hessian_reduced,
 )
-from ._contact import Placed, adjacency, cage_push, contact_candidates, push_out
+from ._contact import Near, Placed, adjacency, cage_push, contact_candidates, push_out
 from ._cubic import cubic_root_near
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
 from ._result import DeformationResult
@@ -745,7 +745,8 @@ class Deformer:
             contact = None
             if obstacles and np.isfinite(V).all():
                 placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
-                x, V, before = self._cage_contact(x, V, placed, margin)
+                near = Near(V, placed, margin)
+                x, V, before = self._cage_contact(x, V, placed, margin, near)
                 V, contact = push_out(
                     V,
                     self.muscle.F,
@@ -753,6 +754,8 @@ class Deformer:
                     volume_target=self.muscle.volume_rest,
                     margin=margin,
                     A=self.muscle.adjacency,
+                    edge=self._fine_edge,
+                    near=near,
                 )
                 contact = dataclasses.replace(
                     contact, depth_before=max(before, contact.depth_before)
@@ -763,7 +766,7 @@ class Deformer:
             return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact)
 
     def _cage_contact(
-        self, x: FloatArray, V: FloatArray, placed: Sequence[Placed], margin: float
+        self, x: FloatArray, V: FloatArray, placed: Sequence[Placed], margin: float, near: Near
     ) -> tuple[FloatArray, FloatArray, float]:
         """Move the cage so that the fine vertices leave the obstacles (`cage_push`).
 
@@ -779,7 +782,7 @@ class Deformer:
         band = defaults.contact_band * edge
         before = 0.0
         for step in range(defaults.contact_cage_steps):
-            idx, gap, N = contact_candidates(V, placed, margin, band)
+            idx, gap, N = contact_candidates(V, placed, margin, band, near)
             if step == 0:
                 before = float(max(0.0, -(gap + margin).min(initial=0.0)))
             if not len(idx) or gap.min() >= -edge:
