@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
@@ -256,17 +257,18 @@ class Obstacle:
         return lower, upper
 
     def _grid_bounds(self, P: FloatArray) -> tuple[FloatArray, FloatArray]:
-        U = (P - self.lo) / self.h
-        base = np.clip(U.astype(np.int64), 0, self._shape - 2)
-        # corner-major (8, n) arrays: numpy reduces over a short last axis slowly
-        flat = self._corner_offsets[:, None] + (base @ self._strides)[None, :]
-        f = (U - base).T  # position in the cell, 0..1 per axis
-        a = np.stack([f * f, (1 - f) ** 2]) * (self.h * self.h)  # (corner bit, axis, n)
-        d = np.sqrt(
-            (a[:, None, None, 0] + a[None, :, None, 1] + a[None, None, :, 2]).reshape(8, -1)
+        lower = np.empty(len(P))
+        upper = np.empty(len(P))
+        _bounds_kernel(
+            np.ascontiguousarray(P, dtype=np.float64),
+            self.lo,
+            self.h,
+            self._shape,
+            self._lo_sd,
+            self._hi_sd,
+            lower,
+            upper,
         )
-        lower = (self._lo_sd[flat] - d).max(axis=0)
-        upper = (self._hi_sd[flat] + d).min(axis=0)
         return lower, upper
 
     def interpolate(self, Q: FloatArray, reach: float) -> tuple[IntArray, FloatArray, FloatArray]:
@@ -408,6 +410,32 @@ class Obstacle:
                 i, batch = i + batch, 2 * batch
             return n_inside, found
         return n_inside, float(max(x.max() for x in depths if len(x)))
+
+
+@numba.njit(cache=True)
+def _bounds_kernel(P, lo, h, shape, lo_sd, hi_sd, lower, upper):  # noqa: ANN001, ANN202 # pragma: no cover
+    # per point: its cell's eight corner intervals, each widened by the distance to the corner
+    s0, s1 = shape[1] * shape[2], shape[2]
+    hh = h * h
+    for i in range(P.shape[0]):
+        u0, u1, u2 = (P[i, 0] - lo[0]) / h, (P[i, 1] - lo[1]) / h, (P[i, 2] - lo[2]) / h
+        b0 = min(max(int(u0), 0), shape[0] - 2)
+        b1 = min(max(int(u1), 0), shape[1] - 2)
+        b2 = min(max(int(u2), 0), shape[2] - 2)
+        f0, f1, f2 = u0 - b0, u1 - b1, u2 - b2
+        best_lo, best_hi = -np.inf, np.inf
+        for c0 in range(2):
+            a0 = (f0 * f0 if c0 == 0 else (1 - f0) ** 2) * hh
+            for c1 in range(2):
+                a1 = (f1 * f1 if c1 == 0 else (1 - f1) ** 2) * hh
+                for c2 in range(2):
+                    a2 = (f2 * f2 if c2 == 0 else (1 - f2) ** 2) * hh
+                    d = np.sqrt(a0 + a1 + a2)
+                    k = (b0 + c0) * s0 + (b1 + c1) * s1 + b2 + c2
+                    best_lo = max(best_lo, np.float64(lo_sd[k]) - d)
+                    best_hi = min(best_hi, np.float64(hi_sd[k]) + d)
+        lower[i] = best_lo
+        upper[i] = best_hi
 
 
 def _round(x: FloatArray, direction: int) -> FloatArray:

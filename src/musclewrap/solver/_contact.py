@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -116,16 +117,57 @@ def adjacency(F: IntArray, n: int) -> sp.csr_matrix:
 def _rings(A: sp.csr_matrix, seeds: np.ndarray, k: int) -> np.ndarray:
     """Ring distance (in edges) from the ``seeds`` of every vertex up to ``k``; k + 1 beyond."""
     level = np.full(A.shape[0], k + 1, dtype=np.int64)
-    level[seeds] = 0
-    front = np.zeros(A.shape[0])
-    front[seeds] = 1.0
-    for r in range(1, k + 1):
-        reached = (A @ front > 0) & (level > k)
-        if not reached.any():
-            break
-        level[reached] = r
-        front = reached.astype(np.float64)
+    _rings_kernel(A.indptr, A.indices, np.asarray(seeds, dtype=np.int64), k, level)
     return level
+
+
+@numba.njit(cache=True)
+def _rings_kernel(indptr, indices, seeds, k, level):  # noqa: ANN001, ANN202 # pragma: no cover
+    # breadth-first search over the CSR adjacency, k levels deep
+    front = np.empty(level.shape[0], dtype=np.int64)
+    n_front = 0
+    for s in seeds:
+        if level[s] != 0:
+            level[s] = 0
+            front[n_front] = s
+            n_front += 1
+    nxt = np.empty(level.shape[0], dtype=np.int64)
+    for r in range(1, k + 1):
+        n_next = 0
+        for q in range(n_front):
+            v = front[q]
+            for p in range(indptr[v], indptr[v + 1]):
+                w = indices[p]
+                if level[w] > k:
+                    level[w] = r
+                    nxt[n_next] = w
+                    n_next += 1
+        if n_next == 0:
+            break
+        front, nxt = nxt, front
+        n_front = n_next
+
+
+@numba.njit(cache=True)
+def _smooth(indptr, indices, D, rows, sweeps, keep):  # noqa: ANN001, ANN202 # pragma: no cover
+    # Jacobi sweeps on the given rows: D_v <- keep D_v + (1 - keep) mean of its 1-ring
+    new = np.empty((rows.shape[0], 3))
+    for _ in range(sweeps):
+        for q in range(rows.shape[0]):
+            v = rows[q]
+            s0 = s1 = s2 = 0.0
+            for p in range(indptr[v], indptr[v + 1]):
+                w = indices[p]
+                s0 += D[w, 0]
+                s1 += D[w, 1]
+                s2 += D[w, 2]
+            k = indptr[v + 1] - indptr[v]
+            new[q, 0] = keep * D[v, 0] + (1.0 - keep) * s0 / k
+            new[q, 1] = keep * D[v, 1] + (1.0 - keep) * s1 / k
+            new[q, 2] = keep * D[v, 2] + (1.0 - keep) * s2 / k
+        for q in range(rows.shape[0]):
+            v = rows[q]
+            D[v, 0], D[v, 1], D[v, 2] = new[q, 0], new[q, 1], new[q, 2]
 
 
 class Near:
@@ -196,10 +238,19 @@ def _violations(
         # projections walk out of the crevice).
         for _ in range(8):
             moved = False
-            for pl in placed:
+            for b, pl in enumerate(placed):
                 allowed = pl.allowed(margin, len(P), hit)
-                idx, _, C, N = pl.obstacle.query(pl.to_obstacle(target), allowed - slack)
+                cand = np.arange(len(hit))
+                if near is not None:  # only targets that can be that near this obstacle
+                    gone = np.linalg.norm(target - near.V[hit], axis=1)
+                    cand = np.flatnonzero(near.lower[b][hit] - gone < allowed + slack)
+                    if not len(cand):
+                        continue
+                idx, _, C, N = pl.obstacle.query(
+                    pl.to_obstacle(target[cand]), allowed[cand] - slack
+                )
                 if len(idx):
+                    idx = cand[idx]
                     target[idx] = pl.to_muscle(C + N * (allowed[idx] + slack)[:, None])
                     moved = True
             if not moved:
@@ -372,7 +423,6 @@ def push_out(
     n = len(V)
     if A is None:
         A = adjacency(F, n)
-    deg = np.asarray(A.sum(axis=1)).ravel()
     P = V.copy()
     held = np.zeros(n, dtype=bool)
     rounds = 0
@@ -394,19 +444,14 @@ def push_out(
         Dall = np.zeros((n, 3))
         Dall[hit] = D
         if len(region):
-            M = A[region]  # rows of the free vertices; columns: all (fixed ones hold values)
-            inv = 1.0 / deg[region]
-            for _ in range(2 * radius * radius):
-                Dall[region] = (M @ Dall) * inv[:, None]
+            # Jacobi sweeps of the 1-ring mean on the free vertices (the pushed ones hold)
+            _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
         if rounds <= relax_rounds:
             # Relax the pushed vertices too: neighbours projected onto different sheets of a
             # concave bone (or along converging normals) would cross; what the relaxation
             # leaves inside is pushed again in the next round.
             moving = np.flatnonzero(level <= radius)
-            M = A[moving]
-            inv = 1.0 / deg[moving]
-            for _ in range(defaults.contact_relax):
-                Dall[moving] = 0.5 * Dall[moving] + 0.5 * (M @ Dall) * inv[:, None]
+            _smooth(A.indptr, A.indices, Dall, moving, defaults.contact_relax, 0.5)
             P += Dall
         else:
             P += Dall
