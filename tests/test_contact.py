@@ -257,13 +257,15 @@ def test_lhdl_walk_subset_stays_out_of_the_bones(data_dir, tmp_path):
         assert r["skeleton_fit_mean"] <= 1.5, r
         # the run's own measure, after contact
         assert r["penetration_depth_max"] <= 0.5, r
-    # without contact the solve put vertices several mm into the bones on these frames
-    assert max(r["penetration_depth_before"] for r in s.rows) > 3.0
+        assert r["shape_change_max"] <= 0.5, r
+    # without contact the solve puts vertices a few mm into the bones on these frames
+    assert max(r["penetration_depth_before"] for r in s.rows) > 1.0
     assert (tmp_path / "o" / "penetration.png").is_file()
     # the independent check: exact winding numbers and distances, full-resolution bones
     rows = verify_run(scene, tmp_path / "o", frames)
     assert len(rows) == 12
     assert max(r["muscle_in_bone"] for r in rows) <= 0.5
+    assert max(r["bone_in_muscle"] for r in rows) <= 1.0
     # every written mesh has the volume of the prepared (repaired, pushed-out) muscle
     for r in s.rows:
         m = r["muscle"]
