@@ -1,17 +1,19 @@
 """Contact with bones on a whole scene: time with and without, and the independent check.
 
-    python benchmarks/bench_contact.py [SCENE] [--frames 0:211:1] [--check-every 10]
+    python benchmarks/bench_contact.py [SCENE] [--frames 0:211:1] [--check-every 10] [--no-timing]
 
 Runs the scene warm (preparations cached by a first run) with contact on and with
 ``--no-collisions``, alternately, three times each, and prints the medians and their ratio;
 then checks the written meshes of the contact run against the full-resolution bones
 (`musclewrap.scene._verify.verify_run`: exact winding numbers and distances) on every
-``--check-every``-th frame.
+``--check-every``-th frame. ``--no-timing``: one run with contact, then the check (a scene
+with several motions, such as the sweeps, is checked motion by motion over all its frames).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import subprocess
 import sys
 import tempfile
@@ -37,9 +39,41 @@ def main() -> None:
     p.add_argument("--frames", default="0:211:1")
     p.add_argument("--check-every", type=int, default=10)
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--no-timing", action="store_true")
     a = p.parse_args()
-    from musclewrap.scene import load_scene
+    import dataclasses
+
+    from musclewrap.scene import load_scene, read_motion
     from musclewrap.scene._verify import verify_run
+
+    if a.no_timing:
+        scene = load_scene(a.scene)
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "on"
+            cmd = [sys.executable, "-m", "musclewrap.cli", "run", a.scene, "-o", str(out)]
+            subprocess.run(
+                [*cmd, "--no-gif", "--allow-unconverged"], check=True, capture_output=True
+            )
+            for m in scene.motions:
+                sc = dataclasses.replace(scene, motions=(m,))
+                folder = out if len(scene.motions) == 1 else out / m.stem
+                n = read_motion(m).n_frames
+                rows = verify_run(sc, folder, f"0:{n}:{a.check_every}")
+                with open(folder / "report.csv", newline="") as fh:
+                    rep = list(csv.DictReader(fh))
+                print(f"{m.stem}: independent check on {len(rows) // len(scene.muscles)} frames")
+                for mu in scene.muscles:
+                    r = [x for x in rows if x["muscle"] == mu.name]
+                    q = [x for x in rep if x["muscle"] == mu.name]
+                    print(
+                        f"    {mu.name:<18} muscle vertex in bone <= "
+                        f"{max(x['muscle_in_bone'] for x in r):6.3f}, bone vertex in muscle <= "
+                        f"{max(x['bone_in_muscle'] for x in r):6.3f}; all frames: shape change <= "
+                        f"{max(float(x['shape_change_max']) for x in q):.2f}, fit <= "
+                        f"{max(float(x['skeleton_fit_mean']) for x in q):.2f}, unconverged "
+                        f"{sum(x['converged'] != 'True' for x in q)}"
+                    )
+        return
 
     with tempfile.TemporaryDirectory() as tmp:
         on, off = Path(tmp) / "on", Path(tmp) / "off"
