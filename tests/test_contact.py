@@ -289,3 +289,26 @@ def test_rest_overlap_kept_prevents_only_new_penetration(data_dir, tmp_path):
         assert abs(r["relative_volume_error"]) <= 1e-9
         # the psoas lies 3.5 mm into the iliac bone at rest: kept, never deeper
         assert 0.5 < r["penetration_depth_max"] <= 3.53, r
+
+
+@pytest.mark.realdata
+def test_an_open_bone_is_closed_for_contact_or_refused(data_dir, tmp_path):
+    from musclewrap.mesh import read_mesh, write_mesh
+    from musclewrap.scene import SceneError, load_scene, run_scene
+
+    lhdl = data_dir / "lhdl"
+    V, F = read_mesh(lhdl / "bones" / "LHDL_R_Femur.vtk")
+    # a hole: the faces around one vertex of the shaft removed
+    write_mesh(tmp_path / "open.vtp", V, F[~(F == F[len(F) // 2, 0]).any(axis=1)])
+    text = _scene_text(data_dir).replace(
+        str(lhdl / "bones" / "LHDL_R_Femur.vtk"), str(tmp_path / "open.vtp")
+    )
+    toml = tmp_path / "s.toml"
+    toml.write_text(text)
+    s = run_scene(load_scene(toml), tmp_path / "o", frames="0:2", cache_dir=False, progress=None)
+    assert any(n.startswith("femur: open (") and "closed for contact" in n for n in s.notes)
+    assert all(r["converged"] for r in s.rows)
+    # a bone that is only a few loose triangles cannot be closed: refused, naming the file
+    write_mesh(tmp_path / "open.vtp", V, F[:3])
+    with pytest.raises(SceneError, match="open.vtp: the bone 'femur' is open.*could not be closed"):
+        run_scene(load_scene(toml), tmp_path / "o2", frames="0:2", cache_dir=False, progress=None)

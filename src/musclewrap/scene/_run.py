@@ -497,6 +497,45 @@ def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bo
     return d["V"], d["F"], bool(d["flipped"])
 
 
+def _closed_bone(
+    b: Any,
+    V: FloatArray,
+    F: IntArray,
+    cache: Path | None,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> tuple[FloatArray, IntArray]:
+    """A bone that contact can use: closed (an open one is repaired, or refused); cached.
+
+    Contact needs an inside: a bone with holes is closed by PyMeshFix, as a muscle is, and
+    the run says so; one that cannot be is refused, naming the file.
+    """
+    from ..mesh import MeshError, repair_mesh
+
+    check = check_mesh(V, F)
+    if not check.boundary_edges:
+        return V, F
+
+    def build() -> dict[str, np.ndarray]:
+        try:
+            RV, RF, rnotes = repair_mesh(V, F, source=str(b.mesh))
+        except MeshError as exc:
+            raise SceneError(
+                f"{b.mesh}: the bone '{b.name}' is open ({check.boundary_edges} boundary "
+                f"edges) and could not be closed ({exc}); contact needs its inside: close it, "
+                "leave it out of the muscles' bones, or set [collisions] enabled = false"
+            ) from None
+        return {"V": RV, "F": RF, "notes": np.array(rnotes, dtype=str)}
+
+    d = _cached_mesh(b.mesh, cache, "bone-closed", build)
+    for n in [f"open ({check.boundary_edges} boundary edges): closed for contact"] + [
+        str(x) for x in d["notes"]
+    ]:
+        notes.append(f"{b.name}: {n}")
+        say(f"{b.name}: {n}")
+    return d["V"], d["F"]
+
+
 def run_scene(
     scene: Scene,
     outdir: Path,
@@ -611,6 +650,8 @@ def _run_scene(
         V, F, flipped = _read_bone(b.mesh, cache)
         if flipped:
             notes.append(f"{b.name}: faces were oriented inward: flipped")
+        if collisions:
+            V, F = _closed_bone(b, V, F, cache, say, notes)
         bones[b.name] = (V, F)
     centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
     drive = drive_scene(scene, frames, centroids)
