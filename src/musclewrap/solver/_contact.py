@@ -337,12 +337,28 @@ def _barycentric(C: FloatArray, tri: FloatArray) -> FloatArray:
 
 def _normals(P: FloatArray, F: IntArray) -> FloatArray:
     """Area-weighted vertex normals (unit)."""
-    FN = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
-    Fr = F.ravel()
-    N = np.stack(
-        [np.bincount(Fr, np.repeat(FN[:, k], 3), minlength=len(P)) for k in range(3)], axis=1
-    )
-    return N / np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+    N = np.zeros_like(P)
+    _normals_kernel(np.ascontiguousarray(P), np.ascontiguousarray(F, dtype=np.int64), N)
+    return N
+
+
+@numba.njit(cache=True)
+def _normals_kernel(P, F, N):  # noqa: ANN001, ANN202 # pragma: no cover
+    for f in range(F.shape[0]):
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        u0, u1, u2 = P[b, 0] - P[a, 0], P[b, 1] - P[a, 1], P[b, 2] - P[a, 2]
+        v0, v1, v2 = P[c, 0] - P[a, 0], P[c, 1] - P[a, 1], P[c, 2] - P[a, 2]
+        n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        for k in (a, b, c):
+            N[k, 0] += n0
+            N[k, 1] += n1
+            N[k, 2] += n2
+    for i in range(N.shape[0]):
+        r = np.sqrt(N[i, 0] ** 2 + N[i, 1] ** 2 + N[i, 2] ** 2)
+        if r > 0:
+            N[i, 0] /= r
+            N[i, 1] /= r
+            N[i, 2] /= r
 
 
 def push_out(
@@ -446,7 +462,7 @@ def push_out(
         if len(region):
             # Jacobi sweeps of the 1-ring mean on the free vertices (the pushed ones hold)
             _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
-        if rounds <= relax_rounds:
+        if rounds <= relax_rounds and depth > defaults.contact_relax_depth * edge:
             # Relax the pushed vertices too: neighbours projected onto different sheets of a
             # concave bone (or along converging normals) would cross; what the relaxation
             # leaves inside is pushed again in the next round.
