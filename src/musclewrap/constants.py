@@ -123,9 +123,6 @@ class Defaults:
     contact_relax_rounds : int
         The first rounds, which relax; the later ones project the vertices
         still too near exactly.
-    contact_relax_depth : float
-        Pushes no deeper than this many mean edge lengths are projected at
-        once, without relaxation (they cannot fold the surface).
     contact_exact_rounds : int
         At the rest overlap (once per muscle, `push_out` with
         ``bone_vertices``) every round relaxes but these last ones.
@@ -163,7 +160,6 @@ class Defaults:
     contact_relax: int = 4
     contact_relax_rounds: int = 3
     contact_exact_rounds: int = 3
-    contact_relax_depth: float = 1.0
     contact_cage_steps: int = 3
     contact_band: float = 2.0
     contact_softness: float = 0.1

@@ -462,7 +462,7 @@ def push_out(
         if len(region):
             # Jacobi sweeps of the 1-ring mean on the free vertices (the pushed ones hold)
             _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
-        if rounds <= relax_rounds and depth > defaults.contact_relax_depth * edge:
+        if rounds <= relax_rounds:
             # Relax the pushed vertices too: neighbours projected onto different sheets of a
             # concave bone (or along converging normals) would cross; what the relaxation
             # leaves inside is pushed again in the next round.
