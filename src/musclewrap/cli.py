@@ -160,20 +160,12 @@ def _cmd_prepare(a: argparse.Namespace) -> int:
 
 
 def _read_obstacle(path: str):  # noqa: ANN202
-    """A bone file as an obstacle: merged, tidied and oriented outward (named in errors)."""
-    from .contact import Obstacle
-    from .mesh import MeshError, check_mesh, read_mesh, tidy_mesh
+    """A bone file as an obstacle (`musclewrap.contact.bone_surface`: an open one is refused)."""
+    from .contact import Obstacle, bone_surface
+    from .mesh import read_mesh
     from .solver import Placed
 
-    V, F, _ = tidy_mesh(*read_mesh(path))
-    check = check_mesh(V, F)
-    if check.boundary_edges or not len(F):
-        raise MeshError(
-            f"{path}: the bone is not closed ({check.boundary_edges} boundary edges): its inside "
-            "is not defined; close it first (e.g. PyMeshFix)"
-        )
-    if check.volume < 0:
-        F = F[:, ::-1].copy()
+    V, F, _ = bone_surface(*read_mesh(path), source=path)
     return Placed(Obstacle(V, F), name=Path(path).name)
 
 

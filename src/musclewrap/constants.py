@@ -123,9 +123,6 @@ class Defaults:
     contact_relax_rounds : int
         The first rounds, which relax; the later ones project the vertices
         still too near exactly.
-    contact_exact_rounds : int
-        At the rest overlap (once per muscle, `push_out` with
-        ``bone_vertices``) every round relaxes but these last ones.
     contact_cage_steps : int
         Most linearised contact steps of the cage (before the fine finish),
         taken while a vertex is more than a mean fine edge too near a bone.
@@ -159,7 +156,6 @@ class Defaults:
     contact_spread: float = 1.0
     contact_relax: int = 4
     contact_relax_rounds: int = 3
-    contact_exact_rounds: int = 3
     contact_cage_steps: int = 3
     contact_band: float = 2.0
     contact_softness: float = 0.1

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..mesh import check_mesh, face_areas, self_intersecting_faces, volume
+from ..mesh import check_mesh, face_areas, self_intersecting_faces, vertex_normals, volume
 
 __all__ = ["Cage", "CageError", "build_cage", "cage_self_intersections", "verify_cage"]
 
@@ -89,14 +89,6 @@ def cage_self_intersections(C: FloatArray, CF: IntArray) -> int:
         Number of crossing triangles (0 for a valid cage).
     """
     return self_intersecting_faces(C, CF)
-
-
-def _vertex_normals(C: FloatArray, CF: IntArray) -> FloatArray:
-    fn = np.cross(C[CF[:, 1]] - C[CF[:, 0]], C[CF[:, 2]] - C[CF[:, 0]])
-    N = np.zeros_like(C)
-    for k in range(3):
-        np.add.at(N, CF[:, k], fn)
-    return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
 
 
 def _enclosure(
@@ -327,7 +319,7 @@ def _build_cage(
             np.maximum.at(push, CF[face[bad], k], need)
         # twice the need: a vertex normal meets the nearest face at an angle, so the face
         # moves less than its corners (Cage.push_rounds records how many rounds it took)
-        C = C + _vertex_normals(C, CF) * (2.0 * push + 1e-3 * offset * (push > 0))[:, None]
+        C = C + vertex_normals(C, CF) * (2.0 * push + 1e-3 * offset * (push > 0))[:, None]
     # the final verdict uses generalized winding numbers, whatever the cage's state
     wn, dist, _ = _enclosure(V, C, CF)
     # _coarsen checked for self-intersections; only pushing can have made some

@@ -1,5 +1,5 @@
 """Obstacles: bones as rigid closed surfaces, with signed distance and closest points."""
 
-from ._obstacle import Obstacle
+from ._obstacle import Obstacle, bone_surface
 
-__all__ = ["Obstacle"]
+__all__ = ["Obstacle", "bone_surface"]

@@ -8,11 +8,56 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..mesh import MeshError, barycentric, check_mesh, repair_mesh, tidy_mesh
 
-__all__ = ["Obstacle"]
+__all__ = ["Obstacle", "bone_surface"]
 
 #: version of the stored grid; part of the cache key
 _FORMAT = 1
+
+
+def bone_surface(
+    V: FloatArray, F: IntArray, *, source: str = "bone", close: bool = False
+) -> tuple[FloatArray, IntArray, list[str]]:
+    """A bone mesh as contact needs it: duplicates merged, outward, and closed.
+
+    Contact needs the bone's inside. An open bone is closed with PyMeshFix
+    (``close``, as a muscle is repaired) or refused.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array
+    F : (m, 3) int array
+    source : str, optional
+        File name quoted in messages.
+    close : bool, optional
+        Close an open bone instead of refusing it.
+
+    Returns
+    -------
+    V, F : arrays
+    notes : list of str
+        What was changed.
+
+    Raises
+    ------
+    musclewrap.mesh.MeshError
+        If the bone is open and ``close`` is off, or it cannot be closed.
+    """
+    V, F, notes = tidy_mesh(V, F)
+    check = check_mesh(V, F)
+    if check.volume < 0:
+        F = F[:, ::-1].copy()
+        notes.append("faces were oriented inward: flipped")
+    if check.boundary_edges or not len(F):
+        if not close:
+            raise MeshError(
+                f"{source}: the bone is not closed ({check.boundary_edges} boundary edges): "
+                "its inside is not defined; close it first (e.g. PyMeshFix)"
+            )
+        V, F, repaired = repair_mesh(V, F, source=source)
+        notes += [f"open ({check.boundary_edges} boundary edges): closed for contact", *repaired]
+    return V, F, notes
 
 
 class Obstacle:
@@ -195,16 +240,8 @@ class Obstacle:
 
     # ------------------------------------------------------------------ exact
     def _pseudo_normal_sign(self, Q: FloatArray, C: FloatArray, face: IntArray) -> FloatArray:
-        tri = self.V[self.F[face]]
         # barycentric coordinates of the closest points
-        v0, v1 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-        v2 = C - tri[:, 0]
-        d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-        d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-        den = np.where(d00 * d11 - d01 * d01 > 0, d00 * d11 - d01 * d01, 1.0)
-        b1 = (d11 * d20 - d01 * d21) / den
-        b2 = (d00 * d21 - d01 * d20) / den
-        b = np.stack([1 - b1 - b2, b1, b2], axis=1)
+        b = barycentric(C, self.V[self.F[face]])
         eps = 1e-9
         zero = b <= eps
         N = self._FN[face].copy()

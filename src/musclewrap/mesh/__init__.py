@@ -13,7 +13,15 @@ from ._checks import (
     split_nonmanifold_vertices,
     tidy_mesh,
 )
-from ._geometry import face_areas, half_edges, mean_edge_length, umbrella_laplacian
+from ._geometry import (
+    barycentric,
+    face_areas,
+    half_edges,
+    mean_edge_length,
+    umbrella_laplacian,
+    vertex_adjacency,
+    vertex_normals,
+)
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
 from ._repair import repair_mesh
 from ._volume import (
@@ -31,6 +39,7 @@ __all__ = [
     "MeshCheck",
     "MeshError",
     "atomic_path",
+    "barycentric",
     "available_memory",
     "check_memory",
     "combine_pair",
@@ -39,6 +48,8 @@ __all__ = [
     "mean_edge_length",
     "mean_rows",
     "umbrella_laplacian",
+    "vertex_adjacency",
+    "vertex_normals",
     "check_mesh",
     "clean_mesh",
     "merge_duplicate_vertices",

@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 
-__all__ = ["face_areas", "half_edges", "mean_edge_length", "umbrella_laplacian"]
+__all__ = [
+    "barycentric",
+    "face_areas",
+    "half_edges",
+    "mean_edge_length",
+    "umbrella_laplacian",
+    "vertex_adjacency",
+    "vertex_normals",
+]
 
 
 def half_edges(F: IntArray) -> IntArray:
@@ -26,10 +35,60 @@ def mean_edge_length(V: FloatArray, F: IntArray) -> float:
     return float(np.mean(np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)))
 
 
-def umbrella_laplacian(F: IntArray, n: int) -> sp.csr_matrix:
-    """Uniform ("umbrella") Laplacian: ``(U @ V)[i] = v_i - mean of its 1-ring``."""
+def vertex_adjacency(F: IntArray, n: int) -> sp.csr_matrix:
+    """Vertex adjacency of a triangle mesh: symmetric, ones where two vertices share an edge."""
     e = half_edges(F)
     A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
-    A = ((A + A.T) > 0).astype(np.float64)
+    return ((A + A.T) > 0).astype(np.float64).tocsr()
+
+
+def umbrella_laplacian(F: IntArray, n: int) -> sp.csr_matrix:
+    """Uniform ("umbrella") Laplacian: ``(U @ V)[i] = v_i - mean of its 1-ring``."""
+    A = vertex_adjacency(F, n)
     deg = np.asarray(A.sum(axis=1)).ravel()
     return (sp.identity(n, format="csr") - sp.diags(1.0 / deg) @ A).tocsr()
+
+
+def vertex_normals(V: FloatArray, F: IntArray) -> FloatArray:
+    """Area-weighted unit vertex normals (zero where the faces around a vertex cancel)."""
+    N = np.zeros((len(V), 3))
+    _normals_kernel(
+        np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64), N
+    )
+    return N
+
+
+@numba.njit(cache=True)
+def _normals_kernel(V, F, N):  # noqa: ANN001, ANN202 # pragma: no cover
+    # corner by corner over all faces, as numpy's np.add.at(N, F[:, k], face_normals) sums
+    for k in range(3):
+        for f in range(F.shape[0]):
+            a, b, c = F[f, 0], F[f, 1], F[f, 2]
+            u0, u1, u2 = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
+            v0, v1, v2 = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
+            i = F[f, k]
+            N[i, 0] += u1 * v2 - u2 * v1
+            N[i, 1] += u2 * v0 - u0 * v2
+            N[i, 2] += u0 * v1 - u1 * v0
+    for i in range(N.shape[0]):
+        r = np.sqrt(N[i, 0] * N[i, 0] + N[i, 1] * N[i, 1] + N[i, 2] * N[i, 2])
+        r = max(r, 1e-300)
+        N[i, 0] /= r
+        N[i, 1] /= r
+        N[i, 2] /= r
+
+
+def barycentric(C: FloatArray, tri: FloatArray) -> FloatArray:
+    """Barycentric coordinates ``(k, 3)`` of points ``C`` in the plane of triangles ``tri``.
+
+    ``tri`` is ``(k, 3, 3)``; a degenerate triangle gives ``(1, 0, 0)``-like values
+    (its determinant is taken as 1). Not clipped: a point outside has a negative one.
+    """
+    v0, v1, v2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], C - tri[:, 0]
+    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
+    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+    den = d00 * d11 - d01 * d01
+    den = np.where(den > 0, den, 1.0)
+    b1 = (d11 * d20 - d01 * d21) / den
+    b2 = (d00 * d21 - d01 * d20) / den
+    return np.stack([1 - b1 - b2, b1, b2], axis=1)

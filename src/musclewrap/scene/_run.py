@@ -259,7 +259,7 @@ def _slice(job: dict[str, Any], ks: range) -> dict[str, Any]:
 def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     """Deform one muscle on the frames of a `_slice` of its job and write them."""
     from ..conditions import LineError
-    from ..solver import DeformationResult
+    from ..solver import DeformationResult, Placed
 
     muscle, d, hit, note, seconds_prepare = _deformer(job)
     probes = [
@@ -269,14 +269,13 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     out = Path(job["outdir"])
     name = job["name"]
     rows, entries = [], []
-    kw = {"method": job["method"], "max_iterations": job["max_iterations"]}
+    kw: dict[str, Any] = {"method": job["method"], "max_iterations": job["max_iterations"]}
+    if contact is not None:
+        kw["margin"] = job["margin"]
     for k in range(len(job["frames"])):
         frame = job["frames"][k]
         T = job["to_output"][k]
         if contact is not None:
-            from ..solver import Placed
-
-            kw["margin"] = job["margin"]
             kw["obstacles"] = [
                 # muscle's body frame -> bone's body frame in one transform
                 Placed(probe, invert_rigid(TB[k]) @ T, contact[bname], bname)
@@ -510,7 +509,8 @@ def _closed_bone(
     Contact needs an inside: a bone with holes is closed by PyMeshFix, as a muscle is, and
     the run says so; one that cannot be is refused, naming the file.
     """
-    from ..mesh import MeshError, repair_mesh
+    from ..contact import bone_surface
+    from ..mesh import MeshError
 
     check = check_mesh(V, F)
     if not check.boundary_edges:
@@ -518,7 +518,7 @@ def _closed_bone(
 
     def build() -> dict[str, np.ndarray]:
         try:
-            RV, RF, rnotes = repair_mesh(V, F, source=str(b.mesh))
+            RV, RF, rnotes = bone_surface(V, F, source=str(b.mesh), close=True)
         except MeshError as exc:
             raise SceneError(
                 f"{b.mesh}: the bone '{b.name}' is open ({check.boundary_edges} boundary "
@@ -528,9 +528,7 @@ def _closed_bone(
         return {"V": RV, "F": RF, "notes": np.array(rnotes, dtype=str)}
 
     d = _cached_mesh(b.mesh, cache, "bone-closed", build)
-    for n in [f"open ({check.boundary_edges} boundary edges): closed for contact"] + [
-        str(x) for x in d["notes"]
-    ]:
+    for n in (str(x) for x in d["notes"]):
         notes.append(f"{b.name}: {n}")
         say(f"{b.name}: {n}")
     return d["V"], d["F"]
@@ -665,8 +663,7 @@ def _run_scene(
         cache = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="musclewrap-")))
     contact = anchors = None
     if collisions:
-        muscles, contact = _rest_overlap(scene, drive, muscles, bones, cache, say, notes)
-        anchors = _anchors(scene, muscles, bones, drive, cache)
+        muscles, contact, anchors = _rest_overlap(scene, drive, muscles, bones, cache, say, notes)
     key = _run_key(scene, drive, collisions)
     return _run(
         scene,
@@ -683,42 +680,6 @@ def _run_scene(
         contact,
         anchors,
     )
-
-
-def _anchors(
-    scene: Scene,
-    muscles: dict[str, tuple[FloatArray, IntArray]],
-    bones: dict[str, tuple[FloatArray, IntArray]],
-    drive: Drive,
-    cache: Path | None,
-) -> dict[str, IntArray]:
-    """Per muscle, the fine vertices that lie on a bone of its own body at the rest pose.
-
-    Within ``defaults.anchor_reach`` mean edge lengths of the margin of a bone
-    that the same body carries: an origin, which moves with that bone. They
-    keep their rest positions in the body's frame (`Muscle.bind`'s anchors),
-    so the deformation does not drive the muscle into the bone it starts from.
-    """
-    from ..constants import defaults
-    from ..mesh import mean_edge_length
-
-    cache_str = None if cache is None else str(cache)
-    body_of = {b.name: b.body for b in scene.bones}
-    out = {}
-    for spec in scene.muscles:
-        V, F = muscles[spec.name]
-        names = list(spec.bones) if spec.bones is not None else list(bones)
-        reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
-        found = []
-        for b in names:
-            if body_of[b] != spec.body:
-                continue
-            BV, BF = bones[b]
-            probe = _bone_probe(BV, BF, Obstacle.cache_name(BV, BF), cache_str)
-            T = drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name])
-            found.append(probe.query(apply(T, V), reach)[0])
-        out[spec.name] = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
-    return out
 
 
 def _push_out_rest(
@@ -778,7 +739,11 @@ def _rest_overlap(
     cache: Path | None,
     say: Callable[[str], None],
     notes: list[str],
-) -> tuple[dict[str, tuple[FloatArray, IntArray]], dict[str, dict[str, FloatArray | None]]]:
+) -> tuple[
+    dict[str, tuple[FloatArray, IntArray]],
+    dict[str, dict[str, FloatArray | None]],
+    dict[str, IntArray],
+]:
     """Muscles out of their bones at the rest pose (or their overlap kept), once per run.
 
     Every mesh is in its body's frame. With ``rest_overlap = "resolve"`` each
@@ -786,25 +751,33 @@ def _rest_overlap(
     are pushed out, volume-exact (`musclewrap.solver.push_out`), and the pushed
     mesh is the one prepared; with ``"keep"`` each vertex may stay as deep as it
     was. A muscle with most of its vertices inside one bone is refused: its
-    mesh, frame or units do not match the bone's. Returns the muscles and, per
-    muscle, the bones it is kept out of with each one's allowance (``"keep"``).
+    mesh, frame or units do not match the bone's.
+
+    Returns the muscles; per muscle, the bones it is kept out of with each one's
+    allowance (``"keep"``); and per muscle its anchors: the vertices within
+    ``defaults.anchor_reach`` mean edge lengths of the margin of a bone that its
+    own body carries (an origin, which moves with that bone: `Muscle.bind`'s
+    anchors keep them in place, so the deformation does not drive the muscle
+    into the bone it starts from).
     """
+    from ..constants import defaults
+    from ..mesh import mean_edge_length
     from ..solver import Placed
 
     cache_str = None if cache is None else str(cache)
     probes = {
         b: _bone_probe(V, F, Obstacle.cache_name(V, F), cache_str) for b, (V, F) in bones.items()
     }
+    body_of = {b.name: b.body for b in scene.bones}
     out_muscles = dict(muscles)
     contact: dict[str, dict[str, FloatArray | None]] = {}
+    anchors: dict[str, IntArray] = {}
     for spec in scene.muscles:
         V, F = muscles[spec.name]
         names = list(spec.bones) if spec.bones is not None else list(bones)
-        to_body = drive.to_body
         placed = []
-        allowance: dict[str, FloatArray | None] = {}
         for b in names:
-            T = to_body[b] @ np.linalg.inv(to_body[spec.name])
+            T = drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name])
             pl = Placed(probes[b], T, None, b)
             n_in, depth = probes[b].measure(pl.to_obstacle(V))
             if n_in > 0.5 * len(V):
@@ -814,50 +787,70 @@ def _rest_overlap(
                     "muscle and bone meshes must be the same subject's, in the same frame and "
                     "units (or leave this bone out of the muscle's [muscles] bones)"
                 )
-            allowance[b] = None
-            if scene.rest_overlap == "keep":
-                idx, phi, _, _ = probes[b].query(pl.to_obstacle(V), scene.margin)
-                if len(idx):
-                    a = np.full(len(V), np.inf)
-                    a[idx] = phi
-                    allowance[b] = a
             placed.append(pl)
-        contact[spec.name] = allowance
-        if scene.rest_overlap == "keep" or not placed:
-            continue
-        P, rep, how = _push_out_rest(V, F, placed, scene.margin, cache)
-        if rep.rounds == 0:
-            continue
-        if not rep.ok:
-            raise SceneError(
-                f"{spec.mesh}: the overlap of '{spec.name}' with its bones at the rest pose "
-                f"cannot be resolved ({rep.reason}); set [collisions] rest_overlap = 'keep'"
-            )
-        if P is None:
-            # every push folded the surface: the overlap is kept for this muscle
-            msg = (
-                f"{spec.name}: rest overlap with bones kept (up to {rep.depth_before:.3g} "
-                f"{scene.mesh_unit} deep): pushing it out folds the surface; only new "
-                "penetration is prevented"
-            )
-            for pl in placed:
-                idx, phi, _, _ = pl.obstacle.query(pl.to_obstacle(V), scene.margin)
-                a = np.full(len(V), np.inf)
-                a[idx] = phi
-                allowance[pl.name] = a
-            notes.append(msg)
-            say(msg)
-            continue
+        keep = scene.rest_overlap == "keep"
+        if placed and not keep:
+            _, V, keep = _resolve_rest(spec, V, F, placed, scene, cache, say, notes)
+        contact[spec.name] = {
+            pl.name: _kept_allowance(pl, V, scene.margin) if keep else None for pl in placed
+        }
+        out_muscles[spec.name] = (V, F)
+        reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
+        found = [pl.obstacle.query(pl.to_obstacle(V), reach)[0] for pl in placed]
+        found = [f for f, pl in zip(found, placed, strict=True) if body_of[pl.name] == spec.body]
+        anchors[spec.name] = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
+    return out_muscles, contact, anchors
+
+
+def _kept_allowance(pl: Any, V: FloatArray, margin: float) -> FloatArray | None:
+    """A kept rest overlap: each vertex nearer the bone than the margin may stay as near."""
+    idx, phi, _, _ = pl.obstacle.query(pl.to_obstacle(V), margin)
+    if not len(idx):
+        return None
+    a = np.full(len(V), np.inf)
+    a[idx] = phi
+    return a
+
+
+def _resolve_rest(
+    spec: Any,
+    V: FloatArray,
+    F: IntArray,
+    placed: list[Any],
+    scene: Scene,
+    cache: Path | None,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> tuple[Any, FloatArray, bool]:
+    """One muscle's rest overlap pushed out (`_push_out_rest`), said in the notes.
+
+    Returns the push-out's report, the positions to prepare, and whether the
+    overlap is kept instead (every push folded the surface).
+    """
+    P, rep, how = _push_out_rest(V, F, placed, scene.margin, cache)
+    if rep.rounds == 0:
+        return rep, V, False
+    if not rep.ok:
+        raise SceneError(
+            f"{spec.mesh}: the overlap of '{spec.name}' with its bones at the rest pose "
+            f"cannot be resolved ({rep.reason}); set [collisions] rest_overlap = 'keep'"
+        )
+    if P is None:
+        msg = (
+            f"{spec.name}: rest overlap with bones kept (up to {rep.depth_before:.3g} "
+            f"{scene.mesh_unit} deep): pushing it out folds the surface; only new "
+            "penetration is prevented"
+        )
+    else:
         msg = (
             f"{spec.name}: rest overlap with bones resolved: {rep.contact_vertices} vertices "
             f"now at the bones, up to {rep.depth_before:.3g} {scene.mesh_unit} deep before; "
             f"largest displacement {rep.moved_max:.3g} {scene.mesh_unit}; volume kept"
             + ("" if how == "bone vertices" else "; bone vertices inside the muscle left")
         )
-        notes.append(msg)
-        say(msg)
-        out_muscles[spec.name] = (P, F)
-    return out_muscles, contact
+    notes.append(msg)
+    say(msg)
+    return rep, (V if P is None else P), P is None
 
 
 def _input_files(scene: Scene) -> list[Path]:

@@ -12,14 +12,21 @@ import scipy.sparse as sp
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
 from ..contact import Obstacle
-from ..mesh import mean_edge_length, mean_rows, volume, volume_cubic
+from ..mesh import (
+    barycentric,
+    mean_edge_length,
+    mean_rows,
+    vertex_adjacency,
+    vertex_normals,
+    volume,
+    volume_cubic,
+)
 from ._cubic import cubic_root_near
 
 __all__ = [
     "ContactReport",
     "Near",
     "Placed",
-    "adjacency",
     "cage_push",
     "contact_candidates",
     "push_out",
@@ -50,12 +57,12 @@ class Placed:
     allowance: FloatArray | None = None
     name: str = "obstacle"
 
-    def allowed(self, margin: float, n: int, rows: IntArray | None = None) -> FloatArray:
-        """Smallest accepted signed distance per muscle vertex (``rows`` of them, or all)."""
+    def allowed(self, margin: float, n: int) -> FloatArray:
+        """Smallest accepted signed distance per muscle vertex."""
         a = np.full(n, float(margin))
         if self.allowance is not None:
             a = np.minimum(a, self.allowance)
-        return a if rows is None else a[rows]
+        return a
 
     def to_obstacle(self, P: FloatArray) -> FloatArray:
         """Points of the muscle's frame in the obstacle's frame."""
@@ -84,9 +91,6 @@ class ContactReport:
         Deepest vertex inside an obstacle before the finish (0 if none), mesh units.
     depth_after : float
         Deepest vertex inside an obstacle after it (0 if none).
-    clearance : float
-        Smallest signed distance of a vertex to an obstacle it came near, less
-        the margin (>= 0 when every vertex keeps the margin; 0 when none came near).
     moved_max : float
         Largest displacement of a vertex by the finish.
     rounds : int
@@ -100,18 +104,10 @@ class ContactReport:
     contact_vertices: int = 0
     depth_before: float = 0.0
     depth_after: float = 0.0
-    clearance: float = 0.0
     moved_max: float = 0.0
     rounds: int = 0
     ok: bool = True
     reason: str = ""
-
-
-def adjacency(F: IntArray, n: int) -> sp.csr_matrix:
-    """Vertex adjacency of a triangle mesh (symmetric, ones), CSR."""
-    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
-    return ((A + A.T) > 0).astype(np.float64).tocsr()
 
 
 def _rings(A: sp.csr_matrix, seeds: np.ndarray, k: int) -> np.ndarray:
@@ -197,9 +193,8 @@ class Near:
 def _violations(
     P: FloatArray,
     placed: Sequence[Placed],
-    margin: float,
     slack: float,
-    near: Near | None = None,
+    near: Near,
 ) -> tuple[np.ndarray, FloatArray, FloatArray, list[float]]:
     """Vertices closer than the margin (less ``slack``) to an obstacle, and where they go.
 
@@ -214,14 +209,9 @@ def _violations(
     worst = np.full(n, np.inf)
     target = np.zeros((n, 3))
     depths = []
-    rows = near.rows(P, slack) if near is not None else [None] * len(placed)
-    for pl, r in zip(placed, rows, strict=True):
-        allowed = pl.allowed(margin, n)
-        if r is None:
-            idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P), allowed - slack)
-        else:
-            idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P[r]), allowed[r] - slack)
-            idx = r[idx]
+    for pl, r, allowed in zip(placed, near.rows(P, slack), near.allowed, strict=True):
+        idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P[r]), allowed[r] - slack)
+        idx = r[idx]
         depths.append(float(max(0.0, -phi.min(initial=0.0))))
         if not len(idx):
             continue
@@ -239,13 +229,12 @@ def _violations(
         for _ in range(8):
             moved = False
             for b, pl in enumerate(placed):
-                allowed = pl.allowed(margin, len(P), hit)
-                cand = np.arange(len(hit))
-                if near is not None:  # only targets that can be that near this obstacle
-                    gone = np.linalg.norm(target - near.V[hit], axis=1)
-                    cand = np.flatnonzero(near.lower[b][hit] - gone < allowed + slack)
-                    if not len(cand):
-                        continue
+                allowed = near.allowed[b][hit]
+                # only targets that can be that near this obstacle
+                gone = np.linalg.norm(target - near.V[hit], axis=1)
+                cand = np.flatnonzero(near.lower[b][hit] - gone < allowed + slack)
+                if not len(cand):
+                    continue
                 idx, _, C, N = pl.obstacle.query(
                     pl.to_obstacle(target[cand]), allowed[cand] - slack
                 )
@@ -299,7 +288,9 @@ def _with_bone_vertices(
         # into the muscle from the bone vertex: the nearest surface point goes past it
         u = (B - C) / np.maximum(dist, 1e-300)[:, None]
         d = dist + margin + slack
-        w = _barycentric(C, P[F[fi]])
+        # least-norm weights of the (clipped) barycentric coordinates: w / |w|^2 moves the
+        # nearest point by exactly d
+        w = np.clip(barycentric(C, P[F[fi]]), 0.0, None)
         w = w / np.sum(w * w, axis=1)[:, None]
         disp = (w[:, :, None] * (d[:, None] * u)[:, None, :]).reshape(-1, 3)
         verts = F[fi].ravel()
@@ -322,45 +313,6 @@ def _with_bone_vertices(
     return hit, T[hit], G[hit]
 
 
-def _barycentric(C: FloatArray, tri: FloatArray) -> FloatArray:
-    """Barycentric coordinates of points ``C`` in triangles ``tri`` (k, 3, 3), clipped to >= 0."""
-    v0, v1, v2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], C - tri[:, 0]
-    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-    den = d00 * d11 - d01 * d01
-    den = np.where(den > 0, den, 1.0)
-    b1 = (d11 * d20 - d01 * d21) / den
-    b2 = (d00 * d21 - d01 * d20) / den
-    b = np.clip(np.stack([1 - b1 - b2, b1, b2], axis=1), 0.0, None)
-    return b / np.maximum(b.sum(1), 1e-300)[:, None]
-
-
-def _normals(P: FloatArray, F: IntArray) -> FloatArray:
-    """Area-weighted vertex normals (unit)."""
-    N = np.zeros_like(P)
-    _normals_kernel(np.ascontiguousarray(P), np.ascontiguousarray(F, dtype=np.int64), N)
-    return N
-
-
-@numba.njit(cache=True)
-def _normals_kernel(P, F, N):  # noqa: ANN001, ANN202 # pragma: no cover
-    for f in range(F.shape[0]):
-        a, b, c = F[f, 0], F[f, 1], F[f, 2]
-        u0, u1, u2 = P[b, 0] - P[a, 0], P[b, 1] - P[a, 1], P[b, 2] - P[a, 2]
-        v0, v1, v2 = P[c, 0] - P[a, 0], P[c, 1] - P[a, 1], P[c, 2] - P[a, 2]
-        n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-        for k in (a, b, c):
-            N[k, 0] += n0
-            N[k, 1] += n1
-            N[k, 2] += n2
-    for i in range(N.shape[0]):
-        r = np.sqrt(N[i, 0] ** 2 + N[i, 1] ** 2 + N[i, 2] ** 2)
-        if r > 0:
-            N[i, 0] /= r
-            N[i, 1] /= r
-            N[i, 2] /= r
-
-
 def push_out(
     V: FloatArray,
     F: IntArray,
@@ -368,7 +320,6 @@ def push_out(
     *,
     volume_target: float,
     margin: float = 0.0,
-    direction: FloatArray | None = None,
     A: sp.csr_matrix | None = None,
     max_rounds: int = defaults.contact_rounds,
     bone_vertices: bool = False,
@@ -382,7 +333,7 @@ def push_out(
     at the margin along the shortest way out, spreads that displacement
     smoothly over the surrounding rings of the mesh (harmonic, by Jacobi
     sweeps, zero beyond a radius that grows with the depth), and restores the
-    volume exactly along ``direction`` masked to zero on every vertex held so
+    volume exactly along the vertex normals masked to zero on every vertex held so
     far (the volume along a line is a cubic: its root). Vertices moved onto an
     obstacle stay there; vertices the volume correction brings too near join
     them in the next round.
@@ -399,11 +350,8 @@ def push_out(
         The volume the result must have.
     margin : float, optional
         Smallest distance a vertex must keep from every obstacle (mesh units).
-    direction : (n, 3) float64 array, optional
-        Volume-correcting displacement field (the solver's ``W u``); default the
-        vertex normals.
     A : scipy.sparse.csr_matrix, optional
-        The mesh's `adjacency` (built here when not given).
+        The mesh's `musclewrap.mesh.vertex_adjacency` (built here when not given).
     max_rounds : int, optional
         Most push-out rounds.
     bone_vertices : bool, optional
@@ -430,7 +378,7 @@ def push_out(
     slack = tol.contact * edge
     if near is None:
         near = Near(V, placed, margin)
-    hit, target, gap, depths = _violations(V, placed, margin, slack, near)
+    hit, target, gap, depths = _violations(V, placed, slack, near)
     if bone_vertices:
         hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap)
     depth_before = max(depths, default=0.0)
@@ -438,14 +386,14 @@ def push_out(
         return V, ContactReport(depth_before=depth_before)
     n = len(V)
     if A is None:
-        A = adjacency(F, n)
+        A = vertex_adjacency(F, n)
     P = V.copy()
     held = np.zeros(n, dtype=bool)
     rounds = 0
     ok = True
     # the volume is corrected along the normals at the start (any direction is exact: the
     # volume along it is a cubic; these stay smooth)
-    Z = _normals(P, F) if direction is None else np.asarray(direction, dtype=np.float64)
+    Z = vertex_normals(P, F)
     # the first rounds relax every push with its neighbours; the last ones project exactly
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
     if bone_vertices:  # once per muscle: relax longer, fewer folds
@@ -484,7 +432,7 @@ def push_out(
             ok = False
             break
         P += t * Zm
-        hit, target, gap, depths = _violations(P, placed, margin, slack, near)
+        hit, target, gap, depths = _violations(P, placed, slack, near)
         if bone_vertices:
             hit, target, gap = _with_bone_vertices(P, F, placed, margin, slack, hit, target, gap)
         if not len(hit):
@@ -507,26 +455,24 @@ def push_out(
     if rel > tol.volume:
         # no volume left to take where nothing is held: the volume is restored over the
         # whole surface (the contact stays unmet, and is reported)
-        Z = _normals(P, F) if direction is None else np.asarray(direction, dtype=np.float64)
+        Z = vertex_normals(P, F)
         c = mean_rows(P)
         t = cubic_root_near(volume_cubic(P - c, Z, F), volume_target, 0.0)
         if np.isfinite(t):
             P = P + t * Z
-            _, _, _, depths = _violations(P, placed, margin, slack, near)
+            _, _, _, depths = _violations(P, placed, slack, near)
         rel = abs(volume(P, F) - volume_target) / abs(volume_target)
     if rel > tol.volume:
         ok = False
         reason = (reason + "; " if reason else "") + f"volume error {rel:.3g} after contact"
     # the vertices in contact: within the slack of the margin of an obstacle
     touching = np.zeros(n, dtype=bool)
-    for pl, r in zip(placed, near.rows(P, 2.0 * slack), strict=True):
-        allowed = pl.allowed(margin, n)[r]
-        touching[r[pl.obstacle.query(pl.to_obstacle(P[r]), allowed + 2.0 * slack)[0]]] = True
+    for pl, r, allowed in zip(placed, near.rows(P, 2.0 * slack), near.allowed, strict=True):
+        touching[r[pl.obstacle.query(pl.to_obstacle(P[r]), allowed[r] + 2.0 * slack)[0]]] = True
     report = ContactReport(
         contact_vertices=int(touching.sum()),
         depth_before=depth_before,
         depth_after=max(depths, default=0.0),
-        clearance=float(gap.min()) if len(hit) else 0.0,
         moved_max=float(np.linalg.norm(P - V, axis=1).max()),
         rounds=rounds,
         ok=ok,
@@ -540,7 +486,7 @@ def contact_candidates(
     placed: Sequence[Placed],
     margin: float,
     band: float,
-    near: Near | None = None,
+    near: Near,
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """Vertices within ``band`` of the margin of an obstacle: index, gap, outward direction.
 
@@ -550,18 +496,15 @@ def contact_candidates(
     obstacles appears twice.
     """
     out_i, out_g, out_n = [], [], []
-    n = len(P)
-    rows = near.rows(P, band) if near is not None else [np.arange(n)] * len(placed)
-    for pl, r in zip(placed, rows, strict=True):
-        allowed = pl.allowed(margin, n)
+    for pl, r, allowed in zip(placed, near.rows(P, band), near.allowed, strict=True):
         # the grid's interpolated distance: linearised conditions need no exact one
         idx, phi, N = pl.obstacle.interpolate(pl.to_obstacle(P[r]), margin + band)
         idx = r[idx]
         gap = phi - allowed[idx]
-        near = gap < band
-        out_i.append(idx[near])
-        out_g.append(gap[near])
-        out_n.append(pl.to_muscle(N[near], direction=True))
+        close = gap < band
+        out_i.append(idx[close])
+        out_g.append(gap[close])
+        out_n.append(pl.to_muscle(N[close], direction=True))
     if not out_i:
         return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 3))
     return np.concatenate(out_i), np.concatenate(out_g), np.concatenate(out_n)

@@ -41,13 +41,14 @@ from ..mesh import (
     mean_edge_length,
     mean_rows,
     umbrella_laplacian,
+    vertex_adjacency,
     volume,
     volume_cubic,
     volume_cubic_pair,
     volume_gradient,
     volume_hessian_reduced,
 )
-from ._contact import Near, Placed, adjacency, cage_push, contact_candidates, push_out
+from ._contact import Near, Placed, cage_push, contact_candidates, push_out
 from ._cubic import cubic_root_near
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
 from ._result import DeformationResult
@@ -196,7 +197,7 @@ class Muscle:
     def adjacency(self) -> sparse.csr_matrix:
         """Vertex adjacency of the fine mesh (built on first use; the contact finish)."""
         if getattr(self, "_adjacency", None) is None:
-            self._adjacency = adjacency(self.F, len(self.V))
+            self._adjacency = vertex_adjacency(self.F, len(self.V))
         return self._adjacency
 
     # ------------------------------------------------------------------ build
