@@ -27,9 +27,36 @@ def test_obstacle_matches_a_sphere():
 
 def _brute_force(probe, Q):
     """Closest-point query with the pseudo-normal side on every point."""
-    d, side = probe._distance(Q)
-    inside = side < 0
-    return int(inside.sum()), float(d[inside].max()) if inside.any() else 0.0
+    phi = probe._signed(Q)[0]
+    inside = phi < 0
+    return int(inside.sum()), float(-phi[inside].min()) if inside.any() else 0.0
+
+
+def test_obstacle_query_sides_directions_and_bounds():
+    # the compiled pseudo-normal side against winding numbers; the outward directions and
+    # closest points against each other; the lower bounds a query fills never above the
+    # exact distance
+    import igl
+
+    V, F = capsule(radius=8.0, length=40.0, n_around=40, cap_rings=12, segments=16)
+    rng = np.random.default_rng(7)
+    # on the surface's vertices, edges and faces, and off it on both sides
+    on = V[rng.integers(0, len(V), 300)]
+    Q = np.vstack([on + rng.normal(scale=s, size=on.shape) for s in (1e-3, 0.1, 1.0, 4.0)])
+    probe = Obstacle(V, F, max_grid_nodes=20_000)
+    lower = np.empty(len(Q))
+    idx, phi, C, N = probe.query(Q, np.inf, lower)
+    assert np.array_equal(idx, np.arange(len(Q)))
+    inside = igl.fast_winding_number(V, F, Q) > 0.5
+    clear = np.abs(phi) > 1e-6
+    assert np.array_equal((phi < 0)[clear], inside[clear])
+    assert np.allclose(np.linalg.norm(N, axis=1), 1.0)
+    assert np.allclose(C + phi[:, None] * N, Q, atol=1e-9)
+    assert np.array_equal(lower, phi)  # every point took the exact query
+    lower = np.empty(len(Q))
+    idx, phi, _, _ = probe.query(Q, 0.5, lower)
+    exact = probe._signed(Q)[0]
+    assert np.all(lower <= exact) and np.array_equal(idx, np.flatnonzero(exact < 0.5))
 
 
 def test_obstacle_grid_is_exact_and_cached(tmp_path):

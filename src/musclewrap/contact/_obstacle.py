@@ -8,7 +8,7 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..mesh import MeshError, barycentric, check_mesh, repair_mesh, tidy_mesh
+from ..mesh import MeshError, check_mesh, repair_mesh, tidy_mesh
 
 __all__ = ["Obstacle", "bone_surface"]
 
@@ -127,7 +127,9 @@ class Obstacle:
         uniq, inv = np.unique(key, return_inverse=True)
         FN3 = np.repeat(FN, 3, axis=0)
         EN = np.stack([np.bincount(inv, FN3[:, i], minlength=len(uniq)) for i in range(3)], 1)
-        self._edge_keys, self._EN = uniq, EN
+        # per face, the pseudo-normal row of each edge (edge e joins corners e and e + 1)
+        self._EN = EN
+        self._FE = np.ascontiguousarray(inv.reshape(-1, 3), dtype=np.int64)
         grid = _grid if _grid is not None else self._build(max_grid_nodes)
         self.lo = np.asarray(grid["lo"], dtype=np.float64)
         self.h = float(grid["h"])
@@ -194,9 +196,7 @@ class Obstacle:
         exact = band | inside
         ii = np.nonzero(exact)
         G = np.ascontiguousarray(nodes(ii))
-        sq, face, C = self._tree.squared_distance(V, F, G)
-        side = self._pseudo_normal_sign(G, C, face)
-        lo_sd[ii] = hi_sd[ii] = np.where(side < 0, -1.0, 1.0) * np.sqrt(sq)
+        lo_sd[ii] = hi_sd[ii] = self._signed(G)[0]
         lo_sd[~exact], hi_sd[~exact] = far, np.inf
         return {
             "lo": lo,
@@ -239,33 +239,31 @@ class Obstacle:
         return built[0] if built else cls(V, F, _grid=grid)
 
     # ------------------------------------------------------------------ exact
-    def _pseudo_normal_sign(self, Q: FloatArray, C: FloatArray, face: IntArray) -> FloatArray:
-        # barycentric coordinates of the closest points
-        b = barycentric(C, self.V[self.F[face]])
-        eps = 1e-9
-        zero = b <= eps
-        N = self._FN[face].copy()
-        nz = zero.sum(1)
-        # on a vertex: two barycentrics vanish
-        at_v = nz == 2
-        if at_v.any():
-            corner = np.argmax(~zero[at_v], axis=1)
-            N[at_v] = self._VN[self.F[face[at_v], corner]]
-        at_e = nz == 1
-        if at_e.any():
-            opp = np.argmax(zero[at_e], axis=1)
-            f = self.F[face[at_e]]
-            a = f[np.arange(len(f)), (opp + 1) % 3]
-            c = f[np.arange(len(f)), (opp + 2) % 3]
-            k = np.minimum(a, c) * len(self.V) + np.maximum(a, c)
-            N[at_e] = self._EN[np.searchsorted(self._edge_keys, k)]
-        return np.einsum("ij,ij->i", Q - C, N)
+    def _signed(self, P: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Exact signed distance (< 0 inside), closest point and outward direction.
 
-    def _distance(self, P: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Exact distance to the surface and pseudo-normal side (< 0 inside)."""
-        P = np.ascontiguousarray(P)
+        The side is the angle-weighted pseudo-normal's at the closest point (on a
+        face, an edge or a vertex: Baerentzen & Aanaes 2005).
+        """
+        P = np.ascontiguousarray(P, dtype=np.float64)
         sq, face, C = self._tree.squared_distance(self.V, self.F, P)
-        return np.sqrt(sq), self._pseudo_normal_sign(P, C, face)
+        phi = np.empty(len(P))
+        N = np.empty((len(P), 3))
+        _signed_kernel(
+            P,
+            np.ascontiguousarray(C, dtype=np.float64),
+            np.ascontiguousarray(face, dtype=np.int64).ravel(),
+            np.ascontiguousarray(sq, dtype=np.float64).ravel(),
+            self.V,
+            self.F,
+            self._FN,
+            self._VN,
+            self._EN,
+            self._FE,
+            phi,
+            N,
+        )
+        return phi, C, N
 
     # ------------------------------------------------------------------ query
     def bounds(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -285,19 +283,11 @@ class Obstacle:
         -------
         lower, upper : (k,) float64 arrays
         """
-        Q = np.asarray(Q, dtype=np.float64)
-        lower = np.linalg.norm(np.maximum(np.maximum(self.lo - Q, Q - self.hi), 0.0), axis=1)
-        upper = np.full(len(Q), np.inf)
-        box = lower == 0.0
-        if box.any():
-            lower[box], upper[box] = self._grid_bounds(Q[box])
-        return lower, upper
-
-    def _grid_bounds(self, P: FloatArray) -> tuple[FloatArray, FloatArray]:
+        P = np.ascontiguousarray(Q, dtype=np.float64)
         lower = np.empty(len(P))
         upper = np.empty(len(P))
         _bounds_kernel(
-            np.ascontiguousarray(P, dtype=np.float64),
+            P,
             self.lo,
             self.h,
             self._shape,
@@ -355,7 +345,7 @@ class Obstacle:
         return box[keep], phi[keep], G
 
     def query(
-        self, Q: FloatArray, reach: float | FloatArray
+        self, Q: FloatArray, reach: float | FloatArray, lower: FloatArray | None = None
     ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
         """Exact signed distance, closest point and outward direction near the surface.
 
@@ -369,6 +359,9 @@ class Obstacle:
             Points in the bone's frame.
         reach : float or (k,) float64 array
             Signed distance below which a point is returned (mesh units).
+        lower : (k,) float64 array, optional
+            Filled with a lower bound of every point's signed distance: the exact
+            one where it was taken, the grid's elsewhere.
 
         Returns
         -------
@@ -384,24 +377,17 @@ class Obstacle:
         """
         Q = np.ascontiguousarray(Q, dtype=np.float64)
         reach = np.broadcast_to(np.asarray(reach, dtype=np.float64), (len(Q),))
-        lower, _ = self.bounds(Q)
-        idx = np.flatnonzero(lower < reach)
+        bound, _ = self.bounds(Q)
+        idx = np.flatnonzero(bound < reach)
+        if lower is not None:
+            lower[:] = bound
         if not len(idx):
             return idx, np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
-        P = np.ascontiguousarray(Q[idx])
-        sq, face, C = self._tree.squared_distance(self.V, self.F, P)
-        side = self._pseudo_normal_sign(P, C, face)
-        dist = np.sqrt(sq)
-        phi = np.where(side < 0, -dist, dist)
+        phi, C, N = self._signed(Q[idx])
+        if lower is not None:
+            lower[idx] = phi
         keep = phi < reach[idx]
-        idx, phi, C, P, face, dist = idx[keep], phi[keep], C[keep], P[keep], face[keep], dist[keep]
-        N = np.empty_like(P)
-        off = dist > 1e-12 * (1.0 + np.abs(P).max(initial=0.0))
-        N[off] = (P[off] - C[off]) / phi[off, None]
-        if (~off).any():
-            on = self._FN[face[~off]]
-            N[~off] = on / np.linalg.norm(on, axis=1)[:, None]
-        return idx, phi, C, N
+        return idx[keep], phi[keep], C[keep], N[keep]
 
     def measure(self, Q: FloatArray) -> tuple[int, float]:
         """Count the points inside the bone and return the deepest one's depth.
@@ -421,15 +407,15 @@ class Obstacle:
         P = Q[((Q >= self.lo) & (Q <= self.hi)).all(axis=1)]
         if not len(P):
             return 0, 0.0
-        lower, upper = self._grid_bounds(P)
+        lower, upper = self.bounds(P)
         inside = upper < 0
         unsure = ~inside & (lower <= 0)
         n_inside = int(inside.sum())
         depths = []
         if unsure.any():
-            dist, side = self._distance(P[unsure])
-            n_inside += int((side < 0).sum())
-            depths.append(dist[side < 0])
+            phi = self._signed(P[unsure])[0]
+            n_inside += int((phi < 0).sum())
+            depths.append(-phi[phi < 0])
         if n_inside == 0:
             return 0, 0.0
         if inside.any():
@@ -441,8 +427,8 @@ class Obstacle:
             bar = max(found, -upper[inside].max())
             i, batch = 0, 4  # deep points cost the most; the deepest is usually among the first
             while i < len(order) and upper_depth[order[i]] >= bar:
-                dist, _ = self._distance(cand[order[i : i + batch]])
-                found = max(found, float(dist.max()))
+                phi = self._signed(cand[order[i : i + batch]])[0]
+                found = max(found, float(np.abs(phi).max()))
                 bar = max(bar, found)
                 i, batch = i + batch, 2 * batch
             return n_inside, found
@@ -455,6 +441,16 @@ def _bounds_kernel(P, lo, h, shape, lo_sd, hi_sd, lower, upper):  # noqa: ANN001
     s0, s1 = shape[1] * shape[2], shape[2]
     hh = h * h
     for i in range(P.shape[0]):
+        # outside the grid's box: the distance to the box, no upper bound
+        out = 0.0
+        for a in range(3):
+            top = lo[a] + h * (shape[a] - 1)
+            e = max(lo[a] - P[i, a], P[i, a] - top, 0.0)
+            out += e * e
+        if out > 0.0:
+            lower[i] = np.sqrt(out)
+            upper[i] = np.inf
+            continue
         u0, u1, u2 = (P[i, 0] - lo[0]) / h, (P[i, 1] - lo[1]) / h, (P[i, 2] - lo[2]) / h
         b0 = min(max(int(u0), 0), shape[0] - 2)
         b1 = min(max(int(u1), 0), shape[1] - 2)
@@ -473,6 +469,57 @@ def _bounds_kernel(P, lo, h, shape, lo_sd, hi_sd, lower, upper):  # noqa: ANN001
                     best_hi = min(best_hi, np.float64(hi_sd[k]) + d)
         lower[i] = best_lo
         upper[i] = best_hi
+
+
+@numba.njit(cache=True)
+def _signed_kernel(P, C, face, sq, V, F, FN, VN, EN, FE, phi, N):  # noqa: ANN001, ANN202 # pragma: no cover
+    # per point: the pseudo-normal of the feature holding its closest point (a face, an
+    # edge: one barycentric vanishes, a vertex: two), its side, and the outward direction
+    for i in range(P.shape[0]):
+        f = face[i]
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        v00 = V[b, 0] - V[a, 0]
+        v01 = V[b, 1] - V[a, 1]
+        v02 = V[b, 2] - V[a, 2]
+        v10 = V[c, 0] - V[a, 0]
+        v11 = V[c, 1] - V[a, 1]
+        v12 = V[c, 2] - V[a, 2]
+        v20 = C[i, 0] - V[a, 0]
+        v21 = C[i, 1] - V[a, 1]
+        v22 = C[i, 2] - V[a, 2]
+        d00 = v00 * v00 + v01 * v01 + v02 * v02
+        d01 = v00 * v10 + v01 * v11 + v02 * v12
+        d11 = v10 * v10 + v11 * v11 + v12 * v12
+        d20 = v20 * v00 + v21 * v01 + v22 * v02
+        d21 = v20 * v10 + v21 * v11 + v22 * v12
+        den = d00 * d11 - d01 * d01
+        if not den > 0:
+            den = 1.0
+        w1 = (d11 * d20 - d01 * d21) / den
+        w2 = (d00 * d21 - d01 * d20) / den
+        w0 = 1.0 - w1 - w2
+        z0, z1, z2 = w0 <= 1e-9, w1 <= 1e-9, w2 <= 1e-9
+        nz = int(z0) + int(z1) + int(z2)
+        if nz == 2:  # on a vertex: the corner whose coordinate does not vanish
+            k = 0 if not z0 else (1 if not z1 else 2)
+            n0, n1, n2 = VN[F[f, k], 0], VN[F[f, k], 1], VN[F[f, k], 2]
+        elif nz == 1:  # on the edge opposite the vanishing corner
+            opp = 0 if z0 else (1 if z1 else 2)
+            e = FE[f, (opp + 1) % 3]
+            n0, n1, n2 = EN[e, 0], EN[e, 1], EN[e, 2]
+        else:
+            n0, n1, n2 = FN[f, 0], FN[f, 1], FN[f, 2]
+        x0, x1, x2 = P[i, 0] - C[i, 0], P[i, 1] - C[i, 1], P[i, 2] - C[i, 2]
+        dist = np.sqrt(sq[i])
+        s = -dist if x0 * n0 + x1 * n1 + x2 * n2 < 0 else dist
+        phi[i] = s
+        scale = 1.0 + max(abs(P[i, 0]), abs(P[i, 1]), abs(P[i, 2]))
+        if dist > 1e-12 * scale:
+            N[i, 0], N[i, 1], N[i, 2] = x0 / s, x1 / s, x2 / s
+        else:  # on the surface: the face's normal
+            m0, m1, m2 = FN[f, 0], FN[f, 1], FN[f, 2]
+            r = max(np.sqrt(m0 * m0 + m1 * m1 + m2 * m2), 1e-300)
+            N[i, 0], N[i, 1], N[i, 2] = m0 / r, m1 / r, m2 / r
 
 
 def _round(x: FloatArray, direction: int) -> FloatArray:

@@ -726,7 +726,14 @@ def _push_out_rest(
         }
 
     d = cached_arrays(path, build)
-    rep = ContactReport(**json.loads(str(d["report"])))
+    try:
+        rep = ContactReport(**json.loads(str(d["report"])))
+    except (TypeError, ValueError):
+        # written by a development version whose report had other fields: rebuilt
+        if path is not None:
+            path.unlink(missing_ok=True)
+        d = cached_arrays(path, build)
+        rep = ContactReport(**json.loads(str(d["report"])))
     how = str(d["how"])
     return (None if how == "none" else d["P"]), rep, how
 

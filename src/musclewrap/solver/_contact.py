@@ -169,25 +169,54 @@ def _smooth(indptr, indices, D, rows, sweeps, keep):  # noqa: ANN001, ANN202 # p
 class Near:
     """Which vertices can be within reach of each obstacle, by the 1-Lipschitz bound.
 
-    The grid's lower bound of the signed distance (`Obstacle.bounds`) is taken
-    once, at positions ``V``; after the vertices moved to ``P``, a vertex can be
-    nearer an obstacle than its allowed distance only if its lower bound less
-    ``|P - V|`` is, so only those are queried again.
+    Per obstacle and vertex, a lower bound of the signed distance at a
+    reference position: first the grid's (`Obstacle.bounds`) at ``V``, then the
+    exact distance wherever a query took it (`learn`). After a vertex moved to
+    ``P`` it can be nearer the obstacle than its allowed distance only if its
+    bound less its distance from the reference is, so only those are queried
+    again: once the first round has found the contact, later rounds query
+    little more than the vertices in contact.
     """
 
     def __init__(self, V: FloatArray, placed: Sequence[Placed], margin: float) -> None:
         self.V = V
         n = len(V)
         self.lower = [pl.obstacle.bounds(pl.to_obstacle(V))[0] for pl in placed]
+        self.ref = [V] * len(placed)  # shared until an obstacle learns
         self.allowed = [pl.allowed(margin, n) for pl in placed]
+
+    def deepest(self) -> float:
+        """An upper bound of how far a vertex lies within its allowed distance."""
+        return max(
+            (
+                float((a - lo).max(initial=-np.inf))
+                for lo, a in zip(self.lower, self.allowed, strict=True)
+            ),
+            default=-np.inf,
+        )
+
+    def moved(self, b: int, P: FloatArray, rows: IntArray | None = None) -> FloatArray:
+        """Distance of ``P`` (all vertices, or ``rows``) from obstacle ``b``'s references."""
+        R = self.ref[b] if rows is None else self.ref[b][rows]
+        return np.sqrt(np.einsum("ij,ij->i", P - R, P - R))
 
     def rows(self, P: FloatArray, reach: float) -> list[IntArray]:
         """Per obstacle, the vertices whose distance may be below the allowed one + reach."""
-        moved = np.sqrt(np.einsum("ij,ij->i", P - self.V, P - self.V))
-        return [
-            np.flatnonzero(lo - moved < a + reach)
-            for lo, a in zip(self.lower, self.allowed, strict=True)
-        ]
+        seen: dict[int, FloatArray] = {}
+        out = []
+        for b, (lo, a) in enumerate(zip(self.lower, self.allowed, strict=True)):
+            key = id(self.ref[b])
+            if key not in seen:
+                seen[key] = self.moved(b, P)
+            out.append(np.flatnonzero(lo - seen[key] < a + reach))
+        return out
+
+    def learn(self, b: int, rows: IntArray, P: FloatArray, lower: FloatArray) -> None:
+        """Obstacle ``b``'s new bounds ``lower`` at positions ``P`` of vertices ``rows``."""
+        if self.ref[b] is self.V:
+            self.ref[b] = self.V.copy()
+        self.ref[b][rows] = P
+        self.lower[b][rows] = lower
 
 
 def _violations(
@@ -209,8 +238,14 @@ def _violations(
     worst = np.full(n, np.inf)
     target = np.zeros((n, 3))
     depths = []
-    for pl, r, allowed in zip(placed, near.rows(P, slack), near.allowed, strict=True):
-        idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P[r]), allowed[r] - slack)
+    for b, (pl, r) in enumerate(zip(placed, near.rows(P, slack), strict=True)):
+        if not len(r):
+            depths.append(0.0)
+            continue
+        allowed = near.allowed[b]
+        lower = np.empty(len(r))
+        idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P[r]), allowed[r] - slack, lower)
+        near.learn(b, r, P[r], lower)
         idx = r[idx]
         depths.append(float(max(0.0, -phi.min(initial=0.0))))
         if not len(idx):
@@ -231,7 +266,7 @@ def _violations(
             for b, pl in enumerate(placed):
                 allowed = near.allowed[b][hit]
                 # only targets that can be that near this obstacle
-                gone = np.linalg.norm(target - near.V[hit], axis=1)
+                gone = near.moved(b, target, hit)
                 cand = np.flatnonzero(near.lower[b][hit] - gone < allowed + slack)
                 if not len(cand):
                     continue
@@ -467,8 +502,13 @@ def push_out(
         reason = (reason + "; " if reason else "") + f"volume error {rel:.3g} after contact"
     # the vertices in contact: within the slack of the margin of an obstacle
     touching = np.zeros(n, dtype=bool)
-    for pl, r, allowed in zip(placed, near.rows(P, 2.0 * slack), near.allowed, strict=True):
-        touching[r[pl.obstacle.query(pl.to_obstacle(P[r]), allowed[r] + 2.0 * slack)[0]]] = True
+    for b, (pl, r) in enumerate(zip(placed, near.rows(P, 2.0 * slack), strict=True)):
+        if not len(r):
+            continue
+        lower = np.empty(len(r))
+        idx = pl.obstacle.query(pl.to_obstacle(P[r]), near.allowed[b][r] + 2.0 * slack, lower)[0]
+        near.learn(b, r, P[r], lower)
+        touching[r[idx]] = True
     report = ContactReport(
         contact_vertices=int(touching.sum()),
         depth_before=depth_before,
@@ -497,6 +537,8 @@ def contact_candidates(
     """
     out_i, out_g, out_n = [], [], []
     for pl, r, allowed in zip(placed, near.rows(P, band), near.allowed, strict=True):
+        if not len(r):
+            continue
         # the grid's interpolated distance: linearised conditions need no exact one
         idx, phi, N = pl.obstacle.interpolate(pl.to_obstacle(P[r]), margin + band)
         idx = r[idx]

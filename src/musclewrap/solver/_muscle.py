@@ -782,6 +782,9 @@ class Deformer:
         slack = tol.contact * edge
         band = defaults.contact_band * edge
         before = 0.0
+        if near.deepest() < edge:
+            # no vertex can be a mean edge too near (the grid's bounds): nothing for the cage
+            return x, V, before
         for step in range(defaults.contact_cage_steps):
             idx, gap, N = contact_candidates(V, placed, margin, band, near)
             if step == 0:
