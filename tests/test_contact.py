@@ -128,7 +128,11 @@ def test_capsule_pressed_into_a_plane(bent, margin):
     on = np.abs(res.V[:, 0] - (12.0 - margin)) <= 2 * edge + 1e-9
     assert on.sum() == res.contact_vertices > 50
     assert res.penetration_depth_before == pytest.approx(free.V[:, 0].max() - 12.0, abs=1e-6)
-    assert res.penetration_depth == 0.0
+    # what the finish accepts inside: the slack, and it says so exactly
+    inside = res.V[:, 0] > 12.0
+    assert res.penetration_vertices == inside.sum()
+    assert res.penetration_depth == pytest.approx(max(0.0, res.V[:, 0].max() - 12.0), abs=1e-9)
+    assert res.penetration_depth <= edge
     # the rest of the muscle takes the lost volume: it grows elsewhere, by little
     assert res.contact_moved <= 9.0 + margin
     assert d.muscle.shape_change(res.V).max() <= 0.5 + 0.2 * margin

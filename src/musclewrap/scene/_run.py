@@ -298,7 +298,12 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
         n_in, depth = (0, 0.0) if ok_values else (float("nan"), float("nan"))
         if ok_values:
             Vo = apply(T, res.V)
-            for probe, TB, _ in probes:
+            if contact is not None:
+                # the contact finish counted its bones exactly
+                n_in, depth = res.penetration_vertices, res.penetration_depth
+            for probe, TB, bname in probes:
+                if contact is not None and bname in contact:
+                    continue
                 n, dep = probe.measure(apply(invert_rigid(TB[k]) @ T, res.V))
                 n_in += n
                 depth = max(depth, dep)

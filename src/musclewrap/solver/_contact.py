@@ -90,7 +90,7 @@ class ContactReport:
     depth_before : float
         Deepest vertex inside an obstacle before the finish (0 if none), mesh units.
     depth_after : float
-        Deepest vertex inside an obstacle after it (0 if none).
+        Deepest vertex inside an obstacle after it (0 if none): exact.
     moved_max : float
         Largest displacement of a vertex by the finish.
     rounds : int
@@ -99,6 +99,9 @@ class ContactReport:
         Whether every vertex keeps the margin (to ``tol.contact`` mean edge lengths).
     reason : str
         Why it is not ok, naming the obstacle; empty when ok.
+    inside : int
+        Vertices inside an obstacle after the finish (exact; a kept rest
+        overlap may leave some).
     """
 
     contact_vertices: int = 0
@@ -108,6 +111,7 @@ class ContactReport:
     rounds: int = 0
     ok: bool = True
     reason: str = ""
+    inside: int = 0
 
 
 def _rings(A: sp.csr_matrix, seeds: np.ndarray, k: int) -> np.ndarray:
@@ -418,7 +422,10 @@ def push_out(
         hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap)
     depth_before = max(depths, default=0.0)
     if not len(hit):
-        return V, ContactReport(depth_before=depth_before)
+        touching, inside, depth = _final(V, placed, slack, near)
+        return V, ContactReport(
+            contact_vertices=touching, depth_before=depth_before, depth_after=depth, inside=inside
+        )
     n = len(V)
     if A is None:
         A = vertex_adjacency(F, n)
@@ -495,30 +502,52 @@ def push_out(
         t = cubic_root_near(volume_cubic(P - c, Z, F), volume_target, 0.0)
         if np.isfinite(t):
             P = P + t * Z
-            _, _, _, depths = _violations(P, placed, slack, near)
         rel = abs(volume(P, F) - volume_target) / abs(volume_target)
     if rel > tol.volume:
         ok = False
         reason = (reason + "; " if reason else "") + f"volume error {rel:.3g} after contact"
-    # the vertices in contact: within the slack of the margin of an obstacle
-    touching = np.zeros(n, dtype=bool)
-    for b, (pl, r) in enumerate(zip(placed, near.rows(P, 2.0 * slack), strict=True)):
-        if not len(r):
-            continue
-        lower = np.empty(len(r))
-        idx = pl.obstacle.query(pl.to_obstacle(P[r]), near.allowed[b][r] + 2.0 * slack, lower)[0]
-        near.learn(b, r, P[r], lower)
-        touching[r[idx]] = True
+    touching, inside, depth = _final(P, placed, slack, near)
     report = ContactReport(
-        contact_vertices=int(touching.sum()),
+        contact_vertices=touching,
+        inside=inside,
         depth_before=depth_before,
-        depth_after=max(depths, default=0.0),
+        depth_after=depth,
         moved_max=float(np.linalg.norm(P - V, axis=1).max()),
         rounds=rounds,
         ok=ok,
         reason=reason,
     )
     return P, report
+
+
+def _final(
+    P: FloatArray, placed: Sequence[Placed], slack: float, near: Near
+) -> tuple[int, int, float]:
+    """Vertices in contact (within twice the slack of the margin), inside an obstacle, deepest.
+
+    Exact: every vertex that can be that near (``near``'s bounds) takes the
+    closest-point query.
+    """
+    n = len(P)
+    touching = np.zeros(n, dtype=bool)
+    inside = np.zeros(n, dtype=bool)
+    depth = 0.0
+    for b, pl in enumerate(placed):
+        allowed = near.allowed[b]
+        # nearer than the margin + slack, or inside (a kept overlap allows a vertex inside)
+        reach = np.maximum(allowed + 2.0 * slack, 0.0)
+        lo = near.lower[b] - near.moved(b, P)
+        r = np.flatnonzero(lo < reach)
+        if not len(r):
+            continue
+        lower = np.empty(len(r))
+        idx, phi, _, _ = pl.obstacle.query(pl.to_obstacle(P[r]), reach[r], lower)
+        near.learn(b, r, P[r], lower)
+        idx = r[idx]
+        touching[idx[phi < allowed[idx] + 2.0 * slack]] = True
+        inside[idx[phi < 0]] = True
+        depth = max(depth, float(-phi.min(initial=0.0)))
+    return int(touching.sum()), int(inside.sum()), depth
 
 
 def contact_candidates(

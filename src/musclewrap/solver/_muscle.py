@@ -856,6 +856,7 @@ class Deformer:
                 else {
                     "contact_vertices": contact.contact_vertices,
                     "penetration_depth": contact.depth_after,
+                    "penetration_vertices": contact.inside,
                     "penetration_depth_before": contact.depth_before,
                     "contact_moved": contact.moved_max,
                 }

@@ -51,6 +51,9 @@ class DeformationResult:
     penetration_depth : float
         Deepest vertex inside an obstacle after the contact finish (0 if none),
         mesh units.
+    penetration_vertices : int
+        Vertices inside an obstacle after the contact finish (exact; 0 without
+        obstacles).
     penetration_depth_before : float
         The same before the finish: what the solve without contact gave.
     contact_moved : float
@@ -73,6 +76,7 @@ class DeformationResult:
     history: tuple[tuple[float, float], ...] = field(default=())
     contact_vertices: int = 0
     penetration_depth: float = 0.0
+    penetration_vertices: int = 0
     penetration_depth_before: float = 0.0
     contact_moved: float = 0.0
 
