@@ -152,6 +152,49 @@ def test_capsule_pressed_into_a_sphere(bent):
     assert res.contact_vertices > 0 and res.penetration_depth_before > 5
 
 
+def test_a_rod_does_not_poke_through_between_vertices(bent):
+    # a rod of radius 3 across the capsule's side, 4 into it: sharper than the muscle's
+    # edges (about 3.2) can follow, so projecting the muscle's vertices out of it alone
+    # leaves the rod's ridge 5 inside the muscle between them (measured); the per-pose
+    # bone-vertex step takes it out to 0.6
+    import igl
+
+    d, cur = bent
+    R, RF = capsule(radius=3.0, length=80.0, n_around=48, cap_rings=6, segments=80)
+    # along y (a reflection of the z axis: the faces turned back outward), at x = 19 - 4 + 3
+    R = (R - R.mean(axis=0))[:, [0, 2, 1]] + [19.0, 0.0, 60.0]
+    RF = np.ascontiguousarray(RF[:, ::-1])
+    res = d.deform(cur, obstacles=[Obstacle(R, RF)], margin=0.0)
+    assert res.converged, res.reason
+    assert abs(res.relative_volume_error) <= 1e-12
+    free = d.deform(cur)
+    assert (igl.winding_number(free.V, d.muscle.F, R) > 0.5).sum() > 100
+    inside = igl.winding_number(res.V, d.muscle.F, R) > 0.5
+    depth = np.sqrt(igl.point_mesh_squared_distance(R[inside], res.V, d.muscle.F)[0])
+    assert depth.max(initial=0.0) <= 1.0
+    assert d.muscle.shape_change(res.V).max() <= 0.5
+
+
+def test_attachment_patches_keep_only_those_near_a_line_end():
+    from musclewrap.mesh import vertex_adjacency
+    from musclewrap.solver import attachment_patches
+
+    V, F = capsule(radius=8.0, length=100.0, n_around=24, cap_rings=6, segments=20)
+    A = vertex_adjacency(F, len(V))
+    z = V[:, 2] - V[:, 2].min()
+    # two patches on the side x > 6: one at the start of the line, one in the middle
+    start = np.flatnonzero((V[:, 0] > 6) & (z < 25))
+    middle = np.flatnonzero((V[:, 0] > 6) & (np.abs(z - 58) < 8))
+    lines = {"a": [[0.0, 0.0, V[:, 2].min() + 2.0], [0.0, 0.0, V[:, 2].max() - 2.0]]}
+    kept = attachment_patches(A, V, np.concatenate([start, middle]), lines)
+    assert np.array_equal(kept, np.sort(start))
+    # a larger reach takes the middle patch too; none: nothing
+    assert len(attachment_patches(A, V, np.concatenate([start, middle]), lines, 0.9)) == len(
+        start
+    ) + len(middle)
+    assert len(attachment_patches(A, V, np.zeros(0, np.int64), lines)) == 0
+
+
 def test_no_contact_gives_the_result_without_obstacles(bent):
     d, cur = bent
     far = Obstacle(*_box([100.0, 100, 100], [150, 150, 150]))

@@ -86,11 +86,20 @@ class Defaults:
         Weight of the skeleton condition relative to the Laplacian condition.
     anchor_weight : float
         Weight of the anchors (fine vertices held at their rest positions, where
-        a muscle lies on a bone of its own body) relative to the Laplacian, as
-        the skeleton's: scaled by ``sqrt(m / k)`` for ``k`` anchors.
+        a muscle starts on a bone of its own body) relative to the Laplacian,
+        scaled as the skeleton's by ``sqrt(m / k)`` for ``k`` anchors. As the
+        skeleton's; measured on the LHDL hip sweeps (BENCHMARKS.md): at 0.5 / 1 / 2
+        the iliacus's largest shape change in flexion is 0.49 / 0.53 / 0.59 mean
+        edges, the gluteus maximus's in adduction (frame 39) 0.54 / 0.35 / 0.34.
     anchor_reach : float
         A muscle vertex within this many mean edge lengths of the margin of a bone
         of its own body at the rest pose is an anchor (scenes with contact).
+    anchor_end_reach : float
+        Of those, only a patch (connected on the mesh) whose nearest vertex lies
+        within this fraction of a path's length of that path's first or last
+        point is kept: an attachment, where the muscle starts on the bone, not a
+        bone the muscle merely lies on at rest and slides over (the psoas on the
+        pelvic brim).
     samples_per_line : int
         Minimum number of arc-length samples per action line.
     max_iterations : int
@@ -146,6 +155,7 @@ class Defaults:
     skeleton_weight: float = 1.0
     anchor_weight: float = 1.0
     anchor_reach: float = 0.5
+    anchor_end_reach: float = 0.15
     samples_per_line: int = 33
     max_iterations: int = 60
     plain_iterations: int = 30

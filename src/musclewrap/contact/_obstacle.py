@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numba
@@ -60,6 +61,63 @@ def bone_surface(
     return V, F, notes
 
 
+def pseudo_normals(V: FloatArray, F: IntArray) -> tuple[FloatArray, ...]:
+    """Face normals, angle-weighted vertex normals and edge normals of a surface.
+
+    Returns ``FN (m, 3)``, ``VN (n, 3)``, ``EN (e, 3)`` (the sum of an edge's two
+    face normals) and ``FE (m, 3)``: per face, the row of ``EN`` of its edge
+    ``e`` (joining corners ``e`` and ``e + 1``). What `signed_from_closest` takes.
+    """
+    import igl
+
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    FN = np.ascontiguousarray(igl.per_face_normals(V, F, np.array([0.0, 0.0, 1.0])))
+    VN = np.ascontiguousarray(
+        igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE)
+    )
+    E = np.sort(F[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
+    key = E[:, 0] * len(V) + E[:, 1]
+    uniq, inv = np.unique(key, return_inverse=True)
+    FN3 = np.repeat(FN, 3, axis=0)
+    EN = np.stack([np.bincount(inv, FN3[:, i], minlength=len(uniq)) for i in range(3)], 1)
+    FE = np.ascontiguousarray(inv.reshape(-1, 3), dtype=np.int64)
+    return FN, VN, np.ascontiguousarray(EN), FE
+
+
+def signed_from_closest(
+    P: FloatArray,
+    C: FloatArray,
+    face: IntArray,
+    sq: FloatArray,
+    V: FloatArray,
+    F: IntArray,
+    normals: tuple[FloatArray, ...],
+) -> tuple[FloatArray, FloatArray]:
+    """Signed distance and outward direction from closest points on a closed surface.
+
+    ``C``, ``face`` and ``sq`` are a closest-point query's answer for the points
+    ``P`` (libigl's); the side is the angle-weighted pseudo-normal's at ``C`` (on
+    a face, an edge or a vertex: Baerentzen & Aanaes 2005); ``normals`` from
+    `pseudo_normals`. Returns ``phi (k,)`` (< 0 inside) and ``N (k, 3)``.
+    """
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    phi = np.empty(len(P))
+    N = np.empty((len(P), 3))
+    _signed_kernel(
+        P,
+        np.ascontiguousarray(C, dtype=np.float64),
+        np.ascontiguousarray(face, dtype=np.int64).ravel(),
+        np.ascontiguousarray(sq, dtype=np.float64).ravel(),
+        np.ascontiguousarray(V, dtype=np.float64),
+        np.ascontiguousarray(F, dtype=np.int64),
+        *normals,
+        phi,
+        N,
+    )
+    return phi, N
+
+
 class Obstacle:
     """Signed distance, closest points and inside test against one closed bone surface.
 
@@ -116,20 +174,7 @@ class Obstacle:
         self.F = np.ascontiguousarray(F, dtype=np.int64)
         self._tree = igl.AABB()
         self._tree.init(self.V, self.F)
-        FN = igl.per_face_normals(self.V, self.F, np.array([0.0, 0.0, 1.0]))
-        self._FN = FN
-        self._VN = igl.per_vertex_normals(
-            self.V, self.F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE
-        )
-        # edge pseudo-normals: sum of the two adjacent face normals, keyed by sorted vertex pair
-        E = np.sort(self.F[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
-        key = E[:, 0] * len(self.V) + E[:, 1]
-        uniq, inv = np.unique(key, return_inverse=True)
-        FN3 = np.repeat(FN, 3, axis=0)
-        EN = np.stack([np.bincount(inv, FN3[:, i], minlength=len(uniq)) for i in range(3)], 1)
-        # per face, the pseudo-normal row of each edge (edge e joins corners e and e + 1)
-        self._EN = EN
-        self._FE = np.ascontiguousarray(inv.reshape(-1, 3), dtype=np.int64)
+        self._normals = pseudo_normals(self.V, self.F)
         grid = _grid if _grid is not None else self._build(max_grid_nodes)
         self.lo = np.asarray(grid["lo"], dtype=np.float64)
         self.h = float(grid["h"])
@@ -247,23 +292,55 @@ class Obstacle:
         """
         P = np.ascontiguousarray(P, dtype=np.float64)
         sq, face, C = self._tree.squared_distance(self.V, self.F, P)
-        phi = np.empty(len(P))
-        N = np.empty((len(P), 3))
-        _signed_kernel(
-            P,
-            np.ascontiguousarray(C, dtype=np.float64),
-            np.ascontiguousarray(face, dtype=np.int64).ravel(),
-            np.ascontiguousarray(sq, dtype=np.float64).ravel(),
-            self.V,
-            self.F,
-            self._FN,
-            self._VN,
-            self._EN,
-            self._FE,
-            phi,
-            N,
-        )
+        phi, N = signed_from_closest(P, C, face, sq, self.V, self.F, self._normals)
         return phi, C, N
+
+    @property
+    def convexity(self) -> FloatArray:
+        """Per vertex, the largest convex normal curvature toward a neighbour (1/length).
+
+        ``-2 n . (w - v) / |w - v|^2`` over the neighbours ``w`` of ``v`` (the
+        circle tangent to the surface at ``v`` through ``w``), 0 where no
+        neighbour lies below the tangent plane. A ridge of radius ``R`` has
+        about ``1 / R``.
+        """
+        if getattr(self, "_convexity", None) is None:
+            VN = self._normals[1]
+            N = VN / np.maximum(np.linalg.norm(VN, axis=1), 1e-300)[:, None]
+            E = np.unique(
+                np.sort(self.F[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0
+            )
+            k = np.zeros(len(self.V))
+            for v, w in ((E[:, 0], E[:, 1]), (E[:, 1], E[:, 0])):
+                d = self.V[w] - self.V[v]
+                kk = (
+                    -2.0
+                    * np.einsum("ij,ij->i", N[v], d)
+                    / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+                )
+                np.maximum.at(k, v, kk)
+            self._convexity = k
+        return self._convexity
+
+    def ridge_vertices_near(self, Q: FloatArray, radius: float, convexity: float) -> IntArray:
+        """Vertices with `convexity` above ``convexity`` within ``radius`` of a point of ``Q``."""
+        from scipy.spatial import cKDTree
+
+        trees = self.__dict__.setdefault("_ridge_trees", {})
+        if convexity not in trees:
+            idx = np.flatnonzero(self.convexity > convexity)
+            trees[convexity] = (idx, cKDTree(self.V[idx]) if len(idx) else None)
+        idx, tree = trees[convexity]
+        Q = np.asarray(Q, dtype=np.float64)
+        if tree is None or not len(Q):
+            return np.zeros(0, dtype=np.int64)
+        found = tree.query_ball_point(Q, radius, return_sorted=False)
+        sizes = [len(f) for f in found]
+        if not sum(sizes):
+            return np.zeros(0, dtype=np.int64)
+        return idx[
+            np.unique(np.fromiter(itertools.chain.from_iterable(found), np.int64, sum(sizes)))
+        ]
 
     # ------------------------------------------------------------------ query
     def bounds(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:

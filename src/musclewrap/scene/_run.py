@@ -768,13 +768,14 @@ def _rest_overlap(
     Returns the muscles; per muscle, the bones it is kept out of with each one's
     allowance (``"keep"``); and per muscle its anchors: the vertices within
     ``defaults.anchor_reach`` mean edge lengths of the margin of a bone that its
-    own body carries (an origin, which moves with that bone: `Muscle.bind`'s
-    anchors keep them in place, so the deformation does not drive the muscle
-    into the bone it starts from).
+    own body carries, in patches near an end of its action lines (an origin,
+    which moves with that bone: `Muscle.bind`'s anchors keep them in place, so
+    the deformation does not drive the muscle into the bone it starts from;
+    `musclewrap.solver.attachment_patches`).
     """
     from ..constants import defaults
-    from ..mesh import mean_edge_length
-    from ..solver import Placed
+    from ..mesh import mean_edge_length, vertex_adjacency
+    from ..solver import Placed, attachment_patches
 
     cache_str = None if cache is None else str(cache)
     probes = {
@@ -810,7 +811,12 @@ def _rest_overlap(
         reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
         found = [pl.obstacle.query(pl.to_obstacle(V), reach)[0] for pl in placed]
         found = [f for f, pl in zip(found, placed, strict=True) if body_of[pl.name] == spec.body]
-        anchors[spec.name] = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
+        anchors[spec.name] = attachment_patches(
+            vertex_adjacency(F, len(V)),
+            V,
+            np.concatenate(found) if found else np.zeros(0, np.int64),
+            drive.rest_lines[spec.name],
+        )
     return out_muscles, contact, anchors
 
 

@@ -1,6 +1,6 @@
 """Per-muscle preparation and per-pose constrained solve."""
 
-from ._contact import ContactReport, Placed, push_out
+from ._contact import ContactReport, Placed, attachment_patches, push_out
 from ._cubic import cubic_root_near
 from ._muscle import METHODS, Deformer, Muscle, deform
 from ._paper import solve_paper
@@ -13,6 +13,7 @@ __all__ = [
     "Deformer",
     "Muscle",
     "Placed",
+    "attachment_patches",
     "cubic_root_near",
     "deform",
     "push_out",

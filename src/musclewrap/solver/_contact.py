@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numba
@@ -27,6 +27,7 @@ __all__ = [
     "ContactReport",
     "Near",
     "Placed",
+    "attachment_patches",
     "cage_push",
     "contact_candidates",
     "push_out",
@@ -286,6 +287,89 @@ def _violations(
     return hit, target, worst[hit], depths
 
 
+def _bone_vertices_inside(
+    P: FloatArray,
+    F: IntArray,
+    pl: Placed,
+    depth: float,
+    near: tuple[Near, int, sp.csr_matrix, float, FloatArray] | None,
+) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, IntArray]:
+    """The obstacle's vertices more than ``depth`` inside the muscle ``P, F``.
+
+    ``near`` None: every obstacle vertex in the muscle's box, inside by the
+    generalized winding number of the whole muscle (robust; a tree over the
+    muscle per call: seconds over a motion). Otherwise ``(Near, b, A, edge, Z)``
+    (``Z`` the muscle's vertex normals):
+    only the obstacle's vertices within ``edge`` of a muscle vertex that lies
+    within ``edge`` of obstacle ``b`` (a bone ridge between muscle vertices in
+    contact), and their side by the pseudo-normal of their closest point on the
+    muscle's faces around those vertices (two rings: the closest point of a
+    vertex so near lies there).
+
+    Returns the vertices ``B`` (muscle frame), their closest points ``C``, the
+    faces ``fi`` (rows of ``F``) holding them, the depths and ``B``'s rows in
+    the obstacle.
+    """
+    import igl
+
+    from ..contact import pseudo_normals, signed_from_closest
+
+    none = (
+        np.zeros((0, 3)),
+        np.zeros((0, 3)),
+        np.zeros(0, np.int64),
+        np.zeros(0),
+        np.zeros(0, np.int64),
+    )
+    if near is None:
+        lo, hi = P.min(axis=0) - depth, P.max(axis=0) + depth
+        B = pl.to_muscle(pl.obstacle.V)
+        rows = np.flatnonzero(((B >= lo) & (B <= hi)).all(axis=1))
+        if not len(rows):
+            return none
+        B = np.ascontiguousarray(B[rows])
+        inside = igl.fast_winding_number(P, F, B) > 0.5
+        sq, fi, C = igl.point_mesh_squared_distance(B, P, F)
+        dist = np.sqrt(sq)
+        bad = inside & (dist > depth)
+        return B[bad], C[bad], fi[bad], dist[bad], rows[bad]
+    from scipy.spatial import cKDTree
+
+    nr, b, A, edge, Z = near
+    # the muscle vertices inside the margin (exact: `_violations` queried them) and
+    # their neighbours
+    inside = np.flatnonzero(nr.lower[b] - nr.moved(b, P) < nr.allowed[b])
+    if not len(inside):
+        return none
+    r = np.flatnonzero(_rings(A, inside, 1) <= 1)
+    # After the finish projects the muscle's vertices onto the bone, a bone vertex
+    # stands out between them by about the sag e^2 / (8 R) of its curvature radius R
+    # under a muscle edge e: only where that can exceed ``depth`` (edges up to 1.5
+    # mean edges) are the bone's vertices looked at.
+    sharp = 8.0 * depth / (1.5 * edge) ** 2
+    rows = pl.obstacle.ridge_vertices_near(pl.to_obstacle(P[r]), edge, sharp)
+    if not len(rows):
+        return none
+    B = pl.to_muscle(pl.obstacle.V[rows])
+    # only a bone vertex behind the tangent plane of its nearest muscle vertex can be
+    # inside the muscle (most near a contact lie in front: the bone the muscle rests on)
+    _, j = cKDTree(P[r]).query(B)
+    v = r[j]
+    behind = np.einsum("ij,ij->i", B - P[v], Z[v]) < 0.0
+    if not behind.any():
+        return none
+    rows, B = rows[behind], np.ascontiguousarray(B[behind])
+    local = np.flatnonzero((_rings(A, r, 2) <= 2)[F].any(axis=1))
+    # the faces around, on their own vertices
+    used, FL = np.unique(F[local], return_inverse=True)
+    FL = np.ascontiguousarray(FL.reshape(-1, 3), dtype=np.int64)
+    PL = np.ascontiguousarray(P[used])
+    sq, fl, C = igl.point_mesh_squared_distance(B, PL, FL)
+    phi, _ = signed_from_closest(B, C, fl, sq, PL, FL, pseudo_normals(PL, FL))
+    bad = phi < -depth
+    return B[bad], C[bad], local[np.asarray(fl).ravel()[bad]], -phi[bad], rows[bad]
+
+
 def _with_bone_vertices(
     P: FloatArray,
     F: IntArray,
@@ -295,35 +379,28 @@ def _with_bone_vertices(
     hit: IntArray,
     target: FloatArray,
     gap: FloatArray,
+    near: tuple[Near, sp.csr_matrix, float] | None = None,
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """`_violations` plus the pushes that take obstacle vertices out of the muscle.
 
-    An obstacle vertex inside the muscle (winding number > 0.5) or within the
+    An obstacle vertex inside the muscle (`_bone_vertices_inside`: all of them
+    with ``near`` None, else those near vertices in contact) or within the
     margin of its surface moves the nearest muscle triangle past it: its
     vertices by the least displacement (barycentric weights) that carries the
     nearest point to the margin beyond the obstacle vertex.
     """
-    import igl
-
-    lo, hi = P.min(axis=0) - margin, P.max(axis=0) + margin
     n = len(P)
     push = np.zeros((n, 3))
     size = np.zeros(n)
-    for pl in placed:
-        B = pl.to_muscle(pl.obstacle.V)
-        B = B[((B >= lo) & (B <= hi)).all(axis=1)]
+    Z = None if near is None else vertex_normals(P, F)
+    # bone vertices deeper than the margin plus a tenth of a mean edge: the shallow ones
+    # sit between the muscle's vertices on the bone (chords of its curved surface)
+    depth = margin + 10.0 * slack
+    for b, pl in enumerate(placed):
+        local = None if near is None else (near[0], b, near[1], near[2], Z)
+        B, C, fi, dist, _ = _bone_vertices_inside(P, F, pl, depth, local)
         if not len(B):
             continue
-        B = np.ascontiguousarray(B)
-        inside = igl.fast_winding_number(P, F, B) > 0.5
-        sq, fi, C = igl.point_mesh_squared_distance(B, P, F)
-        dist = np.sqrt(sq)
-        # bone vertices deeper than the margin plus a tenth of a mean edge: the shallow ones
-        # sit between the muscle's vertices on the bone (chords of its curved surface)
-        bad = inside & (dist > margin + 10.0 * slack)
-        if not bad.any():
-            continue
-        B, C, fi, dist, inside = B[bad], C[bad], fi[bad], dist[bad], inside[bad]
         # into the muscle from the bone vertex: the nearest surface point goes past it
         u = (B - C) / np.maximum(dist, 1e-300)[:, None]
         d = dist + margin + slack
@@ -361,7 +438,7 @@ def push_out(
     margin: float = 0.0,
     A: sp.csr_matrix | None = None,
     max_rounds: int = defaults.contact_rounds,
-    bone_vertices: bool = False,
+    bone_vertices: bool | str = False,
     edge: float | None = None,
     near: Near | None = None,
 ) -> tuple[FloatArray, ContactReport]:
@@ -393,13 +470,14 @@ def push_out(
         The mesh's `musclewrap.mesh.vertex_adjacency` (built here when not given).
     max_rounds : int, optional
         Most push-out rounds.
-    bone_vertices : bool, optional
+    bone_vertices : bool or "near", optional
         Also take the obstacles' own vertices out of the muscle (a bone ridge or
         a bone's edge inside the muscle between its vertices): each one inside
-        (generalized winding number of the muscle) pushes the muscle triangle
-        nearest to it past it. Robust but not cheap (a winding-number and a
-        closest-point query over the muscle per round): used once, for the
-        rest overlap at preparation.
+        pushes the muscle triangle nearest to it past it. True: every obstacle
+        vertex, by the generalized winding number of the whole muscle (robust,
+        not cheap: for the rest overlap at preparation); ``"near"``: those
+        within a mean edge of muscle vertices in contact, by the muscle's
+        surface around them (per pose).
     edge : float, optional
         The mesh's mean edge length (computed when not given).
     near : Near, optional
@@ -417,10 +495,26 @@ def push_out(
     slack = tol.contact * edge
     if near is None:
         near = Near(V, placed, margin)
-    hit, target, gap, depths = _violations(V, placed, slack, near)
-    if bone_vertices:
-        hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap)
+    if A is None and bone_vertices:
+        A = vertex_adjacency(F, len(V))
+    local = (near, A, edge) if bone_vertices == "near" else None
+
+    def violations(
+        P: FloatArray, bones: bool
+    ) -> tuple[IntArray, FloatArray, FloatArray, list[float]]:
+        hit, target, gap, depths = _violations(P, placed, slack, near)
+        if bones:
+            hit, target, gap = _with_bone_vertices(P, F, placed, margin, slack, hit, target, gap)
+        return hit, target, gap, depths
+
+    hit, target, gap, depths = violations(V, bone_vertices is True)
     depth_before = max(depths, default=0.0)
+    if bone_vertices == "near" and len(hit):
+        # Per pose, bone vertices are taken out of the surface the solve left where it
+        # went into a bone: a bone's ridge there can cut the surface between the
+        # vertices the finish projects. Once: the local side test is not to be
+        # trusted on a surface the pushes may have folded.
+        hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap, local)
     if not len(hit):
         touching, inside, depth = _final(V, placed, slack, near)
         return V, ContactReport(
@@ -438,7 +532,7 @@ def push_out(
     Z = vertex_normals(P, F)
     # the first rounds relax every push with its neighbours; the last ones project exactly
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
-    if bone_vertices:  # once per muscle: relax longer, fewer folds
+    if bone_vertices is True:  # once per muscle: relax longer, fewer folds
         relax_rounds = max(relax_rounds, max_rounds // 2)
     for rounds in range(1, max_rounds + 1):
         D = target - P[hit]
@@ -474,9 +568,7 @@ def push_out(
             ok = False
             break
         P += t * Zm
-        hit, target, gap, depths = _violations(P, placed, slack, near)
-        if bone_vertices:
-            hit, target, gap = _with_bone_vertices(P, F, placed, margin, slack, hit, target, gap)
+        hit, target, gap, depths = violations(P, bone_vertices is True)
         if not len(hit):
             break
     else:
@@ -548,6 +640,55 @@ def _final(
         inside[idx[phi < 0]] = True
         depth = max(depth, float(-phi.min(initial=0.0)))
     return int(touching.sum()), int(inside.sum()), depth
+
+
+def attachment_patches(
+    A: sp.csr_matrix,
+    V: FloatArray,
+    candidates: IntArray,
+    lines: Mapping[str, FloatArray],
+    reach: float = defaults.anchor_end_reach,
+) -> IntArray:
+    """The candidates that form an attachment: patches near the end of an action line.
+
+    ``candidates`` (vertices lying on a bone of the muscle's own body at rest)
+    split into patches connected on the mesh (adjacency ``A``). A patch is kept
+    when its nearest vertex is within ``reach`` times a path's length of that
+    path's first or last point: where the muscle starts on the bone (its
+    origin). A patch far from every end is a bone the muscle lies on and slides
+    over through a motion (the psoas on the pelvic brim); holding it in place
+    would crease the muscle there.
+
+    Parameters
+    ----------
+    A : scipy.sparse.csr_matrix
+        Vertex adjacency of the muscle's mesh.
+    V : (n, 3) float64 array
+        Rest positions, in the frame of ``lines``.
+    candidates : (k,) int array
+    lines : mapping of str to (p, 3) arrays
+        The rest action lines.
+    reach : float, optional
+        Fraction of a path's length.
+
+    Returns
+    -------
+    (j,) int64 array
+        The kept candidates, sorted.
+    """
+    from scipy.sparse.csgraph import connected_components
+
+    c = np.unique(np.asarray(candidates, dtype=np.int64))
+    if not len(c):
+        return c
+    _, label = connected_components(A[c][:, c], directed=False)
+    near = np.zeros(len(c), dtype=bool)
+    for pts in lines.values():
+        pts = np.asarray(pts, dtype=np.float64)
+        length = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+        for end in (pts[0], pts[-1]):
+            near |= np.linalg.norm(V[c] - end, axis=1) <= reach * length
+    return np.sort(c[np.isin(label, np.unique(label[near]))])
 
 
 def contact_candidates(

@@ -757,6 +757,7 @@ class Deformer:
                     A=self.muscle.adjacency,
                     edge=self._fine_edge,
                     near=near,
+                    bone_vertices="near",
                 )
                 contact = dataclasses.replace(
                     contact, depth_before=max(before, contact.depth_before)
