@@ -362,7 +362,9 @@ def test_gait2392_vhf_example_runs(data_dir, tmp_path):
     s = run_scene(
         scene,
         tmp_path / "g",
-        frames="58:211:72",  # frames where the semitendinosus needs the Newton fallback
+        # frames where the semitendinosus needs the Newton fallback (58) and, on 95, the
+        # exact iteration after it
+        frames="58:133:37",
         workers=2,
         cache_dir=tmp_path / "c",
         progress=None,
@@ -375,6 +377,8 @@ def test_gait2392_vhf_example_runs(data_dir, tmp_path):
     assert len(s.rows) == 6 * 3
     semi = [r["iterations"] for r in s.rows if r["muscle"] == "semitendinosus"]
     assert max(semi) > 9  # beyond the 8 iterations that used to be the limit here
+    (r95,) = [r for r in s.rows if r["muscle"] == "semitendinosus" and r["frame"] == 95]
+    assert r95["reason"].startswith("converged by the exact iteration (direction not"), r95
     for r in s.rows:
         assert r["converged"], r
         assert abs(r["relative_volume_error"]) <= 1e-9, r

@@ -731,6 +731,17 @@ class Deformer:
                     x, V, its, ok, reason, hist = self._solve_default(
                         x_ls, max_iterations or defaults.max_iterations
                     )
+                    if not ok and reason.startswith("direction not stationary"):
+                        # The proxy's direction did not settle (rare: one gait2392 frame of
+                        # the semitendinosus): the exact iteration, on the fine mesh's own
+                        # gradient, from the start; the reason says so.
+                        x2, V2, its2, ok2, reason2, hist = self._solve_exact(
+                            x_ls, d_L, s_cur, max_iterations or defaults.max_iterations
+                        )
+                        if ok2:
+                            x, V, ok = x2, V2, True
+                            reason = f"converged by the exact iteration ({reason} on the proxy)"
+                        its += its2
             except (np.linalg.LinAlgError, FloatingPointError) as exc:
                 # a singular or overflowing system on this pose: an unconverged result
                 # with the reason, never an exception that would end a whole motion

@@ -27,7 +27,8 @@ class DeformationResult:
         ``(volume - volume_rest) / volume_rest``.
     iterations : int
         Solver iterations (for the default solver: volume-direction updates
-        plus the final exact correction).
+        plus the final exact correction, plus the exact iteration's where the
+        proxy's direction did not settle).
     converged : bool
         Whether the stopping criteria were met.
     reason : str
