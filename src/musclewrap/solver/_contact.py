@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
@@ -171,6 +172,112 @@ def _smooth(indptr, indices, D, rows, sweeps, keep):  # noqa: ANN001, ANN202 # p
             D[v, 0], D[v, 1], D[v, 2] = new[q, 0], new[q, 1], new[q, 2]
 
 
+@numba.njit(cache=True)
+def _closest_on_triangle(p, a, b, c):  # noqa: ANN001, ANN202 # pragma: no cover
+    # Ericson, Real-Time Collision Detection 5.1.5: the closest point and its barycentrics
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = ab @ ap, ac @ ap
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a, 1.0, 0.0, 0.0
+    bp = p - b
+    d3, d4 = ab @ bp, ac @ bp
+    if d3 >= 0.0 and d4 <= d3:
+        return b, 0.0, 1.0, 0.0
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        t = d1 / (d1 - d3)
+        return a + t * ab, 1.0 - t, t, 0.0
+    cp = p - c
+    d5, d6 = ab @ cp, ac @ cp
+    if d6 >= 0.0 and d5 <= d6:
+        return c, 0.0, 0.0, 1.0
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        t = d2 / (d2 - d6)
+        return a + t * ac, 1.0 - t, 0.0, t
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return b + t * (c - b), 0.0, 1.0 - t, t
+    den = 1.0 / (va + vb + vc)
+    v, w = vb * den, vc * den
+    return a + v * ab + w * ac, 1.0 - v - w, v, w
+
+
+@numba.njit(cache=True)
+def _unit_normal(P, F, f):  # noqa: ANN001, ANN202 # pragma: no cover
+    n = np.cross(P[F[f, 1]] - P[F[f, 0]], P[F[f, 2]] - P[F[f, 0]])
+    r = np.sqrt(n @ n)
+    return n / r if r > 0.0 else n
+
+
+@numba.njit(cache=True)
+def _local_side_kernel(B, start, P, F, Ap, Ai, VFp, VFi, phi, C, face):  # noqa: ANN001, ANN202 # pragma: no cover
+    # Per point: the closest point on the faces around muscle vertex start[i] and its
+    # neighbours, and the side by the angle-weighted pseudo-normal there (Baerentzen &
+    # Aanaes 2005): a face's normal, an edge's two faces', a vertex's angle-weighted fan.
+    for i in range(B.shape[0]):
+        p = B[i]
+        best = np.inf
+        bf = -1
+        bq = np.zeros(3)
+        bw = np.zeros(3)
+        v0 = start[i]
+        for k in range(Ap[v0], Ap[v0 + 1] + 1):
+            u = v0 if k == Ap[v0 + 1] else Ai[k]
+            for m in range(VFp[u], VFp[u + 1]):
+                f = VFi[m]
+                q, w0, w1, w2 = _closest_on_triangle(p, P[F[f, 0]], P[F[f, 1]], P[F[f, 2]])
+                d = p - q
+                d2 = d @ d
+                if d2 < best:
+                    best, bf = d2, f
+                    bq[:] = q
+                    bw[0], bw[1], bw[2] = w0, w1, w2
+        nz = 0
+        for k in range(3):
+            if bw[k] <= 1e-9:
+                nz += 1
+        if nz == 2:  # a vertex: the angle-weighted normals of its faces
+            k = 0 if bw[0] > 1e-9 else (1 if bw[1] > 1e-9 else 2)
+            x = F[bf, k]
+            n = np.zeros(3)
+            for m in range(VFp[x], VFp[x + 1]):
+                f = VFi[m]
+                for c in range(3):
+                    if F[f, c] == x:
+                        e1 = P[F[f, (c + 1) % 3]] - P[x]
+                        e2 = P[F[f, (c + 2) % 3]] - P[x]
+                        r = np.sqrt((e1 @ e1) * (e2 @ e2))
+                        if r > 0.0:
+                            ang = np.arccos(min(1.0, max(-1.0, (e1 @ e2) / r)))
+                            n += ang * _unit_normal(P, F, f)
+        elif nz == 1:  # an edge: its two faces
+            opp = 0 if bw[0] <= 1e-9 else (1 if bw[1] <= 1e-9 else 2)
+            a, b = F[bf, (opp + 1) % 3], F[bf, (opp + 2) % 3]
+            n = _unit_normal(P, F, bf)
+            for m in range(VFp[a], VFp[a + 1]):
+                f = VFi[m]
+                if f != bf and (F[f, 0] == b or F[f, 1] == b or F[f, 2] == b):
+                    n = n + _unit_normal(P, F, f)
+                    break
+        else:
+            n = _unit_normal(P, F, bf)
+        dist = np.sqrt(best)
+        phi[i] = -dist if (p - bq) @ n < 0.0 else dist
+        C[i, 0], C[i, 1], C[i, 2] = bq[0], bq[1], bq[2]
+        face[i] = bf
+
+
+def vertex_faces(F: IntArray, n: int) -> tuple[IntArray, IntArray]:
+    """The faces of each vertex as CSR arrays ``(indptr, indices)``."""
+    flat = np.asarray(F, dtype=np.int64).ravel()
+    order = np.argsort(flat, kind="stable")
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(flat, minlength=n), out=indptr[1:])
+    return indptr, np.ascontiguousarray(order // 3)
+
+
 class Near:
     """Which vertices can be within reach of each obstacle, by the 1-Lipschitz bound.
 
@@ -292,27 +399,24 @@ def _bone_vertices_inside(
     F: IntArray,
     pl: Placed,
     depth: float,
-    near: tuple[Near, int, sp.csr_matrix, float, FloatArray] | None,
+    near: tuple[Any, ...] | None,
 ) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, IntArray]:
     """The obstacle's vertices more than ``depth`` inside the muscle ``P, F``.
 
     ``near`` None: every obstacle vertex in the muscle's box, inside by the
     generalized winding number of the whole muscle (robust; a tree over the
-    muscle per call: seconds over a motion). Otherwise ``(Near, b, A, edge, Z)``
-    (``Z`` the muscle's vertex normals):
+    muscle per call: seconds over a motion). Otherwise ``(Near, b, A, edge, Z,
+    VF)`` (``Z`` the muscle's vertex normals, ``VF`` its `vertex_faces`):
     only the obstacle's vertices within ``edge`` of a muscle vertex that lies
     within ``edge`` of obstacle ``b`` (a bone ridge between muscle vertices in
     contact), and their side by the pseudo-normal of their closest point on the
-    muscle's faces around those vertices (two rings: the closest point of a
-    vertex so near lies there).
+    faces around their nearest muscle vertex and its neighbours (compiled).
 
     Returns the vertices ``B`` (muscle frame), their closest points ``C``, the
     faces ``fi`` (rows of ``F``) holding them, the depths and ``B``'s rows in
     the obstacle.
     """
     import igl
-
-    from ..contact import pseudo_normals, signed_from_closest
 
     none = (
         np.zeros((0, 3)),
@@ -335,7 +439,7 @@ def _bone_vertices_inside(
         return B[bad], C[bad], fi[bad], dist[bad], rows[bad]
     from scipy.spatial import cKDTree
 
-    nr, b, A, edge, Z = near
+    nr, b, A, edge, Z, VF = near
     # the muscle vertices inside the margin (exact: `_violations` queried them) and
     # their neighbours
     inside = np.flatnonzero(nr.lower[b] - nr.moved(b, P) < nr.allowed[b])
@@ -359,15 +463,15 @@ def _bone_vertices_inside(
     if not behind.any():
         return none
     rows, B = rows[behind], np.ascontiguousarray(B[behind])
-    local = np.flatnonzero((_rings(A, r, 2) <= 2)[F].any(axis=1))
-    # the faces around, on their own vertices
-    used, FL = np.unique(F[local], return_inverse=True)
-    FL = np.ascontiguousarray(FL.reshape(-1, 3), dtype=np.int64)
-    PL = np.ascontiguousarray(P[used])
-    sq, fl, C = igl.point_mesh_squared_distance(B, PL, FL)
-    phi, _ = signed_from_closest(B, C, fl, sq, PL, FL, pseudo_normals(PL, FL))
+    phi = np.empty(len(B))
+    C = np.empty((len(B), 3))
+    fi = np.empty(len(B), dtype=np.int64)
+    _local_side_kernel(
+        B, v[behind], np.ascontiguousarray(P, dtype=np.float64),
+        np.ascontiguousarray(F, dtype=np.int64), A.indptr, A.indices, VF[0], VF[1], phi, C, fi,
+    )  # fmt: skip
     bad = phi < -depth
-    return B[bad], C[bad], local[np.asarray(fl).ravel()[bad]], -phi[bad], rows[bad]
+    return B[bad], C[bad], fi[bad], -phi[bad], rows[bad]
 
 
 def _with_bone_vertices(
@@ -379,7 +483,7 @@ def _with_bone_vertices(
     hit: IntArray,
     target: FloatArray,
     gap: FloatArray,
-    near: tuple[Near, sp.csr_matrix, float] | None = None,
+    near: tuple[Any, ...] | None = None,
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """`_violations` plus the pushes that take obstacle vertices out of the muscle.
 
@@ -397,7 +501,7 @@ def _with_bone_vertices(
     # sit between the muscle's vertices on the bone (chords of its curved surface)
     depth = margin + 10.0 * slack
     for b, pl in enumerate(placed):
-        local = None if near is None else (near[0], b, near[1], near[2], Z)
+        local = None if near is None else (*near[:1], b, *near[1:3], Z, near[3])
         B, C, fi, dist, _ = _bone_vertices_inside(P, F, pl, depth, local)
         if not len(B):
             continue
@@ -441,6 +545,7 @@ def push_out(
     bone_vertices: bool | str = False,
     edge: float | None = None,
     near: Near | None = None,
+    faces: tuple[IntArray, IntArray] | None = None,
 ) -> tuple[FloatArray, ContactReport]:
     """Move a muscle's vertices out of obstacles, keeping its volume exact.
 
@@ -483,6 +588,9 @@ def push_out(
     near : Near, optional
         Lower bounds of the distances taken earlier (built here when not given):
         only vertices that can come within reach are queried.
+    faces : (indptr, indices), optional
+        The mesh's `vertex_faces` (``bone_vertices="near"``; built here when not
+        given).
 
     Returns
     -------
@@ -497,7 +605,9 @@ def push_out(
         near = Near(V, placed, margin)
     if A is None and bone_vertices:
         A = vertex_adjacency(F, len(V))
-    local = (near, A, edge) if bone_vertices == "near" else None
+    local = None
+    if bone_vertices == "near":
+        local = (near, A, edge, vertex_faces(F, len(V)) if faces is None else faces)
 
     def violations(
         P: FloatArray, bones: bool

@@ -48,7 +48,7 @@ from ..mesh import (
     volume_gradient,
     volume_hessian_reduced,
 )
-from ._contact import Near, Placed, cage_push, contact_candidates, push_out
+from ._contact import Near, Placed, cage_push, contact_candidates, push_out, vertex_faces
 from ._cubic import cubic_root_near
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
 from ._result import DeformationResult
@@ -192,6 +192,13 @@ class Muscle:
         if V.shape != self.V.shape:
             raise ValueError(f"V has shape {V.shape}, the muscle has {self.V.shape}")
         return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / edge
+
+    @property
+    def vertex_faces(self) -> tuple[IntArray, IntArray]:
+        """The faces of each fine vertex, CSR ``(indptr, indices)`` (the contact finish)."""
+        if getattr(self, "_vertex_faces", None) is None:
+            self._vertex_faces = vertex_faces(self.F, len(self.V))
+        return self._vertex_faces
 
     @property
     def adjacency(self) -> sparse.csr_matrix:
@@ -769,6 +776,7 @@ class Deformer:
                     edge=self._fine_edge,
                     near=near,
                     bone_vertices="near",
+                    faces=self.muscle.vertex_faces,
                 )
                 contact = dataclasses.replace(
                     contact, depth_before=max(before, contact.depth_before)
