@@ -278,6 +278,18 @@ def vertex_faces(F: IntArray, n: int) -> tuple[IntArray, IntArray]:
     return indptr, np.ascontiguousarray(order // 3)
 
 
+@numba.njit(cache=True)
+def _within_kernel(P, R, lower, reach, out):  # noqa: ANN001, ANN202 # pragma: no cover
+    # the rows i with lower_i - |P_i - R_i| < reach_i, in order; returns how many
+    k = 0
+    for i in range(P.shape[0]):
+        d0, d1, d2 = P[i, 0] - R[i, 0], P[i, 1] - R[i, 1], P[i, 2] - R[i, 2]
+        if lower[i] - np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) < reach[i]:
+            out[k] = i
+            k += 1
+    return k
+
+
 class Near:
     """Which vertices can be within reach of each obstacle, by the 1-Lipschitz bound.
 
@@ -307,6 +319,18 @@ class Near:
             default=-np.inf,
         )
 
+    def within(self, b: int, P: FloatArray, reach: float | FloatArray) -> IntArray:
+        """Vertices whose bound for obstacle ``b`` less their move is below allowed + reach."""
+        out = np.empty(len(P), dtype=np.int64)
+        k = _within_kernel(
+            np.ascontiguousarray(P, dtype=np.float64),
+            self.ref[b],
+            self.lower[b],
+            self.allowed[b] + reach,
+            out,
+        )
+        return out[:k]
+
     def moved(self, b: int, P: FloatArray, rows: IntArray | None = None) -> FloatArray:
         """Distance of ``P`` (all vertices, or ``rows``) from obstacle ``b``'s references."""
         R = self.ref[b] if rows is None else self.ref[b][rows]
@@ -314,14 +338,7 @@ class Near:
 
     def rows(self, P: FloatArray, reach: float) -> list[IntArray]:
         """Per obstacle, the vertices whose distance may be below the allowed one + reach."""
-        seen: dict[int, FloatArray] = {}
-        out = []
-        for b, (lo, a) in enumerate(zip(self.lower, self.allowed, strict=True)):
-            key = id(self.ref[b])
-            if key not in seen:
-                seen[key] = self.moved(b, P)
-            out.append(np.flatnonzero(lo - seen[key] < a + reach))
-        return out
+        return [self.within(b, P, reach) for b in range(len(self.lower))]
 
     def learn(self, b: int, rows: IntArray, P: FloatArray, lower: FloatArray) -> None:
         """Obstacle ``b``'s new bounds ``lower`` at positions ``P`` of vertices ``rows``."""
@@ -442,7 +459,7 @@ def _bone_vertices_inside(
     nr, b, A, edge, Z, VF = near
     # the muscle vertices inside the margin (exact: `_violations` queried them) and
     # their neighbours
-    inside = np.flatnonzero(nr.lower[b] - nr.moved(b, P) < nr.allowed[b])
+    inside = nr.within(b, P, 0.0)
     if not len(inside):
         return none
     r = np.flatnonzero(_rings(A, inside, 1) <= 1)
@@ -451,7 +468,8 @@ def _bone_vertices_inside(
     # under a muscle edge e: only where that can exceed ``depth`` (edges up to 1.5
     # mean edges) are the bone's vertices looked at.
     sharp = 8.0 * depth / (1.5 * edge) ** 2
-    rows = pl.obstacle.ridge_vertices_near(pl.to_obstacle(P[r]), edge, sharp)
+    # near the vertices inside (a mean edge and a half: as near as one of their neighbours)
+    rows = pl.obstacle.ridge_vertices_near(pl.to_obstacle(P[inside]), 1.5 * edge, sharp)
     if not len(rows):
         return none
     B = pl.to_muscle(pl.obstacle.V[rows])
@@ -738,8 +756,7 @@ def _final(
         allowed = near.allowed[b]
         # nearer than the margin + slack, or inside (a kept overlap allows a vertex inside)
         reach = np.maximum(allowed + 2.0 * slack, 0.0)
-        lo = near.lower[b] - near.moved(b, P)
-        r = np.flatnonzero(lo < reach)
+        r = near.within(b, P, reach - allowed)
         if not len(r):
             continue
         lower = np.empty(len(r))
