@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 from pathlib import Path
 
 import numba
@@ -323,24 +322,30 @@ class Obstacle:
         return self._convexity
 
     def ridge_vertices_near(self, Q: FloatArray, radius: float, convexity: float) -> IntArray:
-        """Vertices with `convexity` above ``convexity`` within ``radius`` of a point of ``Q``."""
-        from scipy.spatial import cKDTree
+        """Vertices with `convexity` above ``convexity`` within ``radius`` of a point of ``Q``.
 
-        trees = self.__dict__.setdefault("_ridge_trees", {})
-        if convexity not in trees:
+        Sorted. The vertices are binned once per ``(convexity, radius)`` in cells of
+        side ``radius``; a point looks in its cell and the 26 around it (compiled).
+        """
+        cells = self.__dict__.setdefault("_ridge_cells", {})
+        key = (float(convexity), float(radius))
+        if key not in cells:
             idx = np.flatnonzero(self.convexity > convexity)
-            trees[convexity] = (idx, cKDTree(self.V[idx]) if len(idx) else None)
-        idx, tree = trees[convexity]
-        Q = np.asarray(Q, dtype=np.float64)
-        if tree is None or not len(Q):
+            R = self.V[idx]
+            lo = R.min(axis=0) if len(R) else np.zeros(3)
+            ijk = np.floor((R - lo) / radius).astype(np.int64)
+            dims = ijk.max(axis=0) + 1 if len(R) else np.ones(3, np.int64)
+            flat = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+            order = np.argsort(flat, kind="stable")
+            indptr = np.searchsorted(flat[order], np.arange(int(np.prod(dims)) + 1))
+            cells[key] = (idx[order], np.ascontiguousarray(R[order]), lo, dims, indptr)
+        idx, R, lo, dims, indptr = cells[key]
+        Q = np.ascontiguousarray(Q, dtype=np.float64)
+        if not len(idx) or not len(Q):
             return np.zeros(0, dtype=np.int64)
-        found = tree.query_ball_point(Q, radius, return_sorted=False)
-        sizes = [len(f) for f in found]
-        if not sum(sizes):
-            return np.zeros(0, dtype=np.int64)
-        return idx[
-            np.unique(np.fromiter(itertools.chain.from_iterable(found), np.int64, sum(sizes)))
-        ]
+        mark = np.zeros(len(idx), dtype=np.bool_)
+        _cells_near_kernel(Q, R, lo, float(radius), dims, indptr, mark)
+        return np.sort(idx[mark])
 
     # ------------------------------------------------------------------ query
     def bounds(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -546,6 +551,26 @@ def _bounds_kernel(P, lo, h, shape, lo_sd, hi_sd, lower, upper):  # noqa: ANN001
                     best_hi = min(best_hi, np.float64(hi_sd[k]) + d)
         lower[i] = best_lo
         upper[i] = best_hi
+
+
+@numba.njit(cache=True)
+def _cells_near_kernel(Q, R, lo, h, dims, indptr, mark):  # noqa: ANN001, ANN202 # pragma: no cover
+    # mark every binned point within h of a query point: its cell and the 26 around it
+    hh = h * h
+    for q in range(Q.shape[0]):
+        c0 = int(np.floor((Q[q, 0] - lo[0]) / h))
+        c1 = int(np.floor((Q[q, 1] - lo[1]) / h))
+        c2 = int(np.floor((Q[q, 2] - lo[2]) / h))
+        for a in range(max(c0 - 1, 0), min(c0 + 2, dims[0])):
+            for b in range(max(c1 - 1, 0), min(c1 + 2, dims[1])):
+                for c in range(max(c2 - 1, 0), min(c2 + 2, dims[2])):
+                    cell = (a * dims[1] + b) * dims[2] + c
+                    for j in range(indptr[cell], indptr[cell + 1]):
+                        if mark[j]:
+                            continue
+                        d0, d1, d2 = R[j, 0] - Q[q, 0], R[j, 1] - Q[q, 1], R[j, 2] - Q[q, 2]
+                        if d0 * d0 + d1 * d1 + d2 * d2 <= hh:
+                            mark[j] = True
 
 
 @numba.njit(cache=True)
