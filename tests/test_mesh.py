@@ -228,6 +228,46 @@ def test_merge_duplicate_vertices_soup_and_signed_zero():
     V2, F2, merged = merge_duplicate_vertices(V, F)
     assert merged == 2 and len(V2) == 4
     assert np.array_equal(V2[F2], V[F])
+    # in the order of first appearance
+    assert np.array_equal(V2, V[[0, 1, 2, 5]])
+
+
+def test_merging_keeps_the_input_order():
+    # a clean mesh comes back vertex by vertex, whatever the order of its vertices; an unused
+    # vertex is dropped and the others keep their order
+    from musclewrap.mesh import merge_duplicate_vertices
+
+    V, F = capsule(n_around=24, cap_rings=6, segments=10)
+    perm = np.random.default_rng(2).permutation(len(V))
+    Vp, Fp = V[perm], np.argsort(perm)[F]
+    V2, F2, merged = merge_duplicate_vertices(Vp, Fp)
+    assert merged == 0 and np.array_equal(V2, Vp) and np.array_equal(F2, Fp)
+    extra = np.vstack([Vp[:5], [[99.0, 99, 99]], Vp[5:]])
+    V3, F3, merged = merge_duplicate_vertices(extra, np.where(Fp >= 5, Fp + 1, Fp))
+    assert merged == 1 and np.array_equal(V3, Vp) and np.array_equal(F3, Fp)
+
+
+@pytest.mark.realdata
+def test_real_muscles_keep_their_vertex_order(data_dir):
+    # every real muscle file that needs no merging comes back from tidying as it was read;
+    # the STL soups in the order of each vertex's first appearance
+    from musclewrap.mesh import tidy_mesh
+
+    files = sorted((data_dir / "lhdl" / "muscles").glob("*.vtk"))
+    files += sorted((data_dir / "lhdl" / "muscles_ply").glob("*.ply"))
+    files += sorted((data_dir / "vhf").glob("*Muscle*.stl"))
+    assert len(files) >= 10
+    for f in files:
+        V, F = read_mesh(f)
+        V2, F2, _ = tidy_mesh(V, F)
+        if len(F2) == len(F):
+            assert np.array_equal(V2[F2], V[F]), f
+        # each kept vertex appears in the input no later than the one after it
+        row = {tuple(v): i for i, v in reversed(list(enumerate(V.tolist())))}
+        first = np.array([row[tuple(v)] for v in V2.tolist()])
+        assert np.all(np.diff(first) > 0), f
+        if len(V2) == len(V):
+            assert np.array_equal(V2, V), f
 
 
 # ------------------------------------------------- repairable and refused topology

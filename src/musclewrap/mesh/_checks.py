@@ -314,6 +314,9 @@ def orient_faces(F: IntArray, n: int) -> tuple[IntArray, int] | None:
 def merge_duplicate_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, IntArray, int]:
     """Merge bit-identical vertices (triangle soups such as STL) and drop unused ones.
 
+    The vertices kept are in the order of their first appearance in ``V``: a mesh
+    with nothing to merge or drop comes back unchanged.
+
     Returns
     -------
     V, F : arrays
@@ -336,8 +339,13 @@ def merge_duplicate_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, In
     else:
         uniq, inverse = np.unique(V, axis=0, return_inverse=True)
         inverse = inverse.ravel()
+    # the distinct vertices in the order of their first appearance in V (a mesh with
+    # nothing to merge or drop comes back as it was, vertex by vertex)
+    first_seen = np.full(len(uniq), len(V), dtype=np.int64)
+    np.minimum.at(first_seen, inverse, np.arange(len(V)))
     F2 = inverse[F]
     used = np.unique(F2)
+    used = used[np.argsort(first_seen[used], kind="stable")]
     remap = np.full(len(uniq), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     return np.ascontiguousarray(uniq[used]), remap[F2], len(V) - len(used)

@@ -471,7 +471,7 @@ def _cached_mesh(
     path: Path, cache: Path | None, tag: str, build: Callable[[], dict[str, np.ndarray]]
 ) -> dict[str, np.ndarray]:
     """Arrays `build` makes from a mesh file, cached by the file's bytes and ``tag``."""
-    key = digest(path.read_bytes(), f"{tag}|{__version__}")
+    key = digest(path.read_bytes(), f"{tag}|{__version__}|first-appearance order")
     return cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
 
 
