@@ -147,3 +147,20 @@ def test_lhdl_gluteus_maximus_hip_rotation(data_dir):
     assert r.iterations <= 5
     assert r.skeleton_fit_mean <= 1.0
     assert muscle.shape_change(r.V).max() <= 0.5
+
+
+@pytest.mark.parametrize(
+    "name", ["muscles/LHDL_R_GluteusMaximus.vtk", "muscles_ply/LHDL_R_GluteusMaximus.ply"]
+)
+def test_identity_pose_returns_the_input_vertex_by_vertex(data_dir, name):
+    # a clean muscle (nothing merged or repaired) keeps the input's vertices in the input's
+    # order, and the rest lines as the current lines give them back
+    V, F = read_mesh(data_dir / "lhdl" / name)
+    mu = Muscle.from_mesh(V, F, cage_size=200)
+    assert np.array_equal(mu.V, V) and np.array_equal(mu.F, F)
+    c = V.mean(axis=0)
+    axis = np.linalg.svd(V - c)[2][0]
+    rest = {"a": [c - 80.0 * axis, c + 80.0 * axis]}
+    res = mu.bind(rest).deform(rest)
+    assert res.converged
+    assert np.abs(res.V - V).max() <= 1e-9 * np.linalg.norm(V.max(axis=0) - V.min(axis=0))
