@@ -424,10 +424,11 @@ def _bone_vertices_inside(
     generalized winding number of the whole muscle (robust; a tree over the
     muscle per call: seconds over a motion). Otherwise ``(Near, b, A, edge, Z,
     VF)`` (``Z`` the muscle's vertex normals, ``VF`` its `vertex_faces`):
-    only the obstacle's vertices within ``edge`` of a muscle vertex that lies
-    within ``edge`` of obstacle ``b`` (a bone ridge between muscle vertices in
-    contact), and their side by the pseudo-normal of their closest point on the
-    faces around their nearest muscle vertex and its neighbours (compiled).
+    only the obstacle's sharp vertices (`Obstacle.convexity`) within 1.5 ``edge``
+    of a muscle vertex inside obstacle ``b`` (a bone ridge between the muscle
+    vertices the finish will project), behind the tangent plane of their
+    nearest muscle vertex, and their side by the pseudo-normal of their closest
+    point on the faces around that vertex and its neighbours (compiled).
 
     Returns the vertices ``B`` (muscle frame), their closest points ``C``, the
     faces ``fi`` (rows of ``F``) holding them, the depths and ``B``'s rows in
