@@ -169,3 +169,20 @@ def test_deform_keeps_the_muscle_out_of_a_bone(files, capsys):
     assert main([*args, "--bone", str(tmp / "open.vtp")]) == 2
     assert "open.vtp: the bone is not closed" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_version(capsys):
+    import subprocess
+    import sys
+
+    from musclewrap import __version__
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"musclewrap {__version__}"
+    # the installed command, as a user types it
+    out = subprocess.run(
+        [sys.executable, "-m", "musclewrap.cli", "--version"], capture_output=True, text=True
+    )
+    assert out.returncode == 0 and out.stdout.strip() == f"musclewrap {__version__}"

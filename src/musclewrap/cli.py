@@ -29,6 +29,9 @@ def _parser() -> argparse.ArgumentParser:
         prog="musclewrap",
         description="Deform muscle surface meshes to follow their action lines, keeping volume exactly.",
     )
+    from . import __version__
+
+    p.add_argument("--version", action="version", version=f"musclewrap {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
     pr = sub.add_parser("prepare", help="build cage, coordinates and Laplacian once per muscle")
