@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numba
 import numpy as np
@@ -411,20 +410,31 @@ def _violations(
     return hit, target, worst[hit], depths
 
 
+@dataclass(frozen=True)
+class _Around:
+    """What the per-pose bone-ridge test needs of the muscle at its current positions."""
+
+    near: Near
+    A: sp.csr_matrix  # vertex adjacency
+    faces: tuple[IntArray, IntArray]  # `vertex_faces`
+    Z: FloatArray  # vertex normals
+    edge: float  # mean edge length
+
+
 def _bone_vertices_inside(
     P: FloatArray,
     F: IntArray,
     pl: Placed,
+    b: int,
     depth: float,
-    near: tuple[Any, ...] | None,
+    around: _Around | None,
 ) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, IntArray]:
     """The obstacle's vertices more than ``depth`` inside the muscle ``P, F``.
 
-    ``near`` None: every obstacle vertex in the muscle's box, inside by the
+    ``around`` None: every obstacle vertex in the muscle's box, inside by the
     generalized winding number of the whole muscle (robust; a tree over the
-    muscle per call: seconds over a motion). Otherwise ``(Near, b, A, edge, Z,
-    VF)`` (``Z`` the muscle's vertex normals, ``VF`` its `vertex_faces`):
-    only the obstacle's sharp vertices (`Obstacle.convexity`) within 1.5 ``edge``
+    muscle per call: seconds over a motion). Otherwise (``pl`` is obstacle ``b``
+    of ``around.near``): only the obstacle's sharp vertices (`Obstacle.convexity`) within 1.5 ``edge``
     of a muscle vertex inside obstacle ``b`` (a bone ridge between the muscle
     vertices the finish will project), behind the tangent plane of their
     nearest muscle vertex, and their side by the pseudo-normal of their closest
@@ -443,7 +453,7 @@ def _bone_vertices_inside(
         np.zeros(0),
         np.zeros(0, np.int64),
     )
-    if near is None:
+    if around is None:
         lo, hi = P.min(axis=0) - depth, P.max(axis=0) + depth
         B = pl.to_muscle(pl.obstacle.V)
         rows = np.flatnonzero(((B >= lo) & (B <= hi)).all(axis=1))
@@ -457,10 +467,10 @@ def _bone_vertices_inside(
         return B[bad], C[bad], fi[bad], dist[bad], rows[bad]
     from scipy.spatial import cKDTree
 
-    nr, b, A, edge, Z, VF = near
+    A, edge, Z = around.A, around.edge, around.Z
     # the muscle vertices inside the margin (exact: `_violations` queried them) and
     # their neighbours
-    inside = nr.within(b, P, 0.0)
+    inside = around.near.within(b, P, 0.0)
     if not len(inside):
         return none
     r = np.flatnonzero(_rings(A, inside, 1) <= 1)
@@ -487,7 +497,7 @@ def _bone_vertices_inside(
     fi = np.empty(len(B), dtype=np.int64)
     _local_side_kernel(
         B, v[behind], np.ascontiguousarray(P, dtype=np.float64),
-        np.ascontiguousarray(F, dtype=np.int64), A.indptr, A.indices, VF[0], VF[1], phi, C, fi,
+        np.ascontiguousarray(F, dtype=np.int64), A.indptr, A.indices, *around.faces, phi, C, fi,
     )  # fmt: skip
     bad = phi < -depth
     return B[bad], C[bad], fi[bad], -phi[bad], rows[bad]
@@ -502,12 +512,12 @@ def _with_bone_vertices(
     hit: IntArray,
     target: FloatArray,
     gap: FloatArray,
-    near: tuple[Any, ...] | None = None,
+    around: _Around | None = None,
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """`_violations` plus the pushes that take obstacle vertices out of the muscle.
 
     An obstacle vertex inside the muscle (`_bone_vertices_inside`: all of them
-    with ``near`` None, else those near vertices in contact) or within the
+    with ``around`` None, else the ridges near vertices in a bone) or within the
     margin of its surface moves the nearest muscle triangle past it: its
     vertices by the least displacement (barycentric weights) that carries the
     nearest point to the margin beyond the obstacle vertex.
@@ -515,13 +525,11 @@ def _with_bone_vertices(
     n = len(P)
     push = np.zeros((n, 3))
     size = np.zeros(n)
-    Z = None if near is None else vertex_normals(P, F)
     # bone vertices deeper than the margin plus a tenth of a mean edge: the shallow ones
     # sit between the muscle's vertices on the bone (chords of its curved surface)
     depth = margin + 10.0 * slack
     for b, pl in enumerate(placed):
-        local = None if near is None else (*near[:1], b, *near[1:3], Z, near[3])
-        B, C, fi, dist, _ = _bone_vertices_inside(P, F, pl, depth, local)
+        B, C, fi, dist, _ = _bone_vertices_inside(P, F, pl, b, depth, around)
         if not len(B):
             continue
         # into the muscle from the bone vertex: the nearest surface point goes past it
@@ -622,11 +630,11 @@ def push_out(
     slack = tol.contact * edge
     if near is None:
         near = Near(V, placed, margin)
-    if A is None and bone_vertices:
+    if A is None:
         A = vertex_adjacency(F, len(V))
-    local = None
-    if bone_vertices == "near":
-        local = (near, A, edge, vertex_faces(F, len(V)) if faces is None else faces)
+    # the volume is corrected along the normals at the start (any direction is exact: the
+    # volume along it is a cubic; these stay smooth); the ridge test takes them too
+    Z = vertex_normals(V, F)
 
     def violations(
         P: FloatArray, bones: bool
@@ -643,22 +651,20 @@ def push_out(
         # went into a bone: a bone's ridge there can cut the surface between the
         # vertices the finish projects. Once: the local side test is not to be
         # trusted on a surface the pushes may have folded.
-        hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap, local)
+        around = _Around(near, A, vertex_faces(F, len(V)) if faces is None else faces, Z, edge)
+        hit, target, gap = _with_bone_vertices(
+            V, F, placed, margin, slack, hit, target, gap, around
+        )
     if not len(hit):
         touching, inside, depth = _final(V, placed, slack, near)
         return V, ContactReport(
             contact_vertices=touching, depth_before=depth_before, depth_after=depth, inside=inside
         )
     n = len(V)
-    if A is None:
-        A = vertex_adjacency(F, n)
     P = V.copy()
     held = np.zeros(n, dtype=bool)
     rounds = 0
     ok = True
-    # the volume is corrected along the normals at the start (any direction is exact: the
-    # volume along it is a cubic; these stay smooth)
-    Z = vertex_normals(P, F)
     # the first rounds relax every push with its neighbours; the last ones project exactly
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
     if bone_vertices is True:  # once per muscle: relax longer, fewer folds

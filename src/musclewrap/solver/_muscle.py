@@ -715,9 +715,7 @@ class Deformer:
                     x_ls = self._solve(b)
                 else:
                     # the unconstrained solution H^-1 A^T d from the two products of its parts
-                    x_ls = self._HL @ d_L + self._HS @ s_cur
-                    if len(self.anchors):
-                        x_ls = x_ls + self._x_anchor
+                    x_ls = self._HL @ d_L + self._HS @ s_cur + self._x_anchor
                 if not np.isfinite(x_ls).all():
                     raise FloatingPointError("the conditions overflow (line coordinates too large)")
                 if method == "paper":
@@ -742,13 +740,13 @@ class Deformer:
                         # The proxy's direction did not settle (rare: one gait2392 frame of
                         # the semitendinosus): the exact iteration, on the fine mesh's own
                         # gradient, from the start; the reason says so.
-                        x2, V2, its2, ok2, reason2, hist = self._solve_exact(
+                        exact = self._solve_exact(
                             x_ls, d_L, s_cur, max_iterations or defaults.max_iterations
                         )
-                        if ok2:
-                            x, V, ok = x2, V2, True
+                        if exact[3]:
+                            x, V, _, ok, _, hist = exact
                             reason = f"converged by the exact iteration ({reason} on the proxy)"
-                        its += its2
+                        its += exact[2]
             except (np.linalg.LinAlgError, FloatingPointError) as exc:
                 # a singular or overflowing system on this pose: an unconverged result
                 # with the reason, never an exception that would end a whole motion
