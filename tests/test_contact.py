@@ -366,6 +366,35 @@ def test_lhdl_walk_subset_stays_out_of_the_bones(data_dir, tmp_path):
 
 
 @pytest.mark.realdata
+def test_rest_overlap_read_back_from_the_cache_gives_the_same_run(data_dir, tmp_path):
+    """The rest overlap's outcome is kept per muscle: a second run says and writes the same."""
+    from musclewrap.mesh import read_mesh
+    from musclewrap.scene import load_scene, run_scene
+
+    toml = tmp_path / "s.toml"
+    toml.write_text(_scene_text(data_dir))
+    runs = [
+        run_scene(
+            load_scene(toml),
+            tmp_path / o,
+            frames="0:211:210",
+            cache_dir=tmp_path / "c",
+            progress=None,
+            render=False,
+        )  # fmt: skip
+        for o in ("a", "b")
+    ]
+    assert len(list((tmp_path / "c").glob("rest-outcome-*.npz"))) == 1
+    assert runs[0].notes == runs[1].notes
+    assert any("rest overlap with bones resolved" in n for n in runs[1].notes)
+    for r in runs[0].rows:
+        m, f = r["muscle"], r["frame"]
+        Va, _ = read_mesh(tmp_path / "a" / m / f"{m}_{f:04d}.vtp")
+        Vb, _ = read_mesh(tmp_path / "b" / m / f"{m}_{f:04d}.vtp")
+        assert np.array_equal(Va, Vb)
+
+
+@pytest.mark.realdata
 def test_rest_overlap_kept_prevents_only_new_penetration(data_dir, tmp_path):
     from musclewrap.scene import load_scene, run_scene
 

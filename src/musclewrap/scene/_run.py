@@ -489,22 +489,33 @@ def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, l
     return d["V"], d["F"], [str(n) for n in d["notes"]]
 
 
-def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bool]:
-    """Read, tidy and orient outward a bone mesh (not required to be manifold); cached."""
+def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bool, int]:
+    """Read, tidy and orient outward a bone mesh (not required to be manifold); cached.
+
+    Returns the vertices, the faces, whether they were flipped, and the number of
+    boundary edges (an open bone: contact has to close it).
+    """
 
     def build() -> dict[str, np.ndarray]:
         V, F, _ = tidy_mesh(*read_mesh(path))
-        flip = check_mesh(V, F).volume < 0
-        return {"V": V, "F": F[:, ::-1].copy() if flip else F, "flipped": np.array(flip)}
+        check = check_mesh(V, F)
+        flip = check.volume < 0
+        return {
+            "V": V,
+            "F": F[:, ::-1].copy() if flip else F,
+            "flipped": np.array(flip),
+            "boundary_edges": np.array(check.boundary_edges),
+        }
 
-    d = _cached_mesh(path, cache, "bone", build)
-    return d["V"], d["F"], bool(d["flipped"])
+    d = _cached_mesh(path, cache, "bone|boundary edges", build)
+    return d["V"], d["F"], bool(d["flipped"]), int(d["boundary_edges"])
 
 
 def _closed_bone(
     b: Any,
     V: FloatArray,
     F: IntArray,
+    boundary_edges: int,
     cache: Path | None,
     say: Callable[[str], None],
     notes: list[str],
@@ -517,8 +528,7 @@ def _closed_bone(
     from ..contact import bone_surface
     from ..mesh import MeshError
 
-    check = check_mesh(V, F)
-    if not check.boundary_edges:
+    if not boundary_edges:
         return V, F
 
     def build() -> dict[str, np.ndarray]:
@@ -526,7 +536,7 @@ def _closed_bone(
             RV, RF, rnotes = bone_surface(V, F, source=str(b.mesh), close=True)
         except MeshError as exc:
             raise SceneError(
-                f"{b.mesh}: the bone '{b.name}' is open ({check.boundary_edges} boundary "
+                f"{b.mesh}: the bone '{b.name}' is open ({boundary_edges} boundary "
                 f"edges) and could not be closed ({exc}); contact needs its inside: close it, "
                 "leave it out of the muscles' bones, or set [collisions] enabled = false"
             ) from None
@@ -650,11 +660,11 @@ def _run_scene(
         muscles[spec.name] = (V, F)
     bones = {}
     for b in scene.bones:
-        V, F, flipped = _read_bone(b.mesh, cache)
+        V, F, flipped, open_edges = _read_bone(b.mesh, cache)
         if flipped:
             notes.append(f"{b.name}: faces were oriented inward: flipped")
         if collisions:
-            V, F = _closed_bone(b, V, F, cache, say, notes)
+            V, F = _closed_bone(b, V, F, open_edges, cache, say, notes)
         bones[b.name] = (V, F)
     centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
     drive = drive_scene(scene, frames, centroids)
@@ -778,9 +788,14 @@ def _rest_overlap(
     from ..solver import Placed, attachment_patches
 
     cache_str = None if cache is None else str(cache)
-    probes = {
-        b: _bone_probe(V, F, Obstacle.cache_name(V, F), cache_str) for b, (V, F) in bones.items()
-    }
+    probes: dict[str, Any] = {}
+
+    def probe(b: str) -> Any:  # built (or read back) only where a muscle's outcome is not kept
+        if b not in probes:
+            V, F = bones[b]
+            probes[b] = _bone_probe(V, F, Obstacle.cache_name(V, F), cache_str)
+        return probes[b]
+
     body_of = {b.name: b.body for b in scene.bones}
     out_muscles = dict(muscles)
     contact: dict[str, dict[str, FloatArray | None]] = {}
@@ -788,36 +803,74 @@ def _rest_overlap(
     for spec in scene.muscles:
         V, F = muscles[spec.name]
         names = list(spec.bones) if spec.bones is not None else list(bones)
-        placed = []
-        for b in names:
-            T = drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name])
-            pl = Placed(probes[b], T, None, b)
-            n_in, depth = probes[b].measure(pl.to_obstacle(V))
-            if n_in > 0.5 * len(V):
-                raise SceneError(
-                    f"{spec.mesh}: {n_in} of the {len(V)} vertices of '{spec.name}' lie inside "
-                    f"the bone '{b}' ({depth:.3g} {scene.mesh_unit} deep) at the rest pose: the "
-                    "muscle and bone meshes must be the same subject's, in the same frame and "
-                    "units (or leave this bone out of the muscle's [muscles] bones)"
-                )
-            placed.append(pl)
-        keep = scene.rest_overlap == "keep"
-        if placed and not keep:
-            _, V, keep = _resolve_rest(spec, V, F, placed, scene, cache, say, notes)
-        contact[spec.name] = {
-            pl.name: _kept_allowance(pl, V, scene.margin) if keep else None for pl in placed
-        }
-        out_muscles[spec.name] = (V, F)
-        reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
-        found = [pl.obstacle.query(pl.to_obstacle(V), reach)[0] for pl in placed]
-        found = [f for f, pl in zip(found, placed, strict=True) if body_of[pl.name] == spec.body]
-        anchors[spec.name] = attachment_patches(
-            vertex_adjacency(F, len(V)),
+        T = {b: drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name]) for b in names}
+        lines = drive.rest_lines[spec.name]
+        key = digest(
             V,
-            np.concatenate(found) if found else np.zeros(0, np.int64),
-            drive.rest_lines[spec.name],
+            F,
+            *(Obstacle.cache_name(*bones[b]) for b in names),
+            *(T[b] for b in names),
+            *(np.asarray(lines[k], dtype=np.float64) for k in sorted(lines)),
+            repr((names, sorted(lines), [body_of[b] == spec.body for b in names])),
+            repr((spec.name, scene.margin, scene.rest_overlap, scene.mesh_unit)),
+            repr((defaults.anchor_reach, defaults.anchor_end_reach, __version__)),
         )
+
+        def build(
+            spec: Any = spec,
+            V: FloatArray = V,
+            F: IntArray = F,
+            names: list[str] = names,
+            T: dict[str, FloatArray] = T,
+            lines: dict[str, FloatArray] = lines,
+        ) -> dict[str, np.ndarray]:
+            said: list[str] = []
+            placed = []
+            for b in names:
+                pl = Placed(probe(b), T[b], None, b)
+                n_in, depth = pl.obstacle.measure(pl.to_obstacle(V))
+                if n_in > 0.5 * len(V):
+                    raise SceneError(
+                        f"{spec.mesh}: {n_in} of the {len(V)} vertices of '{spec.name}' lie "
+                        f"inside the bone '{b}' ({depth:.3g} {scene.mesh_unit} deep) at the rest "
+                        "pose: the muscle and bone meshes must be the same subject's, in the same "
+                        "frame and units (or leave this bone out of the muscle's [muscles] bones)"
+                    )
+                placed.append(pl)
+            keep = scene.rest_overlap == "keep"
+            if placed and not keep:
+                _, V, keep = _resolve_rest(spec, V, F, placed, scene, cache, _silent, said)
+            out: dict[str, np.ndarray] = {"V": V, "notes": np.array(said, dtype=str)}
+            for pl in placed:
+                a = _kept_allowance(pl, V, scene.margin) if keep else None
+                if a is not None:
+                    out[f"allowance {pl.name}"] = a
+            reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
+            found = [
+                pl.obstacle.query(pl.to_obstacle(V), reach)[0]
+                for pl in placed
+                if body_of[pl.name] == spec.body
+            ]
+            out["anchors"] = attachment_patches(
+                vertex_adjacency(F, len(V)),
+                V,
+                np.concatenate(found) if found else np.zeros(0, np.int64),
+                lines,
+            )
+            return out
+
+        d = cached_arrays(None if cache is None else cache / f"rest-outcome-{key[:32]}.npz", build)
+        for n in (str(x) for x in d["notes"]):
+            notes.append(n)
+            say(n)
+        contact[spec.name] = {b: d.get(f"allowance {b}") for b in names}
+        out_muscles[spec.name] = (np.asarray(d["V"], dtype=np.float64), F)
+        anchors[spec.name] = np.asarray(d["anchors"], dtype=np.int64)
     return out_muscles, contact, anchors
+
+
+def _silent(_: str) -> None:
+    """Says nothing (what is said is kept, and said on every run)."""
 
 
 def _kept_allowance(pl: Any, V: FloatArray, margin: float) -> FloatArray | None:
