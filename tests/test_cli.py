@@ -56,6 +56,11 @@ def test_prepare_then_deform_writes_the_volume_it_reports(files, capsys):
         V, F = read_mesh(out)
         # what the user reads back has the volume the report states
         assert volume(V, F) == pytest.approx(report["volume_deformed"], rel=1e-12)
+        if ext in (".vtp", ".vtk"):  # each vertex's index in the input file
+            import pyvista as pv
+
+            ids = np.asarray(pv.read(out).point_data["input_id"])
+            assert np.array_equal(ids, np.arange(len(V)))
     # a preparation of another mesh is refused
     V, F = capsule(n_around=20, cap_rings=6, segments=20)
     write_mesh(tmp / "other.ply", V, F)

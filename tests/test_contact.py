@@ -367,8 +367,14 @@ def test_lhdl_walk_subset_stays_out_of_the_bones(data_dir, tmp_path):
 
 @pytest.mark.realdata
 def test_rest_overlap_read_back_from_the_cache_gives_the_same_run(data_dir, tmp_path):
-    """The rest overlap's outcome is kept per muscle: a second run says and writes the same."""
-    from musclewrap.mesh import read_mesh
+    """The rest overlap's outcome is kept per muscle: a second run says and writes the same.
+
+    The frames carry each vertex's index in the input file (the psoas is merged and
+    repaired: not the identity).
+    """
+    import pyvista as pv
+
+    from musclewrap.mesh import clean_mesh, read_mesh
     from musclewrap.scene import load_scene, run_scene
 
     toml = tmp_path / "s.toml"
@@ -392,6 +398,13 @@ def test_rest_overlap_read_back_from_the_cache_gives_the_same_run(data_dir, tmp_
         Va, _ = read_mesh(tmp_path / "a" / m / f"{m}_{f:04d}.vtp")
         Vb, _ = read_mesh(tmp_path / "b" / m / f"{m}_{f:04d}.vtp")
         assert np.array_equal(Va, Vb)
+        ids = np.asarray(pv.read(tmp_path / "a" / m / f"{m}_{f:04d}.vtp").point_data["input_id"])
+        V0, F0 = read_mesh(data_dir / "lhdl" / "muscles" / "LHDL_R_Psoas.vtk")
+        V1, _, _ = clean_mesh(V0, F0, repair=True)
+        assert ids.shape == (len(Va),) and not np.array_equal(ids, np.arange(len(Va)))
+        kept = ids >= 0
+        assert kept.mean() > 0.99 and len(np.unique(ids[kept])) == kept.sum()
+        assert np.array_equal(V0[ids[kept]], V1[kept])
 
 
 @pytest.mark.realdata

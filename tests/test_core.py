@@ -285,6 +285,21 @@ def test_save_load_roundtrip_and_corruption(small_muscle, tmp_path):
         Muscle.load(bad)
 
 
+def test_input_id_follows_a_soup_and_survives_save_load(tmp_path):
+    # an STL-like soup (every triangle with its own vertices): each fine vertex knows the
+    # first input vertex it came from, the map survives save/load, a clean mesh is identity
+    V, F = capsule(n_around=16, cap_rings=4, segments=8)
+    soup_V, soup_F = V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)
+    m = Muscle.from_mesh(soup_V, soup_F, cage_size=100)
+    assert len(m.V) == len(V) and m.input_id.shape == (len(V),)
+    assert np.array_equal(soup_V[m.input_id], m.V)
+    assert np.all(np.diff(m.input_id) > 0)  # first appearance
+    m2 = Muscle.load(m.save(tmp_path / "soup.npz"))
+    assert np.array_equal(m2.input_id, m.input_id)
+    clean = Muscle.from_mesh(V, F, cage_size=100)
+    assert np.array_equal(clean.input_id, np.arange(len(V)))
+
+
 def test_quaternion_roundtrip_and_sign():
     from scipy.spatial.transform import Rotation
 

@@ -247,6 +247,20 @@ def test_merging_keeps_the_input_order():
     assert merged == 1 and np.array_equal(V3, Vp) and np.array_equal(F3, Fp)
 
 
+def test_vertex_origins_maps_back_to_the_first_input_vertex():
+    from musclewrap.mesh import merge_duplicate_vertices, vertex_origins
+
+    # a soup: merged duplicates go to their first appearance; -0.0 is 0.0; a new vertex is -1
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [-0.0, 0, 0], [1, 0, 0], [0, 0, 1]])
+    V2, _, _ = merge_duplicate_vertices(V, np.array([[0, 1, 2], [3, 4, 5]]))
+    assert vertex_origins(V, V2).tolist() == [0, 1, 2, 5]
+    assert vertex_origins(V, np.vstack([V2[::-1], [[0.5, 0.5, 0]]])).tolist() == [5, 2, 1, 0, -1]
+    # a permutation comes back as its inverse
+    C, _ = capsule(n_around=12, cap_rings=3, segments=4)
+    perm = np.random.default_rng(0).permutation(len(C))
+    assert np.array_equal(vertex_origins(C, C[perm]), perm)
+
+
 @pytest.mark.realdata
 def test_real_muscles_keep_their_vertex_order(data_dir):
     # every real muscle file that needs no merging comes back from tidying as it was read;

@@ -223,7 +223,8 @@ def _cmd_deform(a: argparse.Namespace) -> int:
     ok = res.converged  # includes the volume tolerance
     finite = bool(np.isfinite(res.V).all())
     if (ok or a.allow_unconverged) and finite:
-        write_mesh(a.output, res.V, muscle.F)
+        # VTP/VTK carry each vertex's index in the input file (other formats have no arrays)
+        write_mesh(a.output, res.V, muscle.F, point_data={"input_id": muscle.input_id})
     report = {
         "n_vertices": int(len(muscle.V)),
         "n_cage_vertices": int(len(muscle.cage.C)),

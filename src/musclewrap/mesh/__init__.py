@@ -12,6 +12,7 @@ from ._checks import (
     self_intersecting_faces,
     split_nonmanifold_vertices,
     tidy_mesh,
+    vertex_origins,
 )
 from ._geometry import (
     barycentric,
@@ -50,6 +51,7 @@ __all__ = [
     "umbrella_laplacian",
     "vertex_adjacency",
     "vertex_normals",
+    "vertex_origins",
     "check_mesh",
     "clean_mesh",
     "merge_duplicate_vertices",

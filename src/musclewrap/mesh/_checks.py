@@ -311,6 +311,36 @@ def orient_faces(F: IntArray, n: int) -> tuple[IntArray, int] | None:
     return F2, int(flip.sum())
 
 
+def vertex_origins(V_in: FloatArray, V_out: FloatArray) -> IntArray:
+    """For each vertex of ``V_out``, the first vertex of ``V_in`` at the same position.
+
+    The map from a cleaned or repaired mesh back to the mesh as it was read
+    (``input_id``): merging, dropping unused vertices, splitting non-manifold
+    ones and PyMeshFix keep the positions of the vertices they keep bit for bit,
+    so the first input vertex with the same coordinates is the one it came from
+    (merged duplicates: the first of them). A vertex made by a repair, at no
+    input position, gets -1. ``+0.0`` and ``-0.0`` count as the same.
+
+    Parameters
+    ----------
+    V_in : (n, 3) float64 array
+        Vertices as read.
+    V_out : (k, 3) float64 array
+        Vertices after cleaning.
+
+    Returns
+    -------
+    (k,) int64 array
+        Indices into ``V_in``, or -1.
+    """
+    A = np.ascontiguousarray(V_in, dtype=np.float64).reshape(-1, 3) + 0.0
+    B = np.ascontiguousarray(V_out, dtype=np.float64).reshape(-1, 3) + 0.0
+    rows = np.ascontiguousarray(np.vstack([A, B])).view(np.dtype((np.void, 24))).ravel()
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    found = first[inverse.ravel()[len(A) :]]
+    return np.where(found < len(A), found, -1).astype(np.int64)
+
+
 def merge_duplicate_vertices(V: FloatArray, F: IntArray) -> tuple[FloatArray, IntArray, int]:
     """Merge bit-identical vertices (triangle soups such as STL) and drop unused ones.
 

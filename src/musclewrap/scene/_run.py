@@ -22,7 +22,7 @@ from .._cache import cached_arrays, digest
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
 from ..contact import Obstacle
-from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, write_mesh
+from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, vertex_origins, write_mesh
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
@@ -156,6 +156,7 @@ def _cache_key(V: FloatArray, F: IntArray, job: dict[str, Any]) -> str:
     return digest(
         np.asarray(V, dtype=np.float64),
         np.asarray(F, dtype=np.int64),
+        np.asarray(job["input_id"], dtype=np.int64),
         f"{job['cage_size']}|{job['cage_coarsening']}|{_FORMAT}|{__version__}",
     )[:32]
 
@@ -190,6 +191,7 @@ def _prepare(job: dict[str, Any]) -> tuple[Any, bool, str | None]:
         cage_coarsening=job["cage_coarsening"],
         source=job["source"],
         cleaned=True,  # by _read_muscle, and only moved rigidly since
+        input_id=job["input_id"],
     )
     if path is not None:
         try:
@@ -308,7 +310,7 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
                 n_in += n
                 depth = max(depth, dep)
             fname = f"{name}/{name}_{frame:04d}.vtp"
-            write_mesh(out / fname, Vo, muscle.F)
+            write_mesh(out / fname, Vo, muscle.F, point_data={"input_id": muscle.input_id})
             entries.append((job["offset"] + k, fname))
         lname = f"{name}/{name}_lines_{frame:04d}.vtp"
         P, segs, o = [], [], 0
@@ -475,18 +477,27 @@ def _cached_mesh(
     return cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
 
 
-def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, list[str]]:
-    """Read and clean (or repair) a muscle mesh; cached."""
+def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, list[str], IntArray]:
+    """Read and clean (or repair) a muscle mesh; cached.
+
+    Returns the mesh, the notes, and each vertex's index in the file (``input_id``,
+    `musclewrap.mesh.vertex_origins`).
+    """
 
     def build() -> dict[str, np.ndarray]:
-        V, F = read_mesh(spec.mesh)
-        V, F, notes = clean_mesh(V, F, source=str(spec.mesh), repair=spec.repair)
-        return {"V": V, "F": F, "notes": np.array(notes, dtype=str)}
+        V0, F0 = read_mesh(spec.mesh)
+        V, F, notes = clean_mesh(V0, F0, source=str(spec.mesh), repair=spec.repair)
+        same = V.shape == V0.shape and np.array_equal(V, V0)
+        ids = np.arange(len(V), dtype=np.int64) if same else vertex_origins(V0, V)
+        return {"V": V, "F": F, "notes": np.array(notes, dtype=str), "input_id": ids}
 
     d = _cached_mesh(
-        spec.mesh, cache, f"muscle|{spec.repair}|self-intersection, fans, orientation", build
+        spec.mesh,
+        cache,
+        f"muscle|{spec.repair}|self-intersection, fans, orientation, input_id",
+        build,
     )
-    return d["V"], d["F"], [str(n) for n in d["notes"]]
+    return d["V"], d["F"], [str(n) for n in d["notes"]], d["input_id"]
 
 
 def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bool, int]:
@@ -652,8 +663,9 @@ def _run_scene(
         cache = Path(cache_dir)
     # meshes (mesh units, mesh coordinates)
     muscles = {}
+    input_ids: dict[str, IntArray] = {}
     for spec in scene.muscles:
-        V, F, mnotes = _read_muscle(spec, cache)
+        V, F, mnotes, input_ids[spec.name] = _read_muscle(spec, cache)
         for n in mnotes:
             notes.append(f"{spec.name}: {n}")
             say(f"{spec.name}: {n}")
@@ -694,6 +706,7 @@ def _run_scene(
         resume,
         contact,
         anchors,
+        input_ids,
     )
 
 
@@ -973,6 +986,7 @@ def _run(
     resume: bool,
     contact: dict[str, dict[str, FloatArray | None]] | None,
     anchors: dict[str, IntArray] | None = None,
+    input_ids: dict[str, IntArray] | None = None,
 ) -> RunSummary:
     from ..output import write_csv, write_pvd
 
@@ -998,6 +1012,7 @@ def _run(
                 "source": str(spec.mesh),
                 "V": Vb,
                 "F": F,
+                "input_id": (np.arange(len(Vb)) if input_ids is None else input_ids[spec.name]),
                 "cage_size": spec.cage_size,
                 "cage_coarsening": spec.cage_coarsening,
                 "cache_dir": None if cache is None else str(cache),

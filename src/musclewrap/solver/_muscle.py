@@ -42,6 +42,7 @@ from ..mesh import (
     mean_rows,
     umbrella_laplacian,
     vertex_adjacency,
+    vertex_origins,
     volume,
     volume_cubic,
     volume_cubic_pair,
@@ -56,7 +57,7 @@ from ._result import DeformationResult
 __all__ = ["METHODS", "Deformer", "Muscle", "deform"]
 
 METHODS = ("sqp", "exact", "paper")
-_FORMAT = 3
+_FORMAT = 4  # 4: input_id
 
 
 @numba.njit(cache=True)
@@ -130,6 +131,12 @@ class Muscle:
         What was changed on load (merged vertices, flipped orientation).
     seconds_prepare : float
         Wall time of the preparation.
+    input_id : (n,) int64 array
+        For each fine vertex, the vertex of the mesh as given that it is
+        (`musclewrap.mesh.vertex_origins`): ``arange(n)`` where cleaning changed
+        nothing, the first of merged duplicates, -1 for a vertex a repair made.
+        Rows of every deformed ``V`` are in this order; written meshes carry it
+        as the point array ``input_id``.
     """
 
     V: FloatArray
@@ -143,11 +150,19 @@ class Muscle:
     notes: tuple[str, ...] = ()
     seconds_prepare: float = 0.0
     source: str = "mesh"
+    input_id: IntArray | None = None
     proxy_volume_rest: float = field(init=False)
     proxy_W_T: FloatArray = field(init=False, repr=False)
     delta_rest: FloatArray = field(init=False)
 
     def __post_init__(self) -> None:
+        if self.input_id is None:
+            self.input_id = np.arange(len(self.V), dtype=np.int64)
+        self.input_id = np.asarray(self.input_id, dtype=np.int64)
+        if self.input_id.shape != (len(self.V),):
+            raise ValueError(
+                f"input_id has shape {self.input_id.shape}, the muscle has {len(self.V)} vertices"
+            )
         C = self.cage.C
         self.delta_rest = self.L @ C
         self._center = C.mean(axis=0)
@@ -219,6 +234,7 @@ class Muscle:
         cage_coarsening: str = "uniform",
         source: str = "mesh",
         cleaned: bool = False,
+        input_id: npt.ArrayLike | None = None,
     ) -> Muscle:
         """Prepare a muscle from its rest-pose surface.
 
@@ -240,6 +256,10 @@ class Muscle:
             ``V, F`` come from `musclewrap.mesh.clean_mesh` already (a scene
             cleans each mesh once, when reading it, and caches the result):
             its checks are not repeated.
+        input_id : (n,) int array_like, optional
+            With ``cleaned``: each vertex's index in the mesh as it was read
+            (`musclewrap.mesh.vertex_origins`); default ``arange(n)``. Without
+            ``cleaned`` it is found here, against ``V`` as given.
 
         Returns
         -------
@@ -259,7 +279,10 @@ class Muscle:
             check_memory(len(F), source)
             notes: list[str] = []
         else:
+            V_in = V
             V, F, notes = clean_mesh(V, F, source=source)  # checks the memory first
+            same = V.shape == V_in.shape and np.array_equal(V, V_in)
+            input_id = None if same else vertex_origins(V_in, V)
         cage = build_cage(V, F, size=cage_size, offset=cage_offset, coarsening=cage_coarsening)
         W = mean_value_coordinates(V, cage.C, cage.CF)
         L = cotangent_laplacian(cage.C, cage.CF)
@@ -289,6 +312,7 @@ class Muscle:
             notes=tuple(notes),
             seconds_prepare=time.perf_counter() - t0,
             source=source,
+            input_id=None if input_id is None else np.asarray(input_id, dtype=np.int64),
         )
 
     @classmethod
@@ -315,6 +339,7 @@ class Muscle:
             "L": self.L,
             "proxy_F": self.proxy_F,
             "proxy_W": self.proxy_W,
+            "input_id": self.input_id,
         }
 
     def save(self, path: PathLike) -> Path:
@@ -380,6 +405,7 @@ class Muscle:
             notes=tuple(meta["notes"]),
             seconds_prepare=float(meta["seconds_prepare"]),
             source=meta["source"],
+            input_id=data["input_id"],
         )
         if m.content_hash() != meta.get("content_sha256"):
             raise ValueError(
