@@ -87,10 +87,11 @@ class Defaults:
     anchor_weight : float
         Weight of the anchors (fine vertices held at their rest positions, where
         a muscle starts on a bone of its own body) relative to the Laplacian,
-        scaled as the skeleton's by ``sqrt(m / k)`` for ``k`` anchors. As the
-        skeleton's; measured on the LHDL hip sweeps (BENCHMARKS.md): at 0.5 / 1 / 2
-        the iliacus's largest shape change in flexion is 0.49 / 0.53 / 0.59 mean
-        edges, the gluteus maximus's in adduction (frame 39) 0.54 / 0.35 / 0.34.
+        scaled as the skeleton's by ``sqrt(m / k)`` for ``k`` anchors. Swept on the
+        LHDL hip sweeps (``benchmarks/bench_anchor_weight.py``, BENCHMARKS.md): the
+        iliacus's largest shape change in flexion is 0.49 / 0.48 / 0.48 / 0.51 /
+        0.52 mean edges at 0.5 / 0.6 / 0.7 / 0.8 / 1, every other muscle and sweep
+        <= 0.42 at all of them; 0.6 is the middle of the range that keeps 0.5.
     anchor_reach : float
         A muscle vertex within this many mean edge lengths of the margin of a bone
         of its own body at the rest pose is an anchor (scenes with contact).
@@ -153,7 +154,7 @@ class Defaults:
     cage_margin: float = 0.25
     proxy_size: int = 1000
     skeleton_weight: float = 1.0
-    anchor_weight: float = 1.0
+    anchor_weight: float = 0.6
     anchor_reach: float = 0.5
     anchor_end_reach: float = 0.15
     samples_per_line: int = 33
