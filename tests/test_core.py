@@ -113,6 +113,23 @@ def test_cubic_root():
     assert np.isnan(cubic_root_near(np.array([1.0, np.inf, 0.0, 0.0]), 0.0, 0.0))
 
 
+def test_real_roots_of_a_cubic_with_roots_orders_of_magnitude_apart():
+    # closed forms (and a companion matrix) lose the small roots of such a cubic; the
+    # bracketed search keeps all three to rounding
+    from musclewrap.solver._cubic import _real_roots
+
+    roots = np.array([-2e-4, 1e-4, 1e6])
+    p = np.poly(roots)[::-1]  # increasing degree
+    assert np.sort(_real_roots(*p)) == pytest.approx(roots, rel=1e-10)
+    # a double root where the cubic vanishes exactly: (t - 1)^2 (t - 3)
+    assert np.sort(_real_roots(-3.0, 7.0, -5.0, 1.0)) == pytest.approx(
+        [1.0, 3.0, np.nan], nan_ok=True
+    )
+    # one real root and a complex pair: t^3 + t + 10 = (t + 2)(t^2 - 2t + 5)
+    r = _real_roots(10.0, 1.0, 0.0, 1.0)
+    assert r[0] == pytest.approx(-2.0, rel=1e-14) and np.isnan(r[1:]).all()
+
+
 def test_lines_validation():
     with pytest.raises(LineError, match="two distinct points"):
         check_lines({"a": [[0, 0, 0]]})

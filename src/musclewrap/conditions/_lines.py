@@ -88,16 +88,27 @@ def _arclength_kernel(P):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
 @numba.njit(cache=True)
 def _polyline_at_kernel(P, t, out):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
     # linear interpolation in normalized arc length, clamped to the ends (as np.interp)
+    # (element loops and a hand-written bisection: row assignments and np.searchsorted
+    # compile shape checks and string formatting that cost seconds on a first run)
     s = _arclength_kernel(P)
     last = P.shape[0] - 1
     for i in range(t.shape[0]):
         ti = t[i]
         if ti <= s[0]:
-            out[i] = P[0]
+            for k in range(3):
+                out[i, k] = P[0, k]
         elif ti >= s[last]:
-            out[i] = P[last]
+            for k in range(3):
+                out[i, k] = P[last, k]
         else:
-            j = np.searchsorted(s, ti, side="right") - 1
+            lo, hi = 0, last  # s[lo] <= ti < s[hi]: the last j with s[j] <= ti
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                if s[mid] <= ti:
+                    lo = mid
+                else:
+                    hi = mid
+            j = lo
             f = (ti - s[j]) / (s[j + 1] - s[j])
             for k in range(3):
                 out[i, k] = P[j, k] + f * (P[j + 1, k] - P[j, k])

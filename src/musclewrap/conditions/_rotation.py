@@ -60,21 +60,27 @@ def _tangents_kernel(S, line, T):  # pragma: no cover - compiled
         while end + 1 < k and line[end + 1] == line[start]:
             end += 1
         nseg = end - start
-        seg = np.empty((nseg, 3))
+        seg = np.empty((nseg, 3))  # (element arithmetic: quicker to compile on a first run)
         for i in range(nseg):
-            d = S[start + i + 1] - S[start + i]
-            seg[i] = d / np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+            d0 = S[start + i + 1, 0] - S[start + i, 0]
+            d1 = S[start + i + 1, 1] - S[start + i, 1]
+            d2 = S[start + i + 1, 2] - S[start + i, 2]
+            r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            seg[i, 0], seg[i, 1], seg[i, 2] = d0 / r, d1 / r, d2 / r
         for i in range(start, end + 1):
             j = i - start
             if j == 0:
-                t = seg[0].copy()
+                t0, t1, t2 = seg[0, 0], seg[0, 1], seg[0, 2]
             elif j == nseg:
-                t = seg[nseg - 1].copy()
+                t0, t1, t2 = seg[nseg - 1, 0], seg[nseg - 1, 1], seg[nseg - 1, 2]
             else:
-                t = seg[j - 1] + seg[j]
-                if np.sqrt(t[0] ** 2 + t[1] ** 2 + t[2] ** 2) < 1e-9:
-                    t = seg[j - 1].copy()
-            T[i] = t / np.sqrt(t[0] ** 2 + t[1] ** 2 + t[2] ** 2)
+                t0 = seg[j - 1, 0] + seg[j, 0]
+                t1 = seg[j - 1, 1] + seg[j, 1]
+                t2 = seg[j - 1, 2] + seg[j, 2]
+                if np.sqrt(t0 * t0 + t1 * t1 + t2 * t2) < 1e-9:
+                    t0, t1, t2 = seg[j - 1, 0], seg[j - 1, 1], seg[j - 1, 2]
+            r = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+            T[i, 0], T[i, 1], T[i, 2] = t0 / r, t1 / r, t2 / r
         start = end + 1
 
 
@@ -194,42 +200,55 @@ def _minimal_rotation_one(a, b, out):  # pragma: no cover - compiled
         s = 0.0
     else:
         return
-    K = np.array([[0.0, -kz, ky], [kz, 0.0, -kx], [-ky, kx, 0.0]])
-    KK = K @ K
+    # R = I + s K + (1 - c) K^2 with K the cross-product matrix of k; K^2 = k k^T - I
+    k = (kx, ky, kz)
+    K = ((0.0, -kz, ky), (kz, 0.0, -kx), (-ky, kx, 0.0))
     for i in range(3):
         for j in range(3):
-            out[i, j] += s * K[i, j] + (1.0 - c) * KK[i, j]
+            kk = k[i] * k[j] - (1.0 if i == j else 0.0)
+            out[i, j] += s * K[i][j] + (1.0 - c) * kk
 
 
 @numba.njit(cache=True)
 def _frame_rotations(T0, T1, A0, A1, out):  # pragma: no cover - compiled
     # per sample: frames (tangent, reference direction made normal, binormal) in both
     # poses and the rotation F1 F0^T; the minimal rotation where a frame is undefined
+    # (scalar arithmetic only: array expressions compile slowly on a first run)
     for i in range(T0.shape[0]):
-        t0, t1, a0, a1 = T0[i], T1[i], A0[i], A1[i]
-        n0 = a0 - (a0[0] * t0[0] + a0[1] * t0[1] + a0[2] * t0[2]) * t0
-        n1 = a1 - (a1[0] * t1[0] + a1[1] * t1[1] + a1[2] * t1[2]) * t1
-        l0 = np.sqrt(n0[0] ** 2 + n0[1] ** 2 + n0[2] ** 2)
-        l1 = np.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
-        scale = max(np.sqrt(a0[0] ** 2 + a0[1] ** 2 + a0[2] ** 2), 1e-300)
+        d0 = A0[i, 0] * T0[i, 0] + A0[i, 1] * T0[i, 1] + A0[i, 2] * T0[i, 2]
+        d1 = A1[i, 0] * T1[i, 0] + A1[i, 1] * T1[i, 1] + A1[i, 2] * T1[i, 2]
+        n00, n01, n02 = A0[i, 0] - d0 * T0[i, 0], A0[i, 1] - d0 * T0[i, 1], A0[i, 2] - d0 * T0[i, 2]
+        n10, n11, n12 = A1[i, 0] - d1 * T1[i, 0], A1[i, 1] - d1 * T1[i, 1], A1[i, 2] - d1 * T1[i, 2]
+        l0 = np.sqrt(n00 * n00 + n01 * n01 + n02 * n02)
+        l1 = np.sqrt(n10 * n10 + n11 * n11 + n12 * n12)
+        scale = max(np.sqrt(A0[i, 0] ** 2 + A0[i, 1] ** 2 + A0[i, 2] ** 2), 1e-300)
         if l0 > 1e-6 * scale and l1 > 1e-6 * scale:
-            n0 = n0 / l0
-            n1 = n1 / l1
-            b0 = np.cross(t0, n0)
-            b1 = np.cross(t1, n1)
+            n00, n01, n02 = n00 / l0, n01 / l0, n02 / l0
+            n10, n11, n12 = n10 / l1, n11 / l1, n12 / l1
+            t00, t01, t02 = T0[i, 0], T0[i, 1], T0[i, 2]
+            t10, t11, t12 = T1[i, 0], T1[i, 1], T1[i, 2]
+            n0 = (n00, n01, n02)
+            n1 = (n10, n11, n12)
+            t0 = (t00, t01, t02)
+            t1 = (t10, t11, t12)
+            b0 = (t01 * n02 - t02 * n01, t02 * n00 - t00 * n02, t00 * n01 - t01 * n00)
+            b1 = (t11 * n12 - t12 * n11, t12 * n10 - t10 * n12, t10 * n11 - t11 * n10)
             for r in range(3):
                 for c in range(3):
                     out[i, r, c] = t1[r] * t0[c] + n1[r] * n0[c] + b1[r] * b0[c]
         else:
-            _minimal_rotation_one(t0, t1, out[i])
+            _minimal_rotation_one(T0[i], T1[i], out[i])
 
 
 @numba.njit(cache=True)
 def _quaternion_of(m, q):  # pragma: no cover - compiled
     # unit quaternion (w, x, y, z) of rotation matrix m, from its largest diagonal term
     tr = m[0, 0] + m[1, 1] + m[2, 2]
-    d = np.array([1 + tr, 1 + 2 * m[0, 0] - tr, 1 + 2 * m[1, 1] - tr, 1 + 2 * m[2, 2] - tr])
-    j = np.argmax(d)
+    # the largest of (1 + tr, 1 + 2 m_00 - tr, 1 + 2 m_11 - tr, 1 + 2 m_22 - tr), first on ties
+    j, best = 0, 1 + tr
+    for c in range(3):
+        if 1 + 2 * m[c, c] - tr > best:
+            j, best = c + 1, 1 + 2 * m[c, c] - tr
     if j == 0:
         v = (1 + tr, m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1])
     elif j == 1:
@@ -238,9 +257,8 @@ def _quaternion_of(m, q):  # pragma: no cover - compiled
         v = (m[0, 2] - m[2, 0], m[0, 1] + m[1, 0], 1 + 2 * m[1, 1] - tr, m[1, 2] + m[2, 1])
     else:
         v = (m[1, 0] - m[0, 1], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1], 1 + 2 * m[2, 2] - tr)
-    n = np.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2 + v[3] ** 2)
-    for c in range(4):
-        q[c] = v[c] / n
+    n = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3])
+    q[0], q[1], q[2], q[3] = v[0] / n, v[1] / n, v[2] / n, v[3] / n
 
 
 @numba.njit(cache=True)
@@ -282,13 +300,16 @@ def _blend_rotate(weights, R, first, delta, out):  # pragma: no cover - compiled
     qv = np.empty(4)
     M = np.empty((3, 3))
     for v in range(weights.shape[0]):
-        qv[:] = 0.0
+        for c in range(4):
+            qv[c] = 0.0
         for i in range(k):
             for c in range(4):
                 qv[c] += weights[v, i] * q[i, c]
         _matrix_of(qv, M)
         if delta.shape[0] == 0:
-            out[v] = M
+            for r in range(3):
+                for c in range(3):
+                    out[v, r, c] = M[r, c]
         else:
             for r in range(3):
                 out[v, r, 0] = M[r, 0] * delta[v, 0] + M[r, 1] * delta[v, 1] + M[r, 2] * delta[v, 2]

@@ -26,6 +26,101 @@ def _newton(p0, p1, p2, p3, t, steps, rtol):  # noqa: ANN001, ANN202 # pragma: n
 
 
 @numba.njit(cache=True)
+def _eval(p0, p1, p2, p3, t):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    return p0 + t * (p1 + t * (p2 + t * p3))
+
+
+@numba.njit(cache=True)
+def _bracketed(p0, p1, p2, p3, lo, hi):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    """The root in ``[lo, hi]`` where the cubic changes sign: Newton kept in the bracket.
+
+    Where a Newton step would leave the bracket, or shrink it too slowly, it
+    bisects instead (Numerical Recipes' ``rtsafe``); to full precision.
+    """
+    flo = _eval(p0, p1, p2, p3, lo)
+    if flo == 0:
+        return lo
+    if _eval(p0, p1, p2, p3, hi) == 0:
+        return hi
+    t = 0.5 * (lo + hi)
+    for _ in range(200):
+        f = _eval(p0, p1, p2, p3, t)
+        if f == 0:
+            return t
+        if (f < 0) == (flo < 0):
+            lo, flo = t, f
+        else:
+            hi = t
+        df = p1 + t * (2.0 * p2 + 3.0 * t * p3)
+        nt = t - f / df if df != 0 else 0.5 * (lo + hi)
+        if not (lo < nt < hi) or not np.isfinite(nt):
+            nt = 0.5 * (lo + hi)
+        if nt == t or hi - lo <= 4e-16 * max(abs(lo), abs(hi)):
+            return nt
+        t = nt
+    return t
+
+
+@numba.njit(cache=True)
+def _real_roots(p0, p1, p2, p3):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    """Real roots of ``p0 + p1 t + p2 t^2 + p3 t^3`` (nan where there are fewer than three).
+
+    The derivative's roots split the line into at most three intervals where
+    the polynomial is monotone; within the root bound ``1 + max |p_i / p_3|``
+    (Cauchy) each interval with a sign change holds exactly one root, found by
+    safeguarded Newton steps. Accurate where the roots differ by orders of
+    magnitude (closed forms lose the small ones there); a root of even
+    multiplicity counts only where the polynomial vanishes exactly. Scalars
+    only, so nothing here compiles NumPy's polynomial or eigenvalue routines.
+    """
+    out = np.empty(3)
+    for i in range(3):
+        out[i] = np.nan
+    bound = 1.0 + max(abs(p0), abs(p1), abs(p2)) / abs(p3) if p3 != 0 else np.inf
+    if not np.isfinite(bound):
+        p3 = 0.0  # a leading term too small to matter within floating point range
+    if p3 == 0:
+        if p2 == 0:
+            if p1 != 0:
+                out[0] = -p0 / p1
+            return out
+        disc = p1 * p1 - 4.0 * p2 * p0
+        if disc < 0:
+            return out
+        h = -0.5 * (p1 + (np.sqrt(disc) if p1 >= 0 else -np.sqrt(disc)))
+        out[0] = h / p2
+        if h != 0:
+            out[1] = p0 / h
+        return out
+    # the derivative p1 + 2 p2 t + 3 p3 t^2: its real roots, ascending, within the bound
+    ends = np.empty(4)
+    ends[0] = -bound
+    k = 1
+    disc = 4.0 * p2 * p2 - 12.0 * p3 * p1
+    if disc > 0:
+        h = -0.5 * (2.0 * p2 + (np.sqrt(disc) if p2 >= 0 else -np.sqrt(disc)))
+        c1 = h / (3.0 * p3)
+        c2 = p1 / h if h != 0 else c1
+        if -bound < min(c1, c2) < bound:
+            ends[k] = min(c1, c2)
+            k += 1
+        if -bound < max(c1, c2) < bound:
+            ends[k] = max(c1, c2)
+            k += 1
+    ends[k] = bound
+    n = 0
+    for i in range(k):
+        lo, hi = ends[i], ends[i + 1]
+        flo, fhi = _eval(p0, p1, p2, p3, lo), _eval(p0, p1, p2, p3, hi)
+        if (flo <= 0 <= fhi or fhi <= 0 <= flo) and n < 3:
+            r = _bracketed(p0, p1, p2, p3, lo, hi)
+            if n == 0 or r != out[n - 1]:
+                out[n] = r
+                n += 1
+    return out
+
+
+@numba.njit(cache=True)
 def root_near(p0, p1, p2, p3, guess):  # noqa: ANN001, ANN201 # pragma: no cover - compiled
     """Real root of ``p0 + p1 t + p2 t^2 + p3 t^3`` nearest ``guess``, compiled.
 
@@ -39,22 +134,14 @@ def root_near(p0, p1, p2, p3, guess):  # noqa: ANN001, ANN201 # pragma: no cover
     t, ok = _newton(p0, p1, p2, p3, guess, 30, 1e-15)
     if ok:
         return t
-    # otherwise all roots (companion matrix), the real one nearest the guess; complex
-    # input, as compiled eigenvalues of a real matrix may not turn complex
-    if p3 != 0:
-        roots = np.roots(np.array([p3, p2, p1, p0], dtype=np.complex128))
-    elif p2 != 0:
-        roots = np.roots(np.array([p2, p1, p0], dtype=np.complex128))
-    else:
-        return -p0 / p1
-    best, best_d, best_any, best_any_d = np.nan, np.inf, np.nan, np.inf
+    # otherwise every real root (closed form), the one nearest the guess
+    roots = _real_roots(p0, p1, p2, p3)
+    t, best_d = np.nan, np.inf
     for r in roots:
-        d = abs(r.real - guess)
-        if abs(r.imag) <= 1e-9 * max(1.0, abs(r)) and d < best_d:
-            best, best_d = r.real, d
-        if d < best_any_d:
-            best_any, best_any_d = r.real, d
-    t = best if best_d < np.inf else best_any
+        if np.isfinite(r) and abs(r - guess) < best_d:
+            t, best_d = r, abs(r - guess)
+    if not np.isfinite(t):
+        return np.nan
     return _newton(p0, p1, p2, p3, t, 3, 1e-16)[0]  # polish to full precision
 
 

@@ -102,7 +102,11 @@ _NEWTON_AFTER = 4
 def _plain_iterations(P_ls, Wd, B, Fd, Vd0, plain, tol_dir, floor, rate):  # pragma: no cover
     n, m = Wd.shape
     XU = np.empty((n, 6))  # [P_ls, P_u]: the proxy's volume along -P_u is a cubic
-    XU[:, :3] = P_ls
+    # (element loops rather than slice assignments here and below: those compile a
+    # shape check with string formatting that costs seconds on a first run)
+    for i in range(n):
+        for k in range(3):
+            XU[i, k] = P_ls[i, k]
     P = P_ls.copy()
     g = _gradient_kernel(P, Fd, _mean_rows_kernel(P))
     gT = np.empty((3, n), dtype=B.dtype)
@@ -147,7 +151,9 @@ def _plain_iterations(P_ls, Wd, B, Fd, Vd0, plain, tol_dir, floor, rate):  # pra
         e = lam * lam * gu
         if e < best_e:
             best_e, best_lam = e, lam
-            best_u[:] = u_prev
+            for j in range(m):
+                for k in range(3):
+                    best_u[j, k] = u_prev[j, k]
         done, rho = stationary(step, prev_step, its, size, floor, tol_dir)
         prev_step = step
         if done:
