@@ -143,12 +143,24 @@ def test_a_pose_without_finite_positions_writes_nothing_even_when_allowed(files,
         assert report["converged"] is False and report["relative_volume_error"] is None
 
 
-def test_demo_writes_the_series(tmp_path):
+def test_demo_writes_the_series(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "-o", str(out), "--frames", "3"]) == 0
     names = {p.name for p in out.iterdir()}
-    assert {"scene.pvd", "report.csv", "volume_error.png", "muscle"} <= names
-    assert len(list((out / "muscle").glob("*.vtp"))) == 3
+    assert {"scene.pvd", "report.csv", "volume_error.png", "muscle", "thigh", "shank"} <= names
+    assert len(list((out / "muscle").glob("muscle_0*.vtp"))) == 3
+    assert len(list((out / "muscle").glob("muscle_lines_*.vtp"))) == 3
+    # the pictures of a scene run, or (no off-screen OpenGL here) a note saying why not
+    err = capsys.readouterr().err
+    if "scene.gif not written" in err:
+        assert "no working off-screen rendering backend" in err
+        assert not (out / "scene.gif").exists()
+    else:
+        from PIL import Image
+
+        with Image.open(out / "scene.gif") as im:
+            assert im.n_frames == 3
+        assert (out / "scene.png").stat().st_size > 0
     assert main(["demo", "-o", str(out), "--frames", "1"]) == 2
 
 
@@ -191,3 +203,20 @@ def test_version(capsys):
         [sys.executable, "-m", "musclewrap.cli", "--version"], capture_output=True, text=True
     )
     assert out.returncode == 0 and out.stdout.strip() == f"musclewrap {__version__}"
+
+
+def test_a_first_run_says_once_that_it_compiles(files, capsys, monkeypatch):
+    # after a pose has run, the kernels are in Numba's cache and nothing is said
+    import musclewrap._jit as jit
+
+    tmp, mesh, rest, cur = files
+    assert main(["deform", mesh, "--rest", rest, "--current", cur, "-o", str(tmp / "a.vtp")]) == 0
+    assert jit.kernels_cached()
+    capsys.readouterr()
+    assert main(["deform", mesh, "--rest", rest, "--current", cur, "-o", str(tmp / "b.vtp")]) == 0
+    assert "compiling" not in capsys.readouterr().err
+    # a cold cache (as after installing) is said once, before the work
+    monkeypatch.setattr(jit, "kernels_cached", lambda: False)
+    assert main(["deform", mesh, "--rest", rest, "--current", cur, "-o", str(tmp / "c.vtp")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("compiling kernels, once") == 1

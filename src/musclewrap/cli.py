@@ -120,6 +120,7 @@ def _parser() -> argparse.ArgumentParser:
     dm = sub.add_parser("demo", help="run the embedded synthetic example (no data needed)")
     dm.add_argument("-o", "--output", default="musclewrap_demo", help="output folder")
     dm.add_argument("--frames", type=int, default=61, help="number of frames (at least 2)")
+    dm.add_argument("--no-gif", action="store_true", help="skip scene.gif and scene.png")
 
     be = sub.add_parser("bench", help="run a benchmark")
     be.add_argument("name", choices=("capsule",), help="benchmark to run")
@@ -303,7 +304,7 @@ def _cmd_demo(a: argparse.Namespace) -> int:
             write_mesh(out / bname, *scene.bone(bone, k))
             entries.append((float(scene.angles[k]), bname))
         P = line["main"]
-        lname = f"line/line_{k:04d}.vtp"
+        lname = f"muscle/muscle_lines_{k:04d}.vtp"  # as a scene run names action lines
         write_mesh(
             out / lname,
             P,
@@ -336,9 +337,20 @@ def _cmd_demo(a: argparse.Namespace) -> int:
     )
     worst = max(abs(r["relative_volume_error"]) for r in rows)
     bad = sum(not r["converged"] for r in rows)
+    seconds = time.perf_counter() - t0
+    picture = ""
+    if not a.no_gif:  # the pictures a scene run draws: the muscle bending over the joint
+        from .output import render_series
+
+        try:
+            render_series(out / "scene.pvd", out / "scene.gif", bones=("thigh", "shank"))
+            picture = f", {out}/scene.gif (still: scene.png)"
+        except RuntimeError as exc:
+            print(f"note: scene.gif not written: {exc}", file=sys.stderr)
     print(
-        f"demo: {len(rows)} frames, prepare {muscle.seconds_prepare:.2f} s, solve+write {time.perf_counter() - t0:.2f} s, "
-        f"worst volume error {worst:.2e}, unconverged frames {bad} -> {out}/scene.pvd"
+        f"demo: {len(rows)} frames, prepare {muscle.seconds_prepare:.2f} s, solve+write "
+        f"{seconds:.2f} s, worst volume error {worst:.2e}, unconverged frames {bad} -> "
+        f"{out}/scene.pvd{picture}"
     )
     return 0 if bad == 0 else 3
 
@@ -429,6 +441,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .mesh import MeshError
 
     args = _parser().parse_args(argv)
+    if args.command in ("prepare", "deform", "run", "demo"):
+        from ._jit import say_if_compiling
+
+        say_if_compiling()
     handlers = {
         "prepare": _cmd_prepare,
         "deform": _cmd_deform,
