@@ -220,3 +220,32 @@ def test_a_first_run_says_once_that_it_compiles(files, capsys, monkeypatch):
     assert main(["deform", mesh, "--rest", rest, "--current", cur, "-o", str(tmp / "c.vtp")]) == 0
     err = capsys.readouterr().err
     assert err.count("compiling kernels, once") == 1
+
+
+def test_pictures_are_the_same_from_one_or_several_renderers(tmp_path):
+    # the frames are shared out among renderer processes, each placing the camera from the
+    # first time step: the GIF is the same picture by picture
+    from PIL import Image, ImageChops
+
+    from musclewrap.output import render_series
+
+    out = tmp_path / "demo"
+    assert main(["demo", "-o", str(out), "--frames", "6", "--no-gif"]) == 0
+    gifs = []
+    for k in (1, 2):
+        try:
+            gifs.append(
+                render_series(
+                    out / "scene.pvd", tmp_path / f"k{k}.gif", bones=("thigh", "shank"), processes=k
+                )
+            )
+        except RuntimeError as exc:
+            pytest.skip(f"no off-screen rendering here: {exc}")
+    frames = []
+    for g in gifs:
+        with Image.open(g) as im:
+            frames.append([im.seek(i) or im.convert("RGB") for i in range(im.n_frames)])
+    assert len(frames[0]) == len(frames[1]) == 6
+    for a, b in zip(*frames, strict=True):
+        assert ImageChops.difference(a, b).getbbox() is None
+    assert (tmp_path / "k2.png").stat().st_size > 0

@@ -343,7 +343,9 @@ def _cmd_demo(a: argparse.Namespace) -> int:
         from .output import render_series
 
         try:
-            render_series(out / "scene.pvd", out / "scene.gif", bones=("thigh", "shank"))
+            render_series(
+                out / "scene.pvd", out / "scene.gif", bones=("thigh", "shank"), progress=sys.stderr
+            )
             picture = f", {out}/scene.gif (still: scene.png)"
         except RuntimeError as exc:
             print(f"note: scene.gif not written: {exc}", file=sys.stderr)

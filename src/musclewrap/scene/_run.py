@@ -619,23 +619,37 @@ def run_scene(
             # started first: the workers import while this process reads meshes and OpenSim
             pool = stack.enter_context(_Pool(min(workers, len(scene.muscles))))
         on = scene.collisions if collisions is None else bool(collisions and scene.bones)
-        summary = _run_scene(
-            scene, outdir, frames, pool, cache_dir, progress, say, notes, stack, resume, on
-        )
-    if render if render is not None else scene.gif:
-        from ..output import render_series
+        rendering: list[Any] = []
 
-        try:
-            summary.files.append(
-                render_series(
-                    outdir / PVD,
-                    outdir / GIF,
-                    every=scene.gif_every,
-                    size=scene.image_size,
-                    bones=tuple(b.name for b in scene.bones),
+        def start_render() -> None:
+            # the frames are written: the renderers start while the plots are drawn here
+            from ..output import start_rendering
+
+            try:
+                rendering.append(
+                    start_rendering(
+                        outdir / PVD,
+                        outdir / GIF,
+                        every=scene.gif_every,
+                        size=scene.image_size,
+                        bones=tuple(b.name for b in scene.bones),
+                        progress=progress,
+                    )
                 )
-            )
-        except RuntimeError as exc:
+            except (RuntimeError, OSError) as exc:
+                rendering.append(exc)
+
+        draw = render if render is not None else scene.gif
+        summary = _run_scene(
+            scene, outdir, frames, pool, cache_dir, progress, say, notes, stack, resume, on,
+            start_render if draw else None,
+        )  # fmt: skip
+    for r in rendering:
+        try:
+            if isinstance(r, Exception):
+                raise r
+            summary.files.append(r.finish())
+        except (RuntimeError, OSError) as exc:
             summary.notes.append(f"scene.gif not written: {exc}")
     Journal.finish(outdir)  # complete: nothing left to resume
     summary.seconds = time.perf_counter() - t0
@@ -654,6 +668,7 @@ def _run_scene(
     stack: contextlib.ExitStack,
     resume: bool,
     collisions: bool,
+    frames_written: Callable[[], None] | None = None,
 ) -> RunSummary:
     if cache_dir is True:
         cache = scene.cache_dir or default_cache_dir()
@@ -707,6 +722,7 @@ def _run_scene(
         contact,
         anchors,
         input_ids,
+        frames_written,
     )
 
 
@@ -987,6 +1003,7 @@ def _run(
     contact: dict[str, dict[str, FloatArray | None]] | None,
     anchors: dict[str, IntArray] | None = None,
     input_ids: dict[str, IntArray] | None = None,
+    frames_written: Callable[[], None] | None = None,
 ) -> RunSummary:
     from ..output import write_csv, write_pvd
 
@@ -1080,6 +1097,8 @@ def _run(
         write_pvd(outdir / PVD, [(float(drive.times[k]), f) for k, f in entries]),
         write_csv(outdir / REPORT, rows, REPORT_FIELDS),
     ]
+    if frames_written is not None:
+        frames_written()
     files += _plots(outdir, scene, results, contact is not None)
     worst = max(
         (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
