@@ -1,0 +1,46 @@
+"""A new user's first `musclewrap demo` against the second, wall time.
+
+    python benchmarks/bench_first_run.py [--no-gif]
+
+Emulates a fresh install: Numba's cache (``NUMBA_CACHE_DIR``) points at an empty folder, then
+``musclewrap demo`` runs twice in new processes, the first compiling the kernels, the second
+reading them back. (Python's own bytecode is left as it is: pip compiles it when installing.) Prints both wall
+times and their ratio (issue 15's target: the first <= 3x the second).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--no-gif", action="store_true")
+    a = p.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ)
+        env["NUMBA_CACHE_DIR"] = str(Path(tmp) / "numba")
+        cmd = [sys.executable, "-m", "musclewrap.cli", "demo", "-o", str(Path(tmp) / "out")]
+        cmd += ["--no-gif"] if a.no_gif else []
+        times = []
+        for _ in range(2):
+            t0 = time.perf_counter()
+            r = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
+            times.append(time.perf_counter() - t0)
+        said = "compiling kernels, once" in r.stderr
+    first, second = times
+    print(
+        f"musclewrap demo{' --no-gif' if a.no_gif else ''}: first {first:.1f} s, second "
+        f"{second:.1f} s, {first / second:.1f}x"
+        + ("" if not said else " (the second said it compiled: the cache was not kept)")
+    )
+
+
+if __name__ == "__main__":
+    main()
