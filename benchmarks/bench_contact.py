@@ -17,7 +17,6 @@ import csv
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -26,11 +25,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _run(scene: str, out: Path, frames: str, extra: list[str]) -> float:
-    cmd = [sys.executable, "-m", "musclewrap.cli", "run", scene, "-o", str(out), "--no-gif"]
-    cmd += ["--frames", frames, *extra]
-    t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, capture_output=True)
-    return time.perf_counter() - t0
+    from musclewrap._bench import timed_run
+
+    return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra])
 
 
 def main() -> None:

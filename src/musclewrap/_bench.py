@@ -1,8 +1,11 @@
-"""The capsule benchmark (shared by ``musclewrap bench capsule`` and ``benchmarks/``)."""
+"""Benchmark helpers (shared by ``musclewrap bench capsule`` and ``benchmarks/``)."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -10,7 +13,15 @@ from .coordinates import rows_dot
 from .solver import Muscle
 from .synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
 
-__all__ = ["capsule_benchmark", "interleaved_ms"]
+__all__ = ["capsule_benchmark", "interleaved_ms", "timed_run"]
+
+
+def timed_run(scene: str, out: Path, extra: list[str]) -> float:
+    """Wall seconds of ``musclewrap run SCENE -o OUT *extra`` in a new process (must succeed)."""
+    cmd = [sys.executable, "-m", "musclewrap.cli", "run", scene, "-o", str(out), *extra]
+    t0 = time.perf_counter()
+    subprocess.run(cmd, check=True, capture_output=True)
+    return time.perf_counter() - t0
 
 
 def interleaved_ms(
