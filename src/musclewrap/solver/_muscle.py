@@ -760,19 +760,8 @@ class Deformer:
                     )
                 else:
                     x, V, its, ok, reason, hist = self._solve_default(
-                        x_ls, max_iterations or defaults.max_iterations
+                        x_ls, d_L, s_cur, max_iterations or defaults.max_iterations
                     )
-                    if not ok and reason.startswith("direction not stationary"):
-                        # The proxy's direction did not settle (rare: one gait2392 frame of
-                        # the semitendinosus): the exact iteration, on the fine mesh's own
-                        # gradient, from the start; the reason says so.
-                        exact = self._solve_exact(
-                            x_ls, d_L, s_cur, max_iterations or defaults.max_iterations
-                        )
-                        if exact[3]:
-                            x, V, _, ok, _, hist = exact
-                            reason = f"converged by the exact iteration ({reason} on the proxy)"
-                        its += exact[2]
             except (np.linalg.LinAlgError, FloatingPointError) as exc:
                 # a singular or overflowing system on this pose: an unconverged result
                 # with the reason, never an exception that would end a whole motion
@@ -907,8 +896,32 @@ class Deformer:
             ),
         )
 
-    def _solve_default(self, x_ls: FloatArray, max_iterations: int):  # noqa: ANN202
-        """The default solve (``"sqp"``): the proxy's fixed point, then the fine volume."""
+    def _solve_default(self, x_ls, d_L, s_cur, max_iterations: int):  # noqa: ANN001, ANN202
+        """The default solve (``"sqp"``): every step of its fallback chain, in order.
+
+        The proxy's fixed point, then damped Newton where that is slow, then the
+        fine volume along the direction (`_solve_proxy`); where the direction does
+        not settle even so (rare: one gait2392 frame of the semitendinosus), the
+        exact iteration on the fine mesh's own gradient from the start, and the
+        reason says so.
+        """
+        x, V, its, settled, reason = self._solve_proxy(x_ls, max_iterations)
+        if settled is None or settled:
+            return x, V, its, bool(settled), reason, []
+        exact = self._solve_exact(x_ls, d_L, s_cur, max_iterations)
+        if not exact[3]:
+            return x, V, its + exact[2], False, reason, []
+        x, V, _, _, _, hist = exact
+        why = f"converged by the exact iteration ({reason} on the proxy)"
+        return x, V, its + exact[2], True, why, hist
+
+    def _solve_proxy(self, x_ls: FloatArray, max_iterations: int):  # noqa: ANN202
+        """The proxy's direction, then the fine volume along it.
+
+        Returns ``x, V, iterations, settled, reason``; ``settled`` is None where no
+        finite volume correction exists (V is NaN), else whether the direction
+        became stationary.
+        """
         mu = self.muscle
         c = mean_rows(x_ls)
         # a few plain fixed-point updates of the direction on the proxy (compiled, `_proxy`)
@@ -924,7 +937,7 @@ class Deformer:
             rate=defaults.newton_rate,
         )
         if status == PLAIN_NO_ROOT:
-            return x_ls, np.full_like(mu.V, np.nan), its, False, "no finite volume correction", []
+            return x_ls, np.full_like(mu.V, np.nan), its, None, "no finite volume correction"
         converged_dir = status == PLAIN_CONVERGED
         if not converged_dir and its < max_iterations:
             # Slow (rate near 1) or oscillating fixed point: damped Newton on the proxy's
@@ -943,7 +956,7 @@ class Deformer:
         reason = (
             "converged" if converged_dir else f"direction not stationary after {its} iterations"
         )
-        return x, V, its + 1, converged_dir, reason, []
+        return x, V, its + 1, converged_dir, reason
 
     def _solve_exact(self, x_ls, d_L, s_cur, max_iterations: int):  # noqa: ANN001, ANN202
         """The reference iteration: the fine mesh's own volume gradient every step."""
