@@ -619,31 +619,39 @@ def run_scene(
             # started first: the workers import while this process reads meshes and OpenSim
             pool = stack.enter_context(_Pool(min(workers, len(scene.muscles))))
         on = scene.collisions if collisions is None else bool(collisions and scene.bones)
+        draw = render if render is not None else scene.gif
         rendering: list[Any] = []
 
         def start_render() -> None:
-            # the frames are written: the renderers start while the plots are drawn here
+            # the frames are written: the renderers start while this process draws the plots
+            # (started with the run instead, their start-up slowed the run more: 1.45-1.47x
+            # against 1.37x for the walk with its GIF, benchmarks/bench_gif.py)
             from ..output import start_rendering
 
             try:
-                rendering.append(
-                    start_rendering(
-                        outdir / PVD,
-                        outdir / GIF,
-                        every=scene.gif_every,
-                        size=scene.image_size,
-                        bones=tuple(b.name for b in scene.bones),
-                        progress=progress,
-                    )
+                r = start_rendering(
+                    outdir / PVD,
+                    outdir / GIF,
+                    every=scene.gif_every,
+                    size=scene.image_size,
+                    bones=tuple(b.name for b in scene.bones),
+                    progress=progress,
                 )
-            except (RuntimeError, OSError) as exc:
+                r.go()
+                rendering.append(r)
+            except OSError as exc:
                 rendering.append(exc)
 
-        draw = render if render is not None else scene.gif
-        summary = _run_scene(
-            scene, outdir, frames, pool, cache_dir, progress, say, notes, stack, resume, on,
-            start_render if draw else None,
-        )  # fmt: skip
+        try:
+            summary = _run_scene(
+                scene, outdir, frames, pool, cache_dir, progress, say, notes, stack, resume, on,
+                start_render if draw else None,
+            )  # fmt: skip
+        except BaseException:
+            for r in rendering:
+                if not isinstance(r, Exception):
+                    r.cancel()
+            raise
     for r in rendering:
         try:
             if isinstance(r, Exception):
