@@ -421,50 +421,55 @@ class _Around:
     edge: float  # mean edge length
 
 
-def _bone_vertices_inside(
-    P: FloatArray,
-    F: IntArray,
-    pl: Placed,
-    b: int,
-    depth: float,
-    around: _Around | None,
-) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, IntArray]:
-    """The obstacle's vertices more than ``depth`` inside the muscle ``P, F``.
+_NONE_INSIDE = (
+    np.zeros((0, 3)),
+    np.zeros((0, 3)),
+    np.zeros(0, np.int64),
+    np.zeros(0),
+    np.zeros(0, np.int64),
+)
 
-    ``around`` None: every obstacle vertex in the muscle's box, inside by the
-    generalized winding number of the whole muscle (robust; a tree over the
-    muscle per call: seconds over a motion). Otherwise (``pl`` is obstacle ``b``
-    of ``around.near``): only the obstacle's sharp vertices (`Obstacle.convexity`) within 1.5 ``edge``
-    of a muscle vertex inside obstacle ``b`` (a bone ridge between the muscle
-    vertices the finish will project), behind the tangent plane of their
-    nearest muscle vertex, and their side by the pseudo-normal of their closest
-    point on the faces around that vertex and its neighbours (compiled).
+
+def _bone_vertices_in_muscle(
+    P: FloatArray, F: IntArray, pl: Placed, depth: float
+) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, IntArray]:
+    """Every obstacle vertex more than ``depth`` inside the muscle ``P, F`` (the rest pose).
+
+    The obstacle's vertices in the muscle's box, inside by the generalized winding
+    number of the whole muscle (robust; a tree over the muscle per call: seconds
+    over a motion, so only once per muscle).
 
     Returns the vertices ``B`` (muscle frame), their closest points ``C``, the
-    faces ``fi`` (rows of ``F``) holding them, the depths and ``B``'s rows in
-    the obstacle.
+    faces ``fi`` (rows of ``F``) holding them, the depths and ``B``'s rows in the
+    obstacle.
     """
     import igl
 
-    none = (
-        np.zeros((0, 3)),
-        np.zeros((0, 3)),
-        np.zeros(0, np.int64),
-        np.zeros(0),
-        np.zeros(0, np.int64),
-    )
-    if around is None:
-        lo, hi = P.min(axis=0) - depth, P.max(axis=0) + depth
-        B = pl.to_muscle(pl.obstacle.V)
-        rows = np.flatnonzero(((B >= lo) & (B <= hi)).all(axis=1))
-        if not len(rows):
-            return none
-        B = np.ascontiguousarray(B[rows])
-        inside = igl.fast_winding_number(P, F, B) > 0.5
-        sq, fi, C = igl.point_mesh_squared_distance(B, P, F)
-        dist = np.sqrt(sq)
-        bad = inside & (dist > depth)
-        return B[bad], C[bad], fi[bad], dist[bad], rows[bad]
+    lo, hi = P.min(axis=0) - depth, P.max(axis=0) + depth
+    B = pl.to_muscle(pl.obstacle.V)
+    rows = np.flatnonzero(((B >= lo) & (B <= hi)).all(axis=1))
+    if not len(rows):
+        return _NONE_INSIDE
+    B = np.ascontiguousarray(B[rows])
+    inside = igl.fast_winding_number(P, F, B) > 0.5
+    sq, fi, C = igl.point_mesh_squared_distance(B, P, F)
+    dist = np.sqrt(sq)
+    bad = inside & (dist > depth)
+    return B[bad], C[bad], fi[bad], dist[bad], rows[bad]
+
+
+def _ridges_in_muscle(
+    P: FloatArray, F: IntArray, pl: Placed, b: int, depth: float, around: _Around
+) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, IntArray]:
+    """The obstacle's ridge vertices more than ``depth`` inside the muscle (a pose).
+
+    ``pl`` is obstacle ``b`` of ``around.near``. Only the obstacle's sharp
+    vertices (`Obstacle.convexity`) within 1.5 ``edge`` of a muscle vertex inside
+    obstacle ``b`` (a bone ridge between the muscle vertices the finish will
+    project), behind the tangent plane of their nearest muscle vertex, and their
+    side by the pseudo-normal of their closest point on the faces around that
+    vertex and its neighbours (compiled). Returns as `_bone_vertices_in_muscle`.
+    """
     from scipy.spatial import cKDTree
 
     A, edge, Z = around.A, around.edge, around.Z
@@ -472,7 +477,7 @@ def _bone_vertices_inside(
     # their neighbours
     inside = around.near.within(b, P, 0.0)
     if not len(inside):
-        return none
+        return _NONE_INSIDE
     r = np.flatnonzero(_rings(A, inside, 1) <= 1)
     # After the finish projects the muscle's vertices onto the bone, a bone vertex
     # stands out between them by about the sag e^2 / (8 R) of its curvature radius R
@@ -482,7 +487,7 @@ def _bone_vertices_inside(
     # near the vertices inside (a mean edge and a half: as near as one of their neighbours)
     rows = pl.obstacle.ridge_vertices_near(pl.to_obstacle(P[inside]), 1.5 * edge, sharp)
     if not len(rows):
-        return none
+        return _NONE_INSIDE
     B = pl.to_muscle(pl.obstacle.V[rows])
     # only a bone vertex behind the tangent plane of its nearest muscle vertex can be
     # inside the muscle (most near a contact lie in front: the bone the muscle rests on)
@@ -490,7 +495,7 @@ def _bone_vertices_inside(
     v = r[j]
     behind = np.einsum("ij,ij->i", B - P[v], Z[v]) < 0.0
     if not behind.any():
-        return none
+        return _NONE_INSIDE
     rows, B = rows[behind], np.ascontiguousarray(B[behind])
     phi = np.empty(len(B))
     C = np.empty((len(B), 3))
@@ -516,8 +521,9 @@ def _with_bone_vertices(
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """`_violations` plus the pushes that take obstacle vertices out of the muscle.
 
-    An obstacle vertex inside the muscle (`_bone_vertices_inside`: all of them
-    with ``around`` None, else the ridges near vertices in a bone) or within the
+    An obstacle vertex inside the muscle (with ``around`` None all of them,
+    `_bone_vertices_in_muscle`; else the ridges near vertices in a bone,
+    `_ridges_in_muscle`) or within the
     margin of its surface moves the nearest muscle triangle past it: its
     vertices by the least displacement (barycentric weights) that carries the
     nearest point to the margin beyond the obstacle vertex.
@@ -529,7 +535,11 @@ def _with_bone_vertices(
     # sit between the muscle's vertices on the bone (chords of its curved surface)
     depth = margin + 10.0 * slack
     for b, pl in enumerate(placed):
-        B, C, fi, dist, _ = _bone_vertices_inside(P, F, pl, b, depth, around)
+        B, C, fi, dist, _ = (
+            _bone_vertices_in_muscle(P, F, pl, depth)
+            if around is None
+            else _ridges_in_muscle(P, F, pl, b, depth, around)
+        )
         if not len(B):
             continue
         # into the muscle from the bone vertex: the nearest surface point goes past it
