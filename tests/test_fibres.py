@@ -1,0 +1,87 @@
+"""Fibres at rest (a harmonic field between the attachments) and carried by the cage."""
+
+import numpy as np
+import pytest
+
+from musclewrap import Muscle
+from musclewrap.fibres import attachment_areas, fibres_at_rest
+from musclewrap.synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
+
+
+@pytest.fixture(scope="module")
+def capsule_fibres():
+    m = Muscle.from_mesh(*capsule(n_around=32, cap_rings=8, segments=40), cage_size=200)
+    rest, _ = capsule_scenario("bend")
+    return m, rest, fibres_at_rest(m, rest, count=60, points=15, voxels=30_000)
+
+
+def test_fibres_run_inside_from_origin_to_insertion(capsule_fibres):
+    import igl
+
+    m, rest, fb = capsule_fibres
+    assert fb.points.shape == (60, 15, 3)
+    assert (igl.fast_winding_number(m.V, m.F, fb.points.reshape(-1, 3)) > 0.5).all()
+    # the capsule runs along z from 0 to 200; its line from pole to pole: every fibre starts
+    # near the first pole and ends near the second, and is at least 85 % of the capsule long
+    assert fb.points[:, 0, 2].max() < 20 and fb.points[:, -1, 2].min() > 180
+    assert fb.lengths().min() > 170
+    # distinct fibres (seeds spread over the half-way level, none traced twice)
+    assert len(np.unique(fb.points[:, 7].round(6), axis=0)) == 60
+
+
+@pytest.mark.parametrize("scenario", CAPSULE_SCENARIOS)
+def test_fibres_stay_inside_the_deformed_muscle(capsule_fibres, scenario):
+    import igl
+
+    m, _, fb = capsule_fibres
+    rest, cur = capsule_scenario(scenario)
+    r = m.bind(rest).deform(cur)
+    P = fb.at(r.cage)
+    assert (igl.fast_winding_number(r.V, m.F, P.reshape(-1, 3)) > 0.5).all(), scenario
+
+
+def test_a_rigid_motion_keeps_the_fibres_lengths(capsule_fibres):
+    from scipy.spatial.transform import Rotation
+
+    m, _, fb = capsule_fibres
+    R = Rotation.from_rotvec([0.3, -0.5, 0.9]).as_matrix()
+    moved = fb.at(m.cage.C @ R.T + [10.0, -4.0, 7.0])
+    assert np.abs(fb.lengths(moved) / fb.lengths() - 1).max() <= 1e-9
+    # and the rotated-line scenario, through the solver
+    rest, cur = capsule_scenario("rot")
+    r = m.bind(rest).deform(cur)
+    assert np.abs(fb.lengths(fb.at(r.cage)) / fb.lengths() - 1).max() <= 1e-9
+    with pytest.raises(ValueError, match="cage has shape"):
+        fb.at(m.cage.C[:-1])
+
+
+def test_attachment_areas_from_the_lines_and_their_errors():
+    V, _ = capsule(n_around=16, cap_rings=4, segments=10)
+    rest, _ = capsule_scenario("bend")
+    o, i = attachment_areas(V, rest, reach=0.05)
+    assert len(o) and len(i) and V[o, 2].max() < 20 and V[i, 2].min() > 180
+    with pytest.raises(ValueError, match="overlap"):
+        attachment_areas(V, rest, reach=0.9)
+    with pytest.raises(ValueError, match="no action lines"):
+        attachment_areas(V, {})
+
+
+@pytest.mark.realdata
+def test_fibres_of_a_real_muscle_stay_inside_it_bent_and_shortened(data_dir):
+    import igl
+
+    from musclewrap.synthetic import principal_axis_scenario
+
+    m = Muscle.from_file(data_dir / "vhf" / "VHF_Right_Muscle_RectusFemoris_smooth.stl")
+    rest, cur = principal_axis_scenario(m.V, "bend_short")
+    fb = fibres_at_rest(m, rest)  # the defaults: 100 fibres of 15 points
+    assert fb.points.shape == (100, 15, 3)
+    assert (igl.fast_winding_number(m.V, m.F, fb.points.reshape(-1, 3)) > 0.5).all()
+    r = m.bind(rest).deform(cur)
+    assert r.converged
+    w = igl.fast_winding_number(r.V, m.F, fb.at(r.cage).reshape(-1, 3))
+    assert (w > 0.5).all()
+    # the line is 15 % shorter: the fibres shorten with it (0.82-0.89 of their length here)
+    ratio = fb.lengths(fb.at(r.cage)) / fb.lengths()
+    assert (ratio < 0.95).all() and (ratio > 0.75).all()
+    assert abs(ratio.mean() - 0.85) < 0.03
