@@ -21,10 +21,12 @@ def test_fibres_run_inside_from_origin_to_insertion(capsule_fibres):
     m, rest, fb = capsule_fibres
     assert fb.points.shape == (60, 15, 3)
     assert (igl.fast_winding_number(m.V, m.F, fb.points.reshape(-1, 3)) > 0.5).all()
-    # the capsule runs along z from 0 to 200; its line from pole to pole: every fibre starts
-    # near the first pole and ends near the second, and is at least 85 % of the capsule long
-    assert fb.points[:, 0, 2].max() < 20 and fb.points[:, -1, 2].min() > 180
-    assert fb.lengths().min() > 170
+    # the capsule runs along z from 0 to 200, its line from pole to pole: every fibre starts
+    # in the origin's area (the first tenth along the line, z <= 20, within two grid cells)
+    # and ends in the insertion's (z >= 180), so it is at least 3/4 of the capsule long
+    tol = 2 * fb.spacing
+    assert fb.points[:, 0, 2].max() < 20 + tol and fb.points[:, -1, 2].min() > 180 - tol
+    assert fb.lengths().min() > 150
     # distinct fibres (seeds spread over the half-way level, none traced twice)
     assert len(np.unique(fb.points[:, 7].round(6), axis=0)) == 60
 
@@ -59,9 +61,9 @@ def test_attachment_areas_from_the_lines_and_their_errors():
     V, _ = capsule(n_around=16, cap_rings=4, segments=10)
     rest, _ = capsule_scenario("bend")
     o, i = attachment_areas(V, rest, reach=0.05)
-    assert len(o) and len(i) and V[o, 2].max() < 20 and V[i, 2].min() > 180
-    with pytest.raises(ValueError, match="overlap"):
-        attachment_areas(V, rest, reach=0.9)
+    assert len(o) and len(i) and V[o, 2].max() <= 10 and V[i, 2].min() >= 190
+    with pytest.raises(ValueError, match="reach must lie"):
+        attachment_areas(V, rest, reach=0.6)
     with pytest.raises(ValueError, match="no action lines"):
         attachment_areas(V, {})
 
