@@ -240,6 +240,7 @@ def fibres_at_rest(
     # outside the domain: the value of the nearest domain cell (a gradient without a wall)
     _, near_idx = ndimage.distance_transform_edt(~domain.reshape(shape), return_indices=True)
     U = U.reshape(shape)[tuple(near_idx)]
+    dom3 = domain.reshape(shape)
     G = np.stack(np.gradient(U, h), axis=0)
 
     def sample(grid: FloatArray, P: FloatArray) -> FloatArray:
@@ -267,7 +268,14 @@ def fibres_at_rest(
             moving = np.linalg.norm(d2, axis=1) > 0
             active[a[~moving]] = False
             a = a[moving]
-            P[a] = P[a] + step * sign * d2[moving]
+            Q = P[a] + step * sign * d2[moving]
+            # a step that leaves the field's cells ends the fibre where it was (a thin
+            # tendon may hold no cell: the fibre ends at the last one, on the surface)
+            cell = np.clip(np.floor((Q - origin_pt) / h).astype(int), 0, shape - 1)
+            out = ~dom3[cell[:, 0], cell[:, 1], cell[:, 2]]
+            active[a[out]] = False
+            a, Q = a[~out], Q[~out]
+            P[a] = Q
             steps[a] += 1
             uu = sample(U, P[a])
             active[a[uu >= stop if sign > 0 else uu <= stop]] = False
@@ -291,8 +299,9 @@ def fibres_at_rest(
     fibres = []
     for back, fwd in zip(backs, fwds, strict=True):
         line = np.concatenate([back[::-1], fwd[1:]])
-        if len(line) < 3:
-            continue
+        ends = sample(U, line[[0, -1]]) if len(line) >= 3 else np.array([1.0, 0.0])
+        if not (ends[0] <= 0.05 and ends[1] >= 0.95):
+            continue  # stopped at the surface short of an attachment: not a whole fibre
         seg = np.linalg.norm(np.diff(line, axis=0), axis=1)
         t = np.concatenate([[0.0], np.cumsum(seg)])
         ts = np.linspace(0.0, t[-1], points)
