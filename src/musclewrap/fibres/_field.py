@@ -15,11 +15,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
+
+if TYPE_CHECKING:
+    from ..solver import Muscle
 
 __all__ = ["Fibres", "attachment_areas", "fibres_at_rest"]
 
@@ -105,7 +109,7 @@ def attachment_areas(
 
 
 def fibres_at_rest(
-    muscle: object,
+    muscle: Muscle,
     lines: Mapping[str, npt.ArrayLike],
     *,
     count: int = 100,
@@ -150,14 +154,16 @@ def fibres_at_rest(
     import igl
     from scipy import ndimage
     from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import laplacian
     from scipy.sparse.linalg import LinearOperator, cg
     from scipy.spatial import cKDTree
 
+    from ..conditions import polyline_at
     from ..coordinates import mean_value_coordinates
 
-    V = np.asarray(muscle.V, dtype=np.float64)  # type: ignore[attr-defined]
-    F = np.asarray(muscle.F, dtype=np.int64)  # type: ignore[attr-defined]
-    cage = muscle.cage  # type: ignore[attr-defined]
+    V = np.asarray(muscle.V, dtype=np.float64)
+    F = np.asarray(muscle.F, dtype=np.int64)
+    cage = muscle.cage
     if count < 1 or points < 2:
         raise ValueError(f"need count >= 1 and points >= 2, got {count} and {points}")
     if origin is None or insertion is None:
@@ -171,7 +177,7 @@ def fibres_at_rest(
 
     # --- the grid over the muscle and its inside
     lo, hi = V.min(axis=0), V.max(axis=0)
-    vol = float(abs(muscle.volume_rest))  # type: ignore[attr-defined]
+    vol = float(abs(muscle.volume_rest))
     h = (vol / voxels) ** (1.0 / 3.0)
     shape = np.ceil((hi - lo) / h).astype(int) + 3
     origin_pt = lo - h
@@ -216,9 +222,7 @@ def fibres_at_rest(
             cols.append(number[nb[ok2]])
     r, c = np.concatenate(rows), np.concatenate(cols)
     n = len(cells)
-    A = coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n)).tocsr()
-    deg = np.asarray(A.sum(axis=1)).ravel()
-    L = coo_matrix((deg, (np.arange(n), np.arange(n))), shape=(n, n)).tocsr() - A
+    L = laplacian(coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n)).tocsr()).tocsr()
     val = fixed[cells]
     known = ~np.isnan(val)
     free = np.flatnonzero(~known)
@@ -296,24 +300,21 @@ def fibres_at_rest(
     S = cand[order]
     backs = trace(S, -1.0, 1e-3)
     fwds = trace(S, 1.0, 1.0 - 1e-3)
-    fibres = []
+    whole = []
     for back, fwd in zip(backs, fwds, strict=True):
         line = np.concatenate([back[::-1], fwd[1:]])
         ends = sample(U, line[[0, -1]]) if len(line) >= 3 else np.array([1.0, 0.0])
-        if not (ends[0] <= 0.05 and ends[1] >= 0.95):
-            continue  # stopped at the surface short of an attachment: not a whole fibre
-        seg = np.linalg.norm(np.diff(line, axis=0), axis=1)
-        t = np.concatenate([[0.0], np.cumsum(seg)])
-        ts = np.linspace(0.0, t[-1], points)
-        pts = np.stack([np.interp(ts, t, line[:, k]) for k in range(3)], axis=1)
-        if (igl.fast_winding_number(V, F, pts) > 0.5).all():
-            fibres.append(pts)
-        if len(fibres) == count:
-            break
-    if len(fibres) < count:
+        if ends[0] <= 0.05 and ends[1] >= 0.95:  # else it stopped short of an attachment
+            whole.append(polyline_at(line, np.linspace(0.0, 1.0, points)))
+    inside_all = np.zeros(0, dtype=bool)
+    if whole:
+        w = igl.fast_winding_number(V, F, np.concatenate(whole))
+        inside_all = (w > 0.5).reshape(len(whole), points).all(axis=1)
+    if inside_all.sum() < count:
         raise ValueError(
-            f"only {len(fibres)} of {count} fibres stay inside the muscle: use more voxels"
+            f"only {int(inside_all.sum())} of {count} fibres stay inside the muscle: "
+            "use more voxels"
         )
-    P = np.array(fibres)
+    P = np.array(whole)[np.flatnonzero(inside_all)[:count]]
     W = mean_value_coordinates(P.reshape(-1, 3), cage.C, cage.CF)
     return Fibres(points=P, W=W, origin=org, insertion=ins, spacing=float(h))

@@ -13,7 +13,7 @@ import sys
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from .._typing import PathLike
 from ..mesh import atomic_path
@@ -30,65 +30,18 @@ _PALETTE = [
 ]
 
 
-def render_series(
-    pvd: PathLike,
-    gif: PathLike,
-    *,
-    every: int = 1,
-    size: tuple[int, int] = (800, 600),
-    bones: tuple[str, ...] = (),
-    timeout: float = 900.0,
-    processes: int | None = None,
-    progress: TextIO | None = None,
-) -> Path:
-    """Render every ``every``-th time step of a ``.pvd`` collection into an animated GIF.
+def render_series(pvd: PathLike, gif: PathLike, **options: Any) -> Path:
+    """`start_rendering` and `Rendering.finish` in one call: the GIF, written.
 
-    The middle picture is also written as a PNG beside it (same name). The frames
-    are shared out, in contiguous runs, among ``processes`` renderers (child
-    processes: see the module's note); each places the camera from the first
-    time step, so the pictures are the same whatever their number.
-
-    Parameters
-    ----------
-    pvd : str or os.PathLike
-        Collection written by `write_pvd` (files relative to its folder).
-    gif : str or os.PathLike
-        Destination (written atomically).
-    every : int, optional
-        Time-step stride.
-    size : (int, int), optional
-        Image size in pixels.
-    bones : tuple of str, optional
-        Folder names drawn as bones (ivory); ``*_lines_*`` files are action
-        lines; everything else is a muscle.
-    timeout : float, optional
-        Seconds before the renderers are stopped.
-    processes : int, optional
-        Renderers at once; default the CPU count, at most 4.
-    progress : text stream, optional
-        Where to show the pictures rendered so far (a line redrawn on a
-        terminal, else one line at the end).
-
-    Returns
-    -------
-    pathlib.Path
+    ``options`` are `start_rendering`'s (every, size, bones, timeout, processes,
+    progress).
 
     Raises
     ------
     RuntimeError
-        If no off-screen rendering backend works here (with what to install),
-        or the renderer failed.
+        As `Rendering.finish`.
     """
-    return start_rendering(
-        pvd,
-        gif,
-        every=every,
-        size=size,
-        bones=bones,
-        timeout=timeout,
-        processes=processes,
-        progress=progress,
-    ).finish()
+    return start_rendering(pvd, gif, **options).finish()
 
 
 class Rendering:
@@ -239,10 +192,40 @@ def start_rendering(
     processes: int | None = None,
     progress: TextIO | None = None,
 ) -> Rendering:
-    """Start the renderers of `render_series` and return at once (same parameters).
+    """Start rendering every ``every``-th time step of a ``.pvd`` collection into a GIF.
 
-    They draw once told to (`Rendering.go`, or `Rendering.finish`). ``processes``
-    defaults to the CPU count, at most 4.
+    Returns at once: the renderers start (imports, an OpenGL context) and draw
+    once told to (`Rendering.go`, or `Rendering.finish`, which writes the GIF).
+
+    The middle picture is also written as a PNG beside it (same name). The frames
+    are shared out, in contiguous runs, among ``processes`` renderers (child
+    processes: see the module's note); each places the camera from the first
+    time step, so the pictures are the same whatever their number.
+
+    Parameters
+    ----------
+    pvd : str or os.PathLike
+        Collection written by `write_pvd` (files relative to its folder).
+    gif : str or os.PathLike
+        Destination (written atomically).
+    every : int, optional
+        Time-step stride.
+    size : (int, int), optional
+        Image size in pixels.
+    bones : tuple of str, optional
+        Folder names drawn as bones (ivory); ``*_lines_*`` files are action
+        lines; everything else is a muscle.
+    timeout : float, optional
+        Seconds before the renderers are stopped.
+    processes : int, optional
+        Renderers at once; default the CPU count, at most 4.
+    progress : text stream, optional
+        Where to show the pictures rendered so far (a line redrawn on a
+        terminal, else one line at the end).
+
+    Returns
+    -------
+    Rendering
     """
     k = processes or min(os.cpu_count() or 1, 4)
     return Rendering(Path(pvd), Path(gif), every, size, bones, timeout, k, progress)

@@ -487,8 +487,7 @@ def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, l
     def build() -> dict[str, np.ndarray]:
         V0, F0 = read_mesh(spec.mesh)
         V, F, notes = clean_mesh(V0, F0, source=str(spec.mesh), repair=spec.repair)
-        same = V.shape == V0.shape and np.array_equal(V, V0)
-        ids = np.arange(len(V), dtype=np.int64) if same else vertex_origins(V0, V)
+        ids = vertex_origins(V0, V)
         return {"V": V, "F": F, "notes": np.array(notes, dtype=str), "input_id": ids}
 
     d = _cached_mesh(
@@ -637,10 +636,11 @@ def run_scene(
                     bones=tuple(b.name for b in scene.bones),
                     progress=progress,
                 )
-                r.go()
-                rendering.append(r)
             except OSError as exc:
-                rendering.append(exc)
+                notes.append(f"scene.gif not written: {exc}")
+                return
+            r.go()
+            rendering.append(r)
 
         try:
             summary = _run_scene(
@@ -649,13 +649,10 @@ def run_scene(
             )  # fmt: skip
         except BaseException:
             for r in rendering:
-                if not isinstance(r, Exception):
-                    r.cancel()
+                r.cancel()
             raise
     for r in rendering:
         try:
-            if isinstance(r, Exception):
-                raise r
             summary.files.append(r.finish())
         except (RuntimeError, OSError) as exc:
             summary.notes.append(f"scene.gif not written: {exc}")

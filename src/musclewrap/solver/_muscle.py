@@ -281,8 +281,7 @@ class Muscle:
         else:
             V_in = V
             V, F, notes = clean_mesh(V, F, source=source)  # checks the memory first
-            same = V.shape == V_in.shape and np.array_equal(V, V_in)
-            input_id = None if same else vertex_origins(V_in, V)
+            input_id = vertex_origins(V_in, V)
         cage = build_cage(V, F, size=cage_size, offset=cage_offset, coarsening=cage_coarsening)
         W = mean_value_coordinates(V, cage.C, cage.CF)
         L = cotangent_laplacian(cage.C, cage.CF)
