@@ -1,5 +1,19 @@
 """Fibres inside a muscle: streamlines of a harmonic field between its attachments."""
 
-from ._field import Fibres, attachment_areas, fibres_at_rest
+from ._field import (
+    Fibres,
+    HarmonicField,
+    attachment_areas,
+    fibres_at_rest,
+    harmonic_field,
+    trace_fibres,
+)
 
-__all__ = ["Fibres", "attachment_areas", "fibres_at_rest"]
+__all__ = [
+    "Fibres",
+    "HarmonicField",
+    "attachment_areas",
+    "fibres_at_rest",
+    "harmonic_field",
+    "trace_fibres",
+]
