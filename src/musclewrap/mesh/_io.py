@@ -163,6 +163,7 @@ def _write_vtk(
     F: IntArray,
     point_data: Mapping[str, np.ndarray],
     lines: IntArray | None,
+    cell_data: Mapping[str, np.ndarray],
 ) -> None:
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
     from vtkmodules.vtkCommonCore import vtkPoints
@@ -186,11 +187,12 @@ def _write_vtk(
     if len(F):
         poly.SetPolys(cells(F, 3))
     if lines is not None and len(lines):
-        poly.SetLines(cells(lines, 2))
-    for name, values in point_data.items():
-        arr = numpy_to_vtk(np.ascontiguousarray(values), deep=True)
-        arr.SetName(name)
-        poly.GetPointData().AddArray(arr)
+        poly.SetLines(cells(lines, lines.shape[1]))
+    for data, arrays in ((poly.GetPointData(), point_data), (poly.GetCellData(), cell_data)):
+        for name, values in arrays.items():
+            arr = numpy_to_vtk(np.ascontiguousarray(values), deep=True)
+            arr.SetName(name)
+            data.AddArray(arr)
     w = vtkPolyDataWriter()  # legacy .vtk; .vtp goes through _write_vtp
     w.SetFileTypeToBinary()
     w.SetInputData(poly)
@@ -214,6 +216,7 @@ def _write_vtp(
     F: IntArray,
     point_data: Mapping[str, np.ndarray],
     lines: IntArray | None,
+    cell_data: Mapping[str, np.ndarray],
 ) -> None:
     """VTK XML PolyData, raw appended binary, no compression (the VTK file format 1.0).
 
@@ -256,15 +259,16 @@ def _write_vtp(
         f'<Piece NumberOfPoints="{len(V)}" NumberOfVerts="0" NumberOfLines="{n_lines}" '
         f'NumberOfStrips="0" NumberOfPolys="{len(F)}">'
     )
-    if point_data:
-        xml.append("<PointData>")
-        for name, values in point_data.items():
-            v = np.asarray(values)
-            xml.append(array(v, name, 1 if v.ndim == 1 else int(np.prod(v.shape[1:]))))
-        xml.append("</PointData>")
+    for tag, arrays in (("PointData", point_data), ("CellData", cell_data)):
+        if arrays:
+            xml.append(f"<{tag}>")
+            for name, values in arrays.items():
+                v = np.asarray(values)
+                xml.append(array(v, name, 1 if v.ndim == 1 else int(np.prod(v.shape[1:]))))
+            xml.append(f"</{tag}>")
     xml.append("<Points>" + array(V.astype("<f8"), "Points", 3) + "</Points>")
     if n_lines:
-        xml.append("<Lines>" + cells(np.asarray(lines).reshape(-1, 2), 2) + "</Lines>")
+        xml.append("<Lines>" + cells(lines, lines.shape[1]) + "</Lines>")
     if len(F):
         xml.append("<Polys>" + cells(F, 3) + "</Polys>")
     xml.append('</Piece>\n</PolyData>\n<AppendedData encoding="raw">\n_')
@@ -320,6 +324,7 @@ def write_mesh(
     *,
     point_data: Mapping[str, np.ndarray] | None = None,
     lines: IntArray | None = None,
+    cell_data: Mapping[str, np.ndarray] | None = None,
 ) -> Path:
     """Write a triangle mesh atomically, format chosen by the extension.
 
@@ -335,8 +340,11 @@ def write_mesh(
         Triangles (may be empty when only ``lines`` are written to VTK).
     point_data : mapping of str to array, optional
         Per-vertex arrays (VTK formats only).
-    lines : (k, 2) int array, optional
-        Line segments (VTK formats only), e.g. action lines.
+    lines : (k, j) int array, optional
+        Poly-lines of ``j >= 2`` points each (VTK formats only): segments of
+        action lines, or fibres.
+    cell_data : mapping of str to array, optional
+        Per-cell arrays (VTK formats only), lines first, then triangles.
 
     Returns
     -------
@@ -356,11 +364,21 @@ def write_mesh(
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
     if not np.isfinite(V).all():
         raise ValueError(f"{p}: refusing to write non-finite coordinates")
+    if lines is not None:
+        lines = np.asarray(lines, dtype=np.int64)
+        if lines.ndim != 2 or (len(lines) and lines.shape[1] < 2):
+            raise ValueError(f"{p}: lines must be (k, j) vertex indices with j >= 2")
+    n_cells = len(F) + (0 if lines is None else len(lines))
+    for name, values in (cell_data or {}).items():
+        if len(values) != n_cells:
+            raise ValueError(
+                f"{p}: cell array '{name}' has {len(values)} values for {n_cells} cells"
+            )
     with atomic_path(p) as tmp:
         if ext == ".vtp":
-            _write_vtp(tmp, V, F, point_data or {}, lines)
+            _write_vtp(tmp, V, F, point_data or {}, lines, cell_data or {})
         elif ext == ".vtk":
-            _write_vtk(tmp, V, F, point_data or {}, lines)
+            _write_vtk(tmp, V, F, point_data or {}, lines, cell_data or {})
         elif ext == ".ply":
             _write_ply(tmp, V, F)
         elif ext == ".obj":

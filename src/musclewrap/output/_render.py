@@ -324,6 +324,8 @@ def _main(argv: list[str]) -> int:  # pragma: no cover - runs in a child process
     for i in [0, *range(max(first, 1), last)] if first > 0 else range(first, last):
         t, files = steps[i]
         for f in files:
+            if "_fibres_" in Path(f).name:
+                continue  # inside the muscle, hidden by it
             part = Path(f).parts[0] + ("_lines" if "_lines_" in Path(f).name else "")
             if part in shown and shown[part][0] == f:
                 continue  # a static bone: drawn once

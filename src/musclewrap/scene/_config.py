@@ -15,7 +15,7 @@ from .._typing import PathLike
 from ..constants import defaults
 from ._errors import SceneError, suggest
 
-__all__ = ["UNITS", "BoneSpec", "MuscleSpec", "Scene", "load_scene"]
+__all__ = ["UNITS", "BoneSpec", "FibreSpec", "MuscleSpec", "Scene", "load_scene"]
 
 #: length units accepted in ``[units]``, in metres
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -31,6 +31,7 @@ _TOP = {
     "cache_dir",
     "registration",
     "collisions",
+    "fibres",
 }
 _MODEL = {"osim", "motion", "rest_pose", "angle_unit", "coordinates", "output_frame", "mesh_frame"}
 _LINES = {"csv", "rest_frame"}
@@ -40,6 +41,7 @@ _MUSCLE = {
     "max_iterations", "repair", "frame", "bones",
 }  # fmt: skip
 _COLLISIONS = {"enabled", "margin", "rest_overlap"}
+_FIBRES = {"count", "points", "moment_arms", "step", "voxels"}
 _BONE = {"mesh", "body", "frame"}
 _LANDMARK = {"name", "mesh", "fit", "body", "point"}
 
@@ -82,6 +84,21 @@ class MuscleSpec:
 
 
 @dataclass(frozen=True)
+class FibreSpec:
+    """The ``[fibres]`` table: fibres per muscle, and the coordinates of their moment arms.
+
+    ``step`` is the central difference's half-width: degrees for a rotational
+    coordinate, millimetres for a translational one.
+    """
+
+    count: int = 100
+    points: int = 15
+    moment_arms: tuple[str, ...] = ()
+    step: float = 1.0
+    voxels: int = 60_000
+
+
+@dataclass(frozen=True)
 class BoneSpec:
     """One bone carried rigidly by a body (display, penetration and contact)."""
 
@@ -119,6 +136,7 @@ class Scene:
     collisions: bool = True
     margin: float = 0.0
     rest_overlap: str = "resolve"
+    fibres: FibreSpec | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -412,7 +430,35 @@ def load_scene(path: PathLike) -> Scene:
         collisions=collisions and bool(bones),
         margin=margin,
         rest_overlap=rest_overlap,
+        fibres=_fibres(raw, src, osim),
     )
+
+
+def _fibres(raw: dict[str, Any], src: Path, osim: Path | None) -> FibreSpec | None:
+    if "fibres" not in raw:
+        return None
+    t = _table(raw["fibres"], "fibres", src)
+    _keys(t, _FIBRES, "[fibres]", src)
+    kw: dict[str, Any] = {}
+    for key, kind, least in (("count", int, 1), ("points", int, 2), ("voxels", int, 1000)):
+        if key in t:
+            kw[key] = _get(t, key, kind, "[fibres]", src)
+            if kw[key] < least:
+                raise SceneError(f"{src}: [fibres] {key} must be >= {least}, got {kw[key]}")
+    if "step" in t:
+        kw["step"] = _get(t, "step", float, "[fibres]", src)
+        if not 0 < kw["step"] <= 10:
+            raise SceneError(f"{src}: [fibres] step must lie in (0, 10], got {kw['step']}")
+    if "moment_arms" in t:
+        ma = t["moment_arms"]
+        if not (isinstance(ma, list) and all(isinstance(c, str) and c for c in ma)):
+            raise SceneError(f"{src}: [fibres] moment_arms must be a list of coordinate names")
+        if len(set(ma)) != len(ma):
+            raise SceneError(f"{src}: [fibres] moment_arms names a coordinate twice")
+        if ma and osim is None:
+            raise SceneError(f"{src}: [fibres] moment_arms need an OpenSim model ([model] osim)")
+        kw["moment_arms"] = tuple(ma)
+    return FibreSpec(**kw)
 
 
 def _registration(raw: dict[str, Any], base: Path, src: Path, osim: Path | None) -> Registration:

@@ -5,15 +5,24 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from .._typing import FloatArray
 from ..conditions import csv_rows
-from ._config import Scene
+from ._config import UNITS, Scene
 from ._errors import SceneError, suggest
 from ._motion import read_motion
 from ._opensim import OpenSimModel
 
-__all__ = ["Drive", "apply", "drive_scene", "invert_rigid", "parse_frames"]
+__all__ = [
+    "Drive",
+    "MomentArmPoses",
+    "apply",
+    "drive_scene",
+    "invert_rigid",
+    "parse_frames",
+    "polyline_length",
+]
 
 
 def apply(T: FloatArray, P: FloatArray) -> FloatArray:
@@ -114,6 +123,41 @@ class Drive:
     to_body: dict[str, FloatArray]
     to_output: dict[str, FloatArray]
     notes: list[str] = field(default_factory=list)
+    moment_arms: MomentArmPoses | None = None
+
+
+@dataclass
+class MomentArmPoses:
+    """The poses on either side of each frame for moment arms by central differences.
+
+    For frame position ``k`` and moment-arm coordinate ``c``, the pose is the frame's
+    with ``c`` moved by ``-steps[c]`` (side 0) and ``+steps[c]`` (side 1), in model
+    units. ``lines[muscle][k][c][side]`` and ``references`` are as in `Drive`;
+    ``to_output[body]`` is (n, C, 2, 4, 4). ``line[path]`` is (n, C): the moment arm
+    ``-dL/dq`` of the action line (its poly-line's length ``L``) by the same central
+    difference, and ``opensim[path]`` (n, C) OpenSim's ``computeMomentArm`` in the
+    frame's pose; both in mesh units for a rotational coordinate, and without units
+    for a translational one. ``switch[path]`` (n, C) marks where the path's points
+    differ in number between the three poses (a conditional via point switched, or
+    a wrap began or ended: the length has a kink there and the central difference
+    straddles it). ``per_q[c]`` turns a length difference (mesh units)
+    over ``2 * steps[c]`` into those units.
+    """
+
+    coordinates: tuple[str, ...]
+    steps: FloatArray
+    per_q: FloatArray
+    lines: dict[str, list[list[tuple[dict[str, FloatArray], dict[str, FloatArray]]]]]
+    references: dict[str, list[list[tuple[FloatArray | None, FloatArray | None]]]]
+    to_output: dict[str, FloatArray]
+    line: dict[str, FloatArray]
+    opensim: dict[str, FloatArray]
+    switch: dict[str, npt.NDArray[np.bool_]]
+
+
+def polyline_length(P: FloatArray) -> float:
+    """Length of a poly-line (k, 3)."""
+    return float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
 
 
 def _angle_in_degrees(scene: Scene, motion, model: OpenSimModel, coords) -> tuple[bool, str]:  # noqa: ANN001
@@ -279,6 +323,14 @@ def _drive_opensim(
     refs = {m.name: [] for m in scene.muscles}
     out_T = {b: np.empty((len(pos), 4, 4)) for b in bodies}
     values = {c: motion.columns[c] for c in coords}
+    ma = _moment_arm_poses(scene, model, len(pos), bodies)
+
+    def output_transforms(to_g: dict[str, FloatArray]) -> dict[str, FloatArray]:
+        out_inv = (
+            invert_rigid(to_g[scene.output_frame]) if scene.output_frame != "ground" else np.eye(4)
+        )
+        return {b: out_inv @ to_g[b] for b in bodies}
+
     for k, i in enumerate(pos):
         pose = dict(rest)
         for c in coords:
@@ -286,14 +338,37 @@ def _drive_opensim(
             pose[c] = np.radians(v) if (deg and model.is_rotational(c)) else v
         model.set_pose(pose)
         L, R, to_g = lines_now()
-        out_inv = (
-            invert_rigid(to_g[scene.output_frame]) if scene.output_frame != "ground" else np.eye(4)
-        )
+        if ma is not None:
+            for p in ma.opensim:
+                for j, c in enumerate(ma.coordinates):
+                    ma.opensim[p][k, j] = model.moment_arm(p, c) * s * ma.per_q[j]
         for m in scene.muscles:
             lines[m.name].append(L[m.name])
             refs[m.name].append(R[m.name])
-        for b in bodies:
-            out_T[b][k] = out_inv @ to_g[b]
+        for b, T in output_transforms(to_g).items():
+            out_T[b][k] = T
+        if ma is None:
+            continue
+        for m in scene.muscles:
+            ma.lines[m.name].append([])
+            ma.references[m.name].append([])
+        for j, c in enumerate(ma.coordinates):
+            sides = []
+            for side, sign in enumerate((-1.0, 1.0)):
+                model.set_pose({**pose, c: pose[c] + sign * ma.steps[j]})
+                sides.append(lines_now())
+                for b, T in output_transforms(sides[-1][2]).items():
+                    ma.to_output[b][k, j, side] = T
+            (Lm, Rm, _), (Lp, Rp, _) = sides
+            for m in scene.muscles:
+                ma.lines[m.name][k].append((Lm[m.name], Lp[m.name]))
+                ma.references[m.name][k].append((Rm[m.name], Rp[m.name]))
+                for p in m.paths:
+                    dL = polyline_length(Lp[m.name][p]) - polyline_length(Lm[m.name][p])
+                    ma.line[p][k, j] = -dL / (2 * ma.steps[j]) * ma.per_q[j]
+                    counts = {len(Lm[m.name][p]), len(L[m.name][p]), len(Lp[m.name][p])}
+                    ma.switch[p][k, j] = len(counts) > 1
+        model.set_pose(pose)
     return Drive(
         frames=pos,
         times=motion.time[pos],
@@ -304,6 +379,40 @@ def _drive_opensim(
         to_body=to_body,
         to_output=out_T,
         notes=notes,
+        moment_arms=ma,
+    )
+
+
+def _moment_arm_poses(
+    scene: Scene, model: OpenSimModel, n: int, bodies: list[str]
+) -> MomentArmPoses | None:
+    if scene.fibres is None or not scene.fibres.moment_arms:
+        return None
+    names = model.coordinate_names
+    for c in scene.fibres.moment_arms:
+        if c not in names:
+            raise SceneError(
+                f"{scene.path}: [fibres] moment_arms: the model has no coordinate '{c}'; "
+                + suggest(c, names)
+            )
+    coords = scene.fibres.moment_arms
+    rot = np.array([model.is_rotational(c) for c in coords])
+    s = scene.scale
+    # a rotational step in degrees; a translational one in millimetres (model units here)
+    steps = np.where(
+        rot, np.radians(scene.fibres.step), scene.fibres.step * 1e-3 / UNITS[scene.model_unit]
+    )
+    paths = [p for m in scene.muscles for p in m.paths]
+    return MomentArmPoses(
+        coordinates=tuple(coords),
+        steps=steps,
+        per_q=np.where(rot, 1.0, 1.0 / s),
+        lines={m.name: [] for m in scene.muscles},
+        references={m.name: [] for m in scene.muscles},
+        to_output={b: np.empty((n, len(coords), 2, 4, 4)) for b in bodies},
+        line={p: np.empty((n, len(coords))) for p in paths},
+        opensim={p: np.empty((n, len(coords))) for p in paths},
+        switch={p: np.zeros((n, len(coords)), dtype=bool) for p in paths},
     )
 
 

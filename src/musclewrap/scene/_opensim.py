@@ -147,6 +147,14 @@ class OpenSimModel:
             out[k] = (g.get(0), g.get(1), g.get(2))
         return out
 
+    def moment_arm(self, path: str, coordinate: str) -> float:
+        """OpenSim's moment arm of a muscle path about a coordinate in the current pose.
+
+        ``GeometryPath.computeMomentArm`` (model length units for a rotational
+        coordinate, none for a translational one).
+        """
+        return float(self._paths[path].computeMomentArm(self.state, self._coords[coordinate]))
+
     def transform(self, body: str, frame: str) -> FloatArray:
         """4x4 rigid transform taking ``body``-frame coordinates to ``frame`` (model units)."""
         src, dst = self._frame(body), self._frame(frame)

@@ -26,6 +26,16 @@ from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, vertex_origins,
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
+from ._fibres import (
+    FIBRES_CSV,
+    MOMENT_ARMS_CSV,
+    PLOT_MOMENT_ARMS,
+    fibres_key,
+    fibres_of,
+    frame_fibres,
+    write_fibre_outputs,
+    write_frame_fibres,
+)
 from ._journal import JOURNAL, Journal
 
 __all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_scene"]
@@ -62,6 +72,9 @@ _TOP_FILES = (
     PLOT_VOLUME,
     PLOT_CONVERGENCE,
     PLOT_PENETRATION,
+    FIBRES_CSV,
+    MOMENT_ARMS_CSV,
+    PLOT_MOMENT_ARMS,
     JOURNAL,
 )
 
@@ -128,6 +141,7 @@ class RunSummary:
 _progress_queue: Any = None
 _probes: dict[tuple[str, str | None], Any] = {}
 _deformers: dict[tuple[Any, ...], Any] = {}
+_fibres_kept: dict[tuple[Any, ...], Any] = {}
 
 
 def _init_worker(queue: Any, threads: int) -> None:
@@ -218,9 +232,15 @@ def _fill_cache(task: tuple[str, Any]) -> dict[str, Any] | None:
     For a muscle, what its preparation reports (the later jobs read it from the cache).
     """
     kind, arg = task
+    if kind == "fibres":  # the muscle is prepared (cached) already
+        muscle, _, _ = _prepare(arg)
+        fibres_of(muscle, arg, _fibres_path(arg))
+        return None
     if kind == "muscle":
         t0 = time.perf_counter()
-        _, hit, note = _prepare(arg)
+        muscle, hit, note = _prepare(arg)
+        if arg["fibres"] is not None:
+            fibres_of(muscle, arg, _fibres_path(arg))
         return {
             "name": arg["name"],
             "seconds_prepare": time.perf_counter() - t0,
@@ -248,13 +268,36 @@ def _deformer(job: dict[str, Any]) -> tuple[Any, Any, bool, str | None, float]:
     return muscle, d, hit, note, seconds
 
 
+def _fibres_path(job: dict[str, Any]) -> Path | None:
+    cache = job["cache_dir"]
+    if cache is None or job["fibres"] is None:
+        return None
+    key = fibres_key(_cache_key(job["V"], job["F"], job), job)
+    return Path(cache) / f"fibres-{job['name']}-{key}.npz"
+
+
+def _fibres(job: dict[str, Any], muscle: Any) -> tuple[Any, str | None]:
+    """The muscle's fibres (None without a ``[fibres]`` table), kept per process."""
+    if job["fibres"] is None:
+        return None, None
+    key = (job["name"], job["run"])
+    if key not in _fibres_kept:
+        _fibres_kept.clear()
+        _fibres_kept[key] = fibres_of(muscle, job, _fibres_path(job))
+    return _fibres_kept[key]  # type: ignore[no-any-return]
+
+
 _PER_FRAME = ("frames", "times", "lines", "references", "to_output")
+_PER_FRAME_MA = ("ma_lines", "ma_references", "ma_to_output")
 
 
 def _slice(job: dict[str, Any], ks: range) -> dict[str, Any]:
     """The job for frames ``ks`` only (what a worker needs of a chunk)."""
-    part = {**job, **{k: job[k][ks.start : ks.stop] for k in _PER_FRAME}, "offset": ks.start}
+    keys = _PER_FRAME + (_PER_FRAME_MA if job.get("ma") is not None else ())
+    part = {**job, **{k: job[k][ks.start : ks.stop] for k in keys}, "offset": ks.start}
     part["bones"] = [(V, F, T[ks.start : ks.stop], *rest) for V, F, T, *rest in job["bones"]]
+    if job.get("ma") is not None:
+        part["ma_bone_T"] = {b: T[ks.start : ks.stop] for b, T in job["ma_bone_T"].items()}
     return part
 
 
@@ -270,31 +313,42 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
     contact = job["contact"]  # None (no collisions), or {bone: allowance or None}
     out = Path(job["outdir"])
     name = job["name"]
-    rows, entries = [], []
+    rows, entries, fibres = [], [], []
+    fb, fibre_note = _fibres(job, muscle)
     kw: dict[str, Any] = {"method": job["method"], "max_iterations": job["max_iterations"]}
     if contact is not None:
         kw["margin"] = job["margin"]
-    for k in range(len(job["frames"])):
-        frame = job["frames"][k]
-        T = job["to_output"][k]
+
+    def solve(
+        lines: dict[str, FloatArray],
+        reference: FloatArray | None,
+        T: FloatArray,
+        bone_T: dict[str, FloatArray],
+        finish: bool = True,
+    ) -> Any:
         if contact is not None:
             kw["obstacles"] = [
                 # muscle's body frame -> bone's body frame in one transform
-                Placed(probe, invert_rigid(TB[k]) @ T, contact[bname], bname)
-                for probe, TB, bname in probes
+                Placed(probe, invert_rigid(bone_T[bname]) @ T, contact[bname], bname)
+                for probe, _, bname in probes
                 if bname in contact
             ]
         try:
-            res = d.deform(job["lines"][k], reference_point=job["references"][k], **kw)
+            return d.deform(lines, reference_point=reference, finish=finish, **kw)
         except LineError as exc:
-            # this frame's lines cannot drive the muscle (e.g. a path collapsed to a point):
+            # this pose's lines cannot drive the muscle (e.g. a path collapsed to a point):
             # the frame is reported as failed and the motion goes on
-            res = DeformationResult.failed(
+            return DeformationResult.failed(
                 len(muscle.V),
                 len(muscle.cage.C),
                 muscle.volume_rest,
                 f"invalid action lines in this frame: {exc}",
             )
+
+    for k in range(len(job["frames"])):
+        frame = job["frames"][k]
+        T = job["to_output"][k]
+        res = solve(job["lines"][k], job["references"][k], T, {b: TB[k] for _, TB, b in probes})
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
         n_in, depth = (0, 0.0) if ok_values else (float("nan"), float("nan"))
@@ -321,6 +375,21 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
             o += len(Pp)
         write_mesh(out / lname, np.vstack(P), np.zeros((0, 3), int), lines=np.array(segs))
         entries.append((job["offset"] + k, lname))
+        if fb is not None:
+            got = frame_fibres(fb, res, k, job, solve)
+            if got["points"] is not None:
+                fname = f"{name}/{name}_fibres_{frame:04d}.vtp"
+                write_frame_fibres(out / fname, fb, got["points"], T)
+                entries.append((job["offset"] + k, fname))
+            fibres.append(
+                {
+                    "frame": int(frame),
+                    "time": float(job["times"][k]),
+                    "lengths": got["lengths"].tolist(),
+                    "moment_arms": got["moment_arms"].tolist(),
+                    "unconverged": got["unconverged"],
+                }
+            )
         rows.append(
             {
                 "frame": int(frame),
@@ -346,9 +415,10 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
         "name": name,
         "rows": rows,
         "entries": entries,
+        "fibres": fibres,
         "seconds_prepare": seconds_prepare,
         "cache_hit": hit,
-        "note": note,
+        "note": "; ".join(n for n in (note, fibre_note) if n) or None,
     }
 
 
@@ -403,6 +473,7 @@ def _merge(job: dict[str, Any], parts: list[dict[str, Any]]) -> dict[str, Any]:
         "name": job["name"],
         "rows": [r for p in parts for r in p["rows"]],
         "entries": [e for p in parts for e in p["entries"]],
+        "fibres": [f for p in parts for f in p.get("fibres", [])],
         "seconds_prepare": first["seconds_prepare"],
         "cache_hit": first["cache_hit"],
         "note": next((p["note"] for p in parts if p["note"]), None),
@@ -1054,6 +1125,7 @@ def _run(
                 "outdir": str(outdir),
                 "paper_frames": scene.paper_frames,
                 "run": run,
+                **_fibre_job(scene, drive, spec),
             }
         )
     bar = _Progress(n * len(jobs), progress) if progress is not None else None
@@ -1085,6 +1157,12 @@ def _run(
             for V, F, _, name, _ in bone_local.values()
             if not (cache / name).is_file()
         ]
+        # fibres of a muscle prepared already (those of one prepared here come with it)
+        fill += [
+            ("fibres", j)
+            for j in jobs
+            if ("muscle", j) not in fill and (p := _fibres_path(j)) and not p.is_file()
+        ]
     chunks = _chunks(n, len(jobs), 0 if pool is None else pool.n)
     journal = Journal(outdir, key, [(c.start, c.stop) for c in chunks], resume)
     notes += journal.notes
@@ -1104,6 +1182,9 @@ def _run(
     ]
     if frames_written is not None:
         frames_written()
+    if scene.fibres is not None:
+        paths = {s.name: s.paths for s in scene.muscles}
+        files += write_fibre_outputs(outdir, drive, results, paths, notes)
     files += _plots(outdir, scene, results, contact is not None)
     worst = max(
         (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
@@ -1123,6 +1204,26 @@ def _run(
         files=files,
     )
     return summary
+
+
+def _fibre_job(scene: Scene, drive: Drive, spec: Any) -> dict[str, Any]:
+    """A muscle job's fibre settings and, for moment arms, its side poses."""
+    if scene.fibres is None:
+        return {"fibres": None, "ma": None}
+    f = scene.fibres
+    out: dict[str, Any] = {
+        "fibres": {"count": f.count, "points": f.points, "voxels": f.voxels},
+        "ma": None,
+    }
+    ma = drive.moment_arms
+    if ma is None:
+        return out
+    out["ma"] = {"coordinates": ma.coordinates, "steps": ma.steps, "per_q": ma.per_q}
+    out["ma_lines"] = ma.lines[spec.name]
+    out["ma_references"] = ma.references[spec.name]
+    out["ma_to_output"] = ma.to_output[spec.body]
+    out["ma_bone_T"] = {b.name: ma.to_output[b.body] for b in scene.bones}
+    return out
 
 
 class _Pool:

@@ -1,0 +1,331 @@
+"""Fibres of a scene's muscles: built once per muscle, carried and measured per frame, written.
+
+A worker builds (or reads from the cache) each muscle's fibres at rest
+(`musclewrap.fibres.fibres_at_rest`), carries them with every frame's cage and, where
+the scene asks for moment arms, deforms the muscle again at the poses on either side
+of the frame (``q -/+ h`` for each coordinate, each solved from the rest pose like any
+frame) for ``r = -dL/dq`` by central differences. The main process writes the rows
+(``fibres.csv``, ``moment_arms.csv``) and the plot (``moment_arms.png``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from .._cache import cached_arrays, digest
+from .._typing import FloatArray
+from ..mesh import write_mesh
+from ._drive import Drive, apply
+
+__all__ = [
+    "FIBRES_CSV",
+    "FIBRE_FIELDS",
+    "MOMENT_ARMS_CSV",
+    "MOMENT_ARM_FIELDS",
+    "PLOT_MOMENT_ARMS",
+    "fibres_key",
+    "fibres_of",
+    "frame_fibres",
+    "write_fibre_outputs",
+    "write_frame_fibres",
+]
+
+FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS = "fibres.csv", "moment_arms.csv", "moment_arms.png"
+FIBRE_FIELDS = ["frame", "time", "muscle", "fibre", "length", "coordinate", "moment_arm"]
+MOMENT_ARM_FIELDS = [
+    "frame",
+    "time",
+    "muscle",
+    "coordinate",
+    "fibre_min",
+    "fibre_mean",
+    "fibre_max",
+    "line_moment_arm",
+    "opensim_moment_arm",
+]
+_FORMAT = 1  # of the cached fibres
+
+
+def fibres_key(muscle_key: str, job: dict[str, Any]) -> str:
+    """The cache key of a muscle's fibres: its preparation's key, rest lines and settings."""
+    spec, lines = job["fibres"], job["rest_lines"]
+    return digest(
+        muscle_key,
+        *(np.asarray(lines[p], dtype=np.float64) for p in sorted(lines)),
+        f"{spec['count']}|{spec['points']}|{spec['voxels']}|{_FORMAT}|{__version__}",
+    )[:32]
+
+
+def fibres_of(muscle: Any, job: dict[str, Any], path: Path | None) -> tuple[Any, str | None]:
+    """The muscle's fibres at rest, read from the cache file ``path`` or built (and cached).
+
+    Returns
+    -------
+    Fibres or None, and a note: None, or why the muscle has no fibres
+    """
+    from ..fibres import Fibres, fibres_at_rest
+
+    spec = job["fibres"]
+
+    def build() -> dict[str, np.ndarray]:
+        fb = fibres_at_rest(
+            muscle,
+            job["rest_lines"],
+            count=spec["count"],
+            points=spec["points"],
+            voxels=spec["voxels"],
+        )
+        return {
+            "points": fb.points,
+            "W": fb.W,
+            "origin": fb.origin,
+            "insertion": fb.insertion,
+            "spacing": np.array(fb.spacing),
+        }
+
+    try:
+        z = cached_arrays(path, build)
+    except ValueError as exc:
+        return None, f"{job['name']}: no fibres ({exc})"
+    return Fibres(
+        points=z["points"],
+        W=z["W"],
+        origin=z["origin"],
+        insertion=z["insertion"],
+        spacing=float(z["spacing"]),
+    ), None
+
+
+def frame_fibres(
+    fb: Any,
+    res: Any,
+    k: int,
+    job: dict[str, Any],
+    solve: Callable[[Any, Any, FloatArray, dict[str, FloatArray], bool], Any],
+) -> dict[str, Any]:
+    """One frame's fibres: their lengths and, where asked, their moment arms.
+
+    Parameters
+    ----------
+    fb : Fibres
+    res : DeformationResult
+        The frame's deformation.
+    k : int
+        The frame's position in ``job``'s slice.
+    job : dict
+        The muscle's job (``ma_*`` entries where moment arms are asked).
+    solve : callable
+        ``solve(lines, reference, T, bone_T, finish)``: the deformation at a pose with
+        the muscle body's transform ``T`` and each bone's ``bone_T`` (for contact);
+        called with ``finish=False`` (`musclewrap.Deformer.deform`).
+
+    Returns
+    -------
+    dict
+        ``points`` (N, K, 3) or None, ``lengths`` (N,), ``moment_arms`` (C, N) (NaN
+        where a solve failed or did not converge), ``unconverged`` (solves).
+    """
+    n = len(fb.points)
+    ma = job.get("ma")
+    coords = () if ma is None else ma["coordinates"]
+    out: dict[str, Any] = {
+        "points": None,
+        "lengths": np.full(n, np.nan),
+        "moment_arms": np.full((len(coords), n), np.nan),
+        "unconverged": 0,
+    }
+    if not (res.converged and np.isfinite(res.cage).all()):
+        return out
+    out["points"] = fb.at(res.cage)
+    out["lengths"] = fb.lengths(out["points"])
+    for j in range(len(coords)):
+        L = []
+        for side in (0, 1):
+            bone_T = {b: T[k, j, side] for b, T in job["ma_bone_T"].items()}
+            r = solve(
+                job["ma_lines"][k][j][side],
+                job["ma_references"][k][j][side],
+                job["ma_to_output"][k, j, side],
+                bone_T,
+                False,  # the fine finish moves no cage vertex: the fibres are the same
+            )
+            if not (r.converged and np.isfinite(r.cage).all()):
+                out["unconverged"] += 1
+                break
+            L.append(fb.lengths(fb.at(r.cage)))
+        if len(L) == 2:
+            out["moment_arms"][j] = -(L[1] - L[0]) / (2 * ma["steps"][j]) * ma["per_q"][j]
+    return out
+
+
+def write_frame_fibres(path: Path, fb: Any, points: FloatArray, T: FloatArray) -> None:
+    """A frame's fibres as one poly-line cell each, in the output frame (VTP)."""
+    n, k = points.shape[:2]
+    lengths = fb.lengths(points)
+    write_mesh(
+        path,
+        apply(T, points.reshape(-1, 3)),
+        np.zeros((0, 3), dtype=np.int64),
+        lines=np.arange(n * k).reshape(n, k),
+        cell_data={
+            "fibre": np.arange(n, dtype=np.int64),
+            "length": lengths,
+            "stretch": lengths / fb.lengths(),
+        },
+    )
+
+
+def _rows(
+    drive: Drive, results: Sequence[dict[str, Any]], muscles: dict[str, tuple[str, ...]]
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    ma = drive.moment_arms
+    coords = () if ma is None else ma.coordinates
+    fibre_rows: list[dict[str, Any]] = []
+    arm_rows: list[dict[str, Any]] = []
+    position = {f: k for k, f in enumerate(drive.frames)}
+    for res in results:
+        name = res["name"]
+        for fr in res["fibres"]:
+            k = position[fr["frame"]]
+            lengths = np.asarray(fr["lengths"], dtype=np.float64)
+            arms = np.asarray(fr["moment_arms"], dtype=np.float64).reshape(
+                len(coords), len(lengths)
+            )
+            base = {"frame": fr["frame"], "time": fr["time"], "muscle": name}
+            if not coords:
+                fibre_rows += [
+                    {**base, "fibre": i, "length": float(x), "coordinate": "", "moment_arm": ""}
+                    for i, x in enumerate(lengths)
+                ]
+                continue
+            for j, c in enumerate(coords):
+                fibre_rows += [
+                    {
+                        **base,
+                        "fibre": i,
+                        "length": float(x),
+                        "coordinate": c,
+                        "moment_arm": float(r),
+                    }
+                    for i, (x, r) in enumerate(zip(lengths, arms[j], strict=True))
+                ]
+                ok = np.isfinite(arms[j])
+                paths = muscles[name]
+                arm_rows.append(
+                    {
+                        **base,
+                        "coordinate": c,
+                        "fibre_min": float(arms[j].min()) if ok.all() else float("nan"),
+                        "fibre_mean": float(arms[j].mean()) if ok.all() else float("nan"),
+                        "fibre_max": float(arms[j].max()) if ok.all() else float("nan"),
+                        # a muscle of several paths: the mean of its paths' moment arms
+                        "line_moment_arm": float(np.mean([ma.line[p][k, j] for p in paths])),
+                        "opensim_moment_arm": float(np.mean([ma.opensim[p][k, j] for p in paths])),
+                    }
+                )
+    return fibre_rows, arm_rows
+
+
+def write_fibre_outputs(
+    outdir: Path,
+    drive: Drive,
+    results: Sequence[dict[str, Any]],
+    muscles: dict[str, tuple[str, ...]],
+    notes: list[str],
+) -> list[Path]:
+    """``fibres.csv`` and, with moment arms, ``moment_arms.csv`` and ``moment_arms.png``.
+
+    Parameters
+    ----------
+    muscles : dict of str to tuple of str
+        Each muscle's OpenSim paths (its action line's moment arm is their mean).
+    notes : list of str
+        Gets a line per path whose central difference straddles a switch of its
+        points on some frames, and per muscle with unconverged moment-arm solves.
+    """
+    from ..output import write_csv
+
+    fibre_rows, arm_rows = _rows(drive, results, muscles)
+    files = [write_csv(outdir / FIBRES_CSV, fibre_rows, FIBRE_FIELDS)]
+    for res in results:
+        bad = sum(fr["unconverged"] for fr in res["fibres"])
+        if bad:
+            notes.append(
+                f"{res['name']}: {bad} solve(s) at a moment arm's side pose did not converge: "
+                "those moment arms are empty (nan)"
+            )
+    ma = drive.moment_arms
+    if ma is None:
+        return files
+    for p, sw in ma.switch.items():
+        if sw.any():
+            where = ", ".join(
+                f"{c} at frame(s) {', '.join(str(drive.frames[k]) for k in np.flatnonzero(sw[:, j]))}"
+                for j, c in enumerate(ma.coordinates)
+                if sw[:, j].any()
+            )
+            notes.append(
+                f"path {p}: the central difference straddles a change of its points ({where}): "
+                "a conditional via point or wrap switches there, and its moment arm has a jump"
+            )
+    files.append(write_csv(outdir / MOMENT_ARMS_CSV, arm_rows, MOMENT_ARM_FIELDS))
+    files.append(plot_moment_arms(outdir / PLOT_MOMENT_ARMS, arm_rows, ma.coordinates, ma.per_q))
+    return files
+
+
+def plot_moment_arms(
+    path: Path, rows: Sequence[dict[str, Any]], coordinates: Sequence[str], per_q: FloatArray
+) -> Path:
+    """Per muscle (row) and coordinate (column): the fibres' range and mean over the motion.
+
+    Beside them the action line's moment arm (central differences) and OpenSim's.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..output._series import _save_png
+
+    names = list(dict.fromkeys(r["muscle"] for r in rows))
+    nr, nc = max(1, len(names)), max(1, len(coordinates))
+    fig, axes = plt.subplots(
+        nr, nc, figsize=(3.2 * nc + 0.8, 2.3 * nr + 0.6), squeeze=False, sharex=True
+    )
+    for i, name in enumerate(names):
+        for j, c in enumerate(coordinates):
+            ax = axes[i, j]
+            sel = [r for r in rows if r["muscle"] == name and r["coordinate"] == c]
+            t = np.array([r["time"] for r in sel])
+            lo, mean, hi, line, osim = (
+                np.array([r[key] for r in sel], dtype=np.float64)
+                for key in (
+                    "fibre_min",
+                    "fibre_mean",
+                    "fibre_max",
+                    "line_moment_arm",
+                    "opensim_moment_arm",
+                )
+            )
+            ax.fill_between(t, lo, hi, color="tab:red", alpha=0.25, lw=0, label="fibres (range)")
+            ax.plot(t, mean, color="tab:red", lw=1.5, label="fibres (mean)")
+            ax.plot(t, line, color="black", lw=1.2, ls="--", label="action line")
+            ax.plot(t, osim, color="tab:blue", lw=0.8, ls=":", label="OpenSim")
+            ax.axhline(0.0, color="0.6", lw=0.5)
+            ax.grid(True, alpha=0.3)
+            if i == 0:
+                ax.set_title(c, fontsize=9)
+            if j == 0:
+                unit = "moment arm" if per_q[j] == 1.0 else "moment arm (-)"
+                ax.set_ylabel(f"{name}\n{unit}", fontsize=8)
+            if i == nr - 1:
+                ax.set_xlabel("time (s)", fontsize=8)
+            ax.tick_params(labelsize=7)
+    axes[0, 0].legend(fontsize=6, loc="best")
+    fig.suptitle("moment arms -dL/dq (mesh units per radian)", fontsize=9)
+    return _save_png(fig, path)
