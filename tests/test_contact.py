@@ -446,3 +446,18 @@ def test_an_open_bone_is_closed_for_contact_or_refused(data_dir, tmp_path):
     write_mesh(tmp_path / "open.vtp", V, F[:3])
     with pytest.raises(SceneError, match="open.vtp: the bone 'femur' is open.*could not be closed"):
         run_scene(load_scene(toml), tmp_path / "o2", frames="0:2", cache_dir=False, progress=None)
+
+
+def test_without_the_fine_finish_the_cage_is_the_same(bent):
+    """``finish=False`` (the side poses of moment arms): the same cage at about half the cost."""
+    d, cur = bent
+    box = Obstacle(*_box([12.0, -300, -300], [400, 300, 500]))
+    full = d.deform(cur, obstacles=[box])
+    cage_only = d.deform(cur, obstacles=[box], finish=False)
+    assert full.converged and cage_only.converged
+    assert full.contact_vertices > 50  # the finish did move vertices
+    np.testing.assert_array_equal(cage_only.cage, full.cage)
+    # its fine positions are the cage's: W @ x, on the exact volume the cage steps end on
+    np.testing.assert_allclose(cage_only.V, d.muscle.W @ cage_only.cage, atol=1e-9)
+    assert abs(cage_only.relative_volume_error) <= 1e-12
+    assert np.abs(full.V - cage_only.V).max() > 1.0

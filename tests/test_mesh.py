@@ -396,3 +396,31 @@ def test_sliver_hole_and_fin_are_repaired_with_the_change_reported():
         assert len(notes) == 1 and f"repaired with PyMeshFix ({problem}" in notes[0]
         assert "volume " in notes[0] and "relative)" in notes[0]
         assert volume(V3, F3) == pytest.approx(want, rel=1e-3)
+
+
+@pytest.mark.parametrize("ext", [".vtp", ".vtk"])
+def test_poly_lines_and_cell_data_read_back_with_vtk(tmp_path, ext):
+    """Fibres: one poly-line cell of K points each, with per-cell arrays, read by VTK itself."""
+    import pyvista as pv
+
+    n, k = 4, 5
+    P = np.random.default_rng(1).normal(size=(n * k, 3))
+    lines = np.arange(n * k).reshape(n, k)
+    path = write_mesh(
+        tmp_path / f"f{ext}",
+        P,
+        np.zeros((0, 3), int),
+        lines=lines,
+        cell_data={"fibre": np.arange(n), "length": np.linspace(1, 2, n)},
+    )
+    m = pv.read(path)
+    assert m.n_cells == n and m.n_points == n * k
+    np.testing.assert_array_equal(m.lines.reshape(n, k + 1)[:, 1:], lines)
+    np.testing.assert_array_equal(m.cell_data["fibre"], np.arange(n))
+    np.testing.assert_allclose(m.cell_data["length"], np.linspace(1, 2, n))
+    np.testing.assert_allclose(m.points, P)
+    with pytest.raises(ValueError, match="cell array 'x' has 3 values for 4 cells"):
+        write_mesh(tmp_path / f"g{ext}", P, np.zeros((0, 3), int), lines=lines,
+                   cell_data={"x": np.zeros(3)})  # fmt: skip
+    with pytest.raises(ValueError, match="j >= 2"):
+        write_mesh(tmp_path / f"h{ext}", P, np.zeros((0, 3), int), lines=lines[:, :1])

@@ -99,6 +99,62 @@ def _write_demo(tmp_path, n_frames=7):
     return sc, toml
 
 
+def test_fibres_in_a_line_csv_scene(tmp_path):
+    """[fibres] without moment arms: fibre files per frame in the series and their lengths."""
+    import pyvista as pv
+
+    sc, toml = _write_demo(tmp_path)
+    toml.write_text(toml.read_text() + "[fibres]\ncount = 20\npoints = 9\n")
+    scene = load_scene(toml)
+    assert scene.fibres.count == 20 and scene.fibres.moment_arms == ()
+    out = tmp_path / "out"
+    s = run_scene(scene, out, workers=1, cache_dir=tmp_path / "cache", progress=None)
+    assert s.unconverged == 0
+    rows = _rows(out / "fibres.csv")
+    assert len(rows) == 7 * 20 and {r["coordinate"] for r in rows} == {""}
+    assert not (out / "moment_arms.csv").exists()
+    pvd = (out / "scene.pvd").read_text()
+    L = {}
+    for k in range(7):
+        f = out / "fusiform" / f"fusiform_fibres_{k:04d}.vtp"
+        assert f.name in pvd
+        m = pv.read(f)
+        assert m.n_cells == 20 and m.n_points == 180
+        P = np.asarray(m.points).reshape(20, 9, 3)
+        L[k] = np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1)
+        np.testing.assert_allclose(m.cell_data["length"], L[k], rtol=1e-12)
+        np.testing.assert_allclose(m.cell_data["stretch"], L[k] / L[0], rtol=1e-9)
+        got = [float(r["length"]) for r in rows if r["frame"] == str(k)]
+        np.testing.assert_allclose(got, L[k], rtol=1e-12)
+    # the demo's muscle shortens as its line does: so do its fibres
+    assert L[6].mean() < L[0].mean()
+    # a second run reads the fibres from the cache: the same files
+    again = tmp_path / "again"
+    run_scene(load_scene(toml), again, workers=1, cache_dir=tmp_path / "cache", progress=None)
+    assert (again / "fibres.csv").read_bytes() == (out / "fibres.csv").read_bytes()
+    assert len(list((tmp_path / "cache").glob("fibres-*.npz"))) == 1
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ("[fibres]\ncounts = 3\n", "unknown key 'counts' in \\[fibres\\]"),
+        ("[fibres]\ncount = 0\n", "count must be >= 1"),
+        ("[fibres]\npoints = 1\n", "points must be >= 2"),
+        ("[fibres]\nstep = 0.0\n", "step must lie in"),
+        ("[fibres]\nmoment_arms = 'hip'\n", "must be a list of coordinate names"),
+        ("[fibres]\nmoment_arms = ['a', 'a']\n", "names a coordinate twice"),
+        ("[fibres]\nmoment_arms = ['hip']\n", "need an OpenSim model"),
+        ("[fibres]\nmoment_arm_contact = 1\n", "moment_arm_contact must be bool"),
+    ],
+)
+def test_fibre_settings_are_checked(tmp_path, table, message):
+    _, toml = _write_demo(tmp_path)
+    toml.write_text(toml.read_text() + table)
+    with pytest.raises(SceneError, match=message):
+        load_scene(toml)
+
+
 def test_line_csv_scene_runs_and_writes_everything(tmp_path):
     sc, toml = _write_demo(tmp_path)
     scene = load_scene(toml)
@@ -392,12 +448,17 @@ def test_gait2392_vhf_example_runs(data_dir, tmp_path):
 def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys, collisions):
     out = tmp_path / "sweeps"
     args = ["run", str(EXAMPLES / "lhdl_hip_sweeps.toml"), "-o", str(out), "--no-gif"]
-    args += ["--cache-dir", str(tmp_path / "c")] + ([] if collisions else ["--no-collisions"])
+    args += ["--cache-dir", str(tmp_path / "c")]
+    args += [] if collisions else ["--no-collisions", "--no-fibres"]
     assert main(args) == 0
     for motion in ("hip_flexion", "hip_adduction", "hip_rotation"):
         rows = _rows(out / motion / "report.csv")
         n = read_motion(data_dir / "lhdl" / "motions" / f"{motion}.mot").n_frames
         assert len(rows) == 4 * n
+        if collisions:
+            _check_sweep_fibres(out / motion, n)
+        else:
+            assert not (out / motion / "fibres.csv").exists()
         for r in rows:
             assert r["converged"] == "True", r
             assert abs(float(r["relative_volume_error"])) <= 1e-9, r
@@ -409,6 +470,67 @@ def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys, collisions):
                 assert float(r["skeleton_fit_mean"]) <= 1.0, r
                 assert float(r["shape_change_max"]) <= 0.5, r
     assert "unconverged frames 0" in capsys.readouterr().out
+
+
+def _check_sweep_fibres(folder, n):
+    """Issue 14's targets on one sweep: every fibre point inside its deformed muscle on every
+    frame (winding number > 0.5), and the files' layout."""
+    import igl
+    import pyvista as pv
+
+    muscles = ("gluteus_maximus", "gluteus_medius", "iliacus", "psoas")
+    coords = ("hip_flexion_r", "hip_adduction_r", "hip_rotation_r")
+    pvd = (folder / "scene.pvd").read_text()
+    worst = 1.0
+    for m in muscles:
+        files = sorted((folder / m).glob(f"{m}_fibres_*.vtp"))
+        assert len(files) == n, m
+        for f in files:
+            assert f.name in pvd
+            fib = pv.read(f)
+            assert fib.n_cells == 100 and fib.n_points == 1500
+            mesh = pv.read(f.with_name(f.name.replace("_fibres_", "_")))
+            F = mesh.faces.reshape(-1, 4)[:, 1:]
+            w = igl.fast_winding_number(np.asarray(mesh.points), F, np.asarray(fib.points))
+            worst = min(worst, float(w.min()))
+    assert worst > 0.5, worst
+    fibres = _rows(folder / "fibres.csv")
+    assert list(fibres[0]) == ["frame", "time", "muscle", "fibre", "length", "coordinate",
+                               "moment_arm"]  # fmt: skip
+    assert len(fibres) == n * len(muscles) * 100 * len(coords)
+    arms = _rows(folder / "moment_arms.csv")
+    assert len(arms) == n * len(muscles) * len(coords)
+    for r in arms:
+        lo, mean, hi = (float(r[k]) for k in ("fibre_min", "fibre_mean", "fibre_max"))
+        assert lo <= mean <= hi, r
+    assert (folder / "moment_arms.png").stat().st_size > 10_000
+
+
+@pytest.mark.realdata
+def test_lhdl_line_moment_arms_match_opensim(data_dir):
+    """The action line's -dL/dq by central differences against OpenSim's computeMomentArm:
+    within 0.1 mm on every frame of the three sweeps, away from the frames where the
+    difference straddles a conditional via point's switch (those are marked)."""
+    import dataclasses
+
+    from musclewrap.scene import drive_scene
+
+    scene = load_scene(EXAMPLES / "lhdl_hip_sweeps.toml")
+    switched = 0
+    for motion in scene.motions:
+        sc = dataclasses.replace(scene, motions=(motion,))
+        ma = drive_scene(sc, None, {b.name: np.zeros(3) for b in sc.bones}).moment_arms
+        assert ma.coordinates == ("hip_flexion_r", "hip_adduction_r", "hip_rotation_r")
+        for p, line in ma.line.items():
+            ok = ~ma.switch[p]
+            assert np.abs(line - ma.opensim[p])[ok].max() <= 0.1, (motion.stem, p)
+            # the peaks are real moment arms (mm), not zero
+            assert np.abs(ma.opensim[p]).max() > 1.0
+            switched += int((~ok).sum())
+            # at a marked switch the two do differ: the mark is not a blanket exclusion
+            if (~ok).any():
+                assert np.abs(line - ma.opensim[p])[~ok].max() > 0.1
+    assert 0 < switched <= 4  # the iliacus's and psoas's via points in flexion
 
 
 @pytest.mark.parametrize("workers", [1, 2])

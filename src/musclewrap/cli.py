@@ -109,6 +109,11 @@ def _parser() -> argparse.ArgumentParser:
         help="let muscles pass through bones (penetration is still measured and reported)",
     )
     ru.add_argument(
+        "--no-fibres",
+        action="store_true",
+        help="skip the scene's [fibres] (fibres, their lengths and moment arms)",
+    )
+    ru.add_argument(
         "--allow-unconverged", action="store_true", help="exit 0 even if a frame did not converge"
     )
     ru.add_argument(
@@ -370,6 +375,8 @@ def _cmd_run(a: argparse.Namespace) -> int:
         raise ValueError(f"--workers must be at least 1, got {workers}")
     cache: Path | bool = False if a.no_cache else (Path(a.cache_dir) if a.cache_dir else True)
     # several motions (e.g. sweeps): one output folder each
+    if a.no_fibres:
+        scene = dataclasses.replace(scene, fibres=None)
     runs = (
         [(scene, out)]
         if len(scene.motions) <= 1

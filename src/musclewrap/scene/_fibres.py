@@ -106,7 +106,7 @@ def frame_fibres(
     res: Any,
     k: int,
     job: dict[str, Any],
-    solve: Callable[[Any, Any, FloatArray, dict[str, FloatArray], bool], Any],
+    solve: Callable[[Any, Any, FloatArray, dict[str, FloatArray], bool, bool], Any],
 ) -> dict[str, Any]:
     """One frame's fibres: their lengths and, where asked, their moment arms.
 
@@ -120,9 +120,10 @@ def frame_fibres(
     job : dict
         The muscle's job (``ma_*`` entries where moment arms are asked).
     solve : callable
-        ``solve(lines, reference, T, bone_T, finish)``: the deformation at a pose with
-        the muscle body's transform ``T`` and each bone's ``bone_T`` (for contact);
-        called with ``finish=False`` (`musclewrap.Deformer.deform`).
+        ``solve(lines, reference, T, bone_T, finish, bones)``: the deformation at a
+        pose with the muscle body's transform ``T`` and each bone's ``bone_T``;
+        called with ``finish=False`` (`musclewrap.Deformer.deform`) and ``bones`` as
+        the scene's ``[fibres] moment_arm_contact`` says.
 
     Returns
     -------
@@ -153,6 +154,7 @@ def frame_fibres(
                 job["ma_to_output"][k, j, side],
                 bone_T,
                 False,  # the fine finish moves no cage vertex: the fibres are the same
+                ma["contact"],
             )
             if not (r.converged and np.isfinite(r.cage).all()):
                 out["unconverged"] += 1

@@ -325,16 +325,23 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
         T: FloatArray,
         bone_T: dict[str, FloatArray],
         finish: bool = True,
+        bones: bool = True,
     ) -> Any:
-        if contact is not None:
-            kw["obstacles"] = [
+        # the scene's bones where contact is on (and ``bones``), else none
+        obstacles = (
+            [
                 # muscle's body frame -> bone's body frame in one transform
                 Placed(probe, invert_rigid(bone_T[bname]) @ T, contact[bname], bname)
                 for probe, _, bname in probes
                 if bname in contact
             ]
+            if contact is not None and bones
+            else None
+        )
         try:
-            return d.deform(lines, reference_point=reference, finish=finish, **kw)
+            return d.deform(
+                lines, reference_point=reference, finish=finish, obstacles=obstacles, **kw
+            )
         except LineError as exc:
             # this pose's lines cannot drive the muscle (e.g. a path collapsed to a point):
             # the frame is reported as failed and the motion goes on
@@ -1218,7 +1225,12 @@ def _fibre_job(scene: Scene, drive: Drive, spec: Any) -> dict[str, Any]:
     ma = drive.moment_arms
     if ma is None:
         return out
-    out["ma"] = {"coordinates": ma.coordinates, "steps": ma.steps, "per_q": ma.per_q}
+    out["ma"] = {
+        "coordinates": ma.coordinates,
+        "steps": ma.steps,
+        "per_q": ma.per_q,
+        "contact": f.moment_arm_contact,
+    }
     out["ma_lines"] = ma.lines[spec.name]
     out["ma_references"] = ma.references[spec.name]
     out["ma_to_output"] = ma.to_output[spec.body]
