@@ -109,3 +109,24 @@ def test_fibres_run_through_a_tendon_two_cells_thin():
     assert (igl.fast_winding_number(m.V, m.F, fb.points.reshape(-1, 3)) > 0.5).all()
     assert fb.points[:, -1, 2].min() > 0.9 * 230 - 2 * fb.spacing
     assert fb.points[:, 0, 2].max() < 0.1 * 230 + 2 * fb.spacing
+
+
+def test_points_outside_a_surface_are_moved_just_inside_it():
+    import igl
+
+    from musclewrap.fibres import keep_inside
+
+    V, F = capsule(n_around=32, cap_rings=8, segments=20)  # radius 20 along z, 0..200
+    rng = np.random.default_rng(3)
+    inside = np.column_stack([rng.uniform(-10, 10, (50, 2)), rng.uniform(30, 170, 50)])
+    outside = np.array([[25.0, 0, 100], [0, -23, 50], [0, 0, -4], [0, 0, 230]])
+    P, moved, farthest, left = keep_inside(np.vstack([inside, outside]), V, F, depth=0.1)
+    assert moved == 4 and left == 0
+    np.testing.assert_array_equal(P[:50], inside)  # inside points are not touched
+    w = igl.fast_winding_number(V, F, P[50:])
+    assert (w > 0.5).all()
+    # each lands about depth inside its closest surface point: |P| = 20 - 0.1 on the side
+    assert abs(np.hypot(*P[50, :2]) - 19.9) < 0.05 and abs(np.hypot(*P[51, :2]) - 19.9) < 0.05
+    assert farthest == pytest.approx(30.1, abs=0.2)  # the point 30 beyond the far pole
+    same, n, _, _ = keep_inside(inside, V, F, depth=0.1)
+    assert n == 0 and (same == inside).all()

@@ -473,12 +473,8 @@ def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys, collisions):
 
 
 def _check_sweep_fibres(folder, n):
-    """Issue 14 on one sweep: the files' layout, and fibre points inside the deformed muscle.
-
-    The target (every point inside on every frame) is not met yet: where the deformed
-    surface folds onto itself (winding number -1 there) or the contact's fine finish pushes
-    it past the fibres, up to 2.1 % of a muscle's points over a sweep lie outside
-    (BENCHMARKS.md); this guards that figure."""
+    """Issue 14's targets on one sweep: every fibre point inside its deformed muscle on every
+    frame (winding number > 0.5, read back from the files), and the files' layout."""
     import igl
     import pyvista as pv
 
@@ -502,7 +498,7 @@ def _check_sweep_fibres(folder, n):
             )
             outside += int((w <= 0.5).sum())
             total += len(w)
-        assert outside <= 0.025 * total, (m, outside, total)
+        assert outside == 0, (m, outside, total)
     fibres = _rows(folder / "fibres.csv")
     assert list(fibres[0]) == ["frame", "time", "muscle", "fibre", "length", "coordinate",
                                "moment_arm"]  # fmt: skip

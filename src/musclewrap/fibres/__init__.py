@@ -6,6 +6,7 @@ from ._field import (
     attachment_areas,
     fibres_at_rest,
     harmonic_field,
+    keep_inside,
     trace_fibres,
 )
 
@@ -15,5 +16,6 @@ __all__ = [
     "attachment_areas",
     "fibres_at_rest",
     "harmonic_field",
+    "keep_inside",
     "trace_fibres",
 ]

@@ -31,6 +31,7 @@ __all__ = [
     "attachment_areas",
     "fibres_at_rest",
     "harmonic_field",
+    "keep_inside",
     "trace_fibres",
 ]
 
@@ -527,3 +528,70 @@ def fibres_at_rest(
         insertion=np.unique(np.asarray(insertion, dtype=np.int64)),
         spacing=field.spacing,
     )
+
+
+def keep_inside(
+    P: npt.ArrayLike, V: npt.ArrayLike, F: npt.ArrayLike, *, depth: float
+) -> tuple[FloatArray, int, float, int]:
+    """Move the points of ``P`` that lie outside the closed mesh ``(V, F)`` back inside it.
+
+    A deformation carries fibres and surface by the same map, so a fibre leaves its
+    muscle only where that map folds the surface onto itself, or where a step that
+    moves only the surface (the contact's fine finish) pushes it past the fibre. Such
+    a point (generalized winding number <= 1/2) goes to its closest surface point and
+    ``depth`` further in along the surface's inward normal; if that is still not
+    inside (a thin part, a fold), 0.3, 3, 0.1, 10, 0.03 or 30 times as far, the
+    first that is; failing all, the nearest surface vertex moved ``depth`` inward
+    along its normal that is inside.
+
+    Parameters
+    ----------
+    P : (k, 3) float64 array
+        Points, e.g. a frame's fibre points.
+    V, F : the deformed surface
+    depth : float
+        How far inside a moved point goes (mesh units).
+
+    Returns
+    -------
+    points : (k, 3) float64 array
+    moved : int
+        How many points were outside.
+    farthest : float
+        The longest move.
+    left : int
+        Points still outside (none unless no surface vertex moved inward is inside).
+    """
+    import igl
+
+    P = np.array(P, dtype=np.float64)
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    out = np.flatnonzero(igl.fast_winding_number(V, F, P) <= 0.5)
+    if not len(out):
+        return P, 0, 0.0, 0
+    _, _, C, N = igl.signed_distance(
+        P[out], V, F, sign_type=igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_PSEUDONORMAL
+    )
+    start = P[out].copy()
+    # candidates along the inward normal from the closest point, in this order: the first
+    # inside wins (a thin part may be thinner than the larger depths, a fold deeper)
+    depths = depth * np.array([1.0, 0.3, 3.0, 0.1, 10.0, 0.03, 30.0])
+    cand = C[None] - depths[:, None, None] * N[None]
+    w = igl.fast_winding_number(V, F, cand.reshape(-1, 3)).reshape(len(depths), -1) > 0.5
+    first = np.argmax(w, axis=0)
+    ok = w[first, np.arange(len(out))]
+    P[out] = np.where(ok[:, None], cand[first, np.arange(len(out))], C - depth * N)
+    todo = np.flatnonzero(~ok)
+    if len(todo):
+        # deep in a fold, no point along the normal is inside: the nearest of the surface's
+        # vertices moved ``depth`` inward along their normals that is inside
+        from scipy.spatial import cKDTree
+
+        Q = V - depth * igl.per_vertex_normals(V, F)
+        Q = Q[igl.fast_winding_number(V, F, Q) > 0.5]
+        if len(Q):
+            P[out[todo]] = Q[cKDTree(Q).query(start[todo])[1]]
+            todo = todo[:0]
+    farthest = float(np.linalg.norm(P[out] - start, axis=1).max())
+    return P, len(out), farthest, len(todo)

@@ -19,6 +19,7 @@ import numpy as np
 from .. import __version__
 from .._cache import cached_arrays, digest
 from .._typing import FloatArray
+from ..fibres import keep_inside
 from ..mesh import write_mesh
 from ._drive import Drive, apply
 
@@ -49,6 +50,8 @@ MOMENT_ARM_FIELDS = [
     "opensim_moment_arm",
 ]
 _FORMAT = 1  # of the cached fibres
+#: how far inside the surface a fibre point outside it is put, in grid cells of its field
+INSIDE_DEPTH = 0.1
 
 
 def fibres_key(muscle_key: str, job: dict[str, Any]) -> str:
@@ -103,6 +106,7 @@ def fibres_of(muscle: Any, job: dict[str, Any], path: Path | None) -> tuple[Any,
 
 def frame_fibres(
     fb: Any,
+    F: Any,
     res: Any,
     k: int,
     job: dict[str, Any],
@@ -113,6 +117,8 @@ def frame_fibres(
     Parameters
     ----------
     fb : Fibres
+    F : (m, 3) int array
+        The muscle's triangles.
     res : DeformationResult
         The frame's deformation.
     k : int
@@ -129,7 +135,8 @@ def frame_fibres(
     -------
     dict
         ``points`` (N, K, 3) or None, ``lengths`` (N,), ``moment_arms`` (C, N) (NaN
-        where a solve failed or did not converge), ``unconverged`` (solves).
+        where a solve failed or did not converge), ``unconverged`` (solves), and
+        ``moved``, ``farthest``, ``left`` from `musclewrap.fibres.keep_inside`.
     """
     n = len(fb.points)
     ma = job.get("ma")
@@ -139,10 +146,18 @@ def frame_fibres(
         "lengths": np.full(n, np.nan),
         "moment_arms": np.full((len(coords), n), np.nan),
         "unconverged": 0,
+        "moved": 0,
+        "farthest": 0.0,
+        "left": 0,
     }
     if not (res.converged and np.isfinite(res.cage).all()):
         return out
-    out["points"] = fb.at(res.cage)
+    # where the deformation folds the surface onto itself, or the contact's finish pushed
+    # it past them, points are moved back inside (counted, and said in the run's notes)
+    P, out["moved"], out["farthest"], out["left"] = keep_inside(
+        fb.at(res.cage).reshape(-1, 3), res.V, F, depth=INSIDE_DEPTH * fb.spacing
+    )
+    out["points"] = P.reshape(fb.points.shape)
     out["lengths"] = fb.lengths(out["points"])
     for j in range(len(coords)):
         L = []
@@ -255,6 +270,17 @@ def write_fibre_outputs(
     fibre_rows, arm_rows = _rows(drive, results, muscles)
     files = [write_csv(outdir / FIBRES_CSV, fibre_rows, FIBRE_FIELDS)]
     for res in results:
+        moved = [fr for fr in res["fibres"] if fr.get("moved")]
+        if moved:
+            n = sum(fr["moved"] for fr in moved)
+            far = max(fr["farthest"] for fr in moved)
+            left = sum(fr["left"] for fr in moved)
+            notes.append(
+                f"{res['name']}: {n} fibre point(s) on {len(moved)} frame(s) lay outside the "
+                f"deformed surface (where it folds onto itself, or the contact pushed it past "
+                f"them) and were moved inside it, by up to {far:.2g}"
+                + (f"; {left} stayed outside" if left else "")
+            )
         bad = sum(fr["unconverged"] for fr in res["fibres"])
         if bad:
             notes.append(

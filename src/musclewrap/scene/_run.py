@@ -383,7 +383,7 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
         write_mesh(out / lname, np.vstack(P), np.zeros((0, 3), int), lines=np.array(segs))
         entries.append((job["offset"] + k, lname))
         if fb is not None:
-            got = frame_fibres(fb, res, k, job, solve)
+            got = frame_fibres(fb, muscle.F, res, k, job, solve)
             if got["points"] is not None:
                 fname = f"{name}/{name}_fibres_{frame:04d}.vtp"
                 write_frame_fibres(out / fname, fb, got["points"], T)
@@ -395,6 +395,9 @@ def _frames_job(job: dict[str, Any]) -> dict[str, Any]:
                     "lengths": got["lengths"].tolist(),
                     "moment_arms": got["moment_arms"].tolist(),
                     "unconverged": got["unconverged"],
+                    "moved": got["moved"],
+                    "farthest": got["farthest"],
+                    "left": got["left"],
                 }
             )
         rows.append(
