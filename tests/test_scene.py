@@ -135,6 +135,42 @@ def test_fibres_in_a_line_csv_scene(tmp_path):
     assert len(list((tmp_path / "cache").glob("fibres-*.npz"))) == 1
 
 
+def test_fibre_attachments_given_as_landmarks_or_vertex_indices(tmp_path):
+    """A muscle's attachment areas from the scene: landmark points (the surface within
+    landmark_radius of them) or vertex indices of its mesh file; the fibres start and end
+    there, not at the default ends along the lines."""
+    sc, toml = _write_demo(tmp_path)
+    V = sc.V
+    # the default areas are the two ends along the line (z = -40 and 250); here the origin is
+    # the muscle's side around z = 40 instead (a landmark), the insertion the vertices above
+    # z = 200 (indices)
+    top = np.flatnonzero(V[:, 2] >= 200)
+    text = toml.read_text().replace(
+        "[bones.thigh]",
+        f"fibre_origin = [[18.0, 0.0, 40.0]]\nfibre_insertion = {top.tolist()}\n[bones.thigh]",
+    )
+    toml.write_text(text + "[fibres]\ncount = 10\nlandmark_radius = 12.0\n")
+    out = tmp_path / "out"
+    run_scene(load_scene(toml), out, workers=1, cache_dir=tmp_path / "cache", progress=None)
+    import pyvista as pv
+
+    P = np.asarray(pv.read(out / "fusiform" / "fusiform_fibres_0000.vtp").points).reshape(10, 15, 3)
+    h = 3.0  # a few grid cells of the field
+    assert np.linalg.norm(P[:, 0] - [18.0, 0.0, 40.0], axis=1).max() <= 12.0 + h
+    assert P[:, -1, 2].min() >= 200 - h
+    # errors name the muscle and what is wrong
+    bad = text.replace("fibre_origin = [[18.0, 0.0, 40.0]]", "fibre_origin = [[500.0, 0, 0]]")
+    toml.write_text(bad + "[fibres]\n")
+    with pytest.raises(SceneError, match="no vertex of the muscle lies within landmark_radius"):
+        run_scene(load_scene(toml), tmp_path / "o2", workers=1, cache_dir=False, progress=None)
+    toml.write_text(text.replace(f"{top.tolist()}", "[99999]") + "[fibres]\n")
+    with pytest.raises(SceneError, match="fibre_insertion: none of its vertex indices"):
+        run_scene(load_scene(toml), tmp_path / "o3", workers=1, cache_dir=False, progress=None)
+    toml.write_text(text.replace(f"{top.tolist()}", "'top'") + "[fibres]\n")
+    with pytest.raises(SceneError, match="must list vertex indices of the mesh"):
+        load_scene(toml)
+
+
 @pytest.mark.parametrize(
     ("table", "message"),
     [

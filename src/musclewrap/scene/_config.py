@@ -38,10 +38,12 @@ _LINES = {"csv", "rest_frame"}
 _OUTPUT = {"bone_display_faces", "paper_frames", "gif", "image_size", "gif_every"}
 _MUSCLE = {
     "mesh", "paths", "body", "reference", "cage_size", "cage_coarsening", "method",
-    "max_iterations", "repair", "frame", "bones",
+    "max_iterations", "repair", "frame", "bones", "fibre_origin", "fibre_insertion",
 }  # fmt: skip
 _COLLISIONS = {"enabled", "margin", "rest_overlap"}
-_FIBRES = {"count", "points", "moment_arms", "step", "voxels", "moment_arm_contact"}
+_FIBRES = {
+    "count", "points", "moment_arms", "step", "voxels", "moment_arm_contact", "landmark_radius",
+}  # fmt: skip
 _BONE = {"mesh", "body", "frame"}
 _LANDMARK = {"name", "mesh", "fit", "body", "point"}
 
@@ -81,6 +83,9 @@ class MuscleSpec:
     repair: bool
     frame: str
     bones: tuple[str, ...] | None = None
+    # the fibres' attachment areas: input vertex indices, or landmark points (mesh frame)
+    fibre_origin: tuple[int, ...] | tuple[tuple[float, float, float], ...] | None = None
+    fibre_insertion: tuple[int, ...] | tuple[tuple[float, float, float], ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -88,7 +93,9 @@ class FibreSpec:
     """The ``[fibres]`` table: fibres per muscle, and the coordinates of their moment arms.
 
     ``step`` is the central difference's half-width: degrees for a rotational
-    coordinate, millimetres for a translational one. ``moment_arm_contact``: the
+    coordinate, millimetres for a translational one. ``landmark_radius`` (mesh units):
+    a muscle's ``fibre_origin`` or ``fibre_insertion`` given as landmark points is the
+    surface within this distance of them. ``moment_arm_contact``: the
     poses on either side of a frame are deformed with the bones' contact (False by
     default: the contact's cage step is not smooth in the pose, and its jumps over a
     step of 1 degree dominated the differences on the LHDL sweeps).
@@ -100,6 +107,7 @@ class FibreSpec:
     step: float = 1.0
     voxels: int = 60_000
     moment_arm_contact: bool = False
+    landmark_radius: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -388,6 +396,7 @@ def load_scene(path: PathLike) -> Scene:
                         + suggest(b, sorted(bone_names))
                     )
             mbones = tuple(mbones)
+        areas = {k: _attachment(m, k, where, src) for k in ("fibre_origin", "fibre_insertion")}
         muscles.append(
             MuscleSpec(
                 name=_name(mname, "muscle", src),
@@ -402,6 +411,7 @@ def load_scene(path: PathLike) -> Scene:
                 repair=_get(m, "repair", bool, where, src) if "repair" in m else True,
                 frame=body if m.get("frame", mesh_frame) == "body" else m.get("frame", mesh_frame),
                 bones=mbones,
+                **areas,
             )
         )
     clash = bone_names & {m.name for m in muscles}
@@ -438,6 +448,32 @@ def load_scene(path: PathLike) -> Scene:
     )
 
 
+def _attachment(m: Mapping[str, Any], key: str, where: str, src: Path) -> tuple[Any, ...] | None:
+    """A muscle's ``fibre_origin``/``fibre_insertion``: vertex indices or landmark points."""
+    if key not in m:
+        return None
+    v = m[key]
+    if isinstance(v, list) and v and all(isinstance(i, int) and not isinstance(i, bool) for i in v):
+        if min(v) < 0:
+            raise SceneError(f"{src}: {where} {key}: vertex indices start at 0, got {min(v)}")
+        return tuple(v)
+    if (
+        isinstance(v, list)
+        and v
+        and all(
+            isinstance(p, list)
+            and len(p) == 3
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in p)
+            for p in v
+        )
+    ):
+        return tuple((float(p[0]), float(p[1]), float(p[2])) for p in v)
+    raise SceneError(
+        f"{src}: {where} {key} must list vertex indices of the mesh (e.g. [12, 13, 40]) or "
+        "landmark points in its coordinates (e.g. [[10.0, 4.5, -300.0]])"
+    )
+
+
 def _fibres(raw: dict[str, Any], src: Path, osim: Path | None) -> FibreSpec | None:
     if "fibres" not in raw:
         return None
@@ -453,6 +489,10 @@ def _fibres(raw: dict[str, Any], src: Path, osim: Path | None) -> FibreSpec | No
         kw["step"] = _get(t, "step", float, "[fibres]", src)
         if not 0 < kw["step"] <= 10:
             raise SceneError(f"{src}: [fibres] step must lie in (0, 10], got {kw['step']}")
+    if "landmark_radius" in t:
+        kw["landmark_radius"] = _get(t, "landmark_radius", float, "[fibres]", src)
+        if not kw["landmark_radius"] > 0:
+            raise SceneError(f"{src}: [fibres] landmark_radius must be > 0 (mesh units)")
     if "moment_arm_contact" in t:
         kw["moment_arm_contact"] = _get(t, "moment_arm_contact", bool, "[fibres]", src)
     if "moment_arms" in t:

@@ -57,8 +57,13 @@ INSIDE_DEPTH = 0.1
 def fibres_key(muscle_key: str, job: dict[str, Any]) -> str:
     """The cache key of a muscle's fibres: its preparation's key, rest lines and settings."""
     spec, lines = job["fibres"], job["rest_lines"]
+    areas = [
+        np.asarray([-1] if spec.get(k) is None else spec[k], dtype=np.int64)
+        for k in ("origin", "insertion")
+    ]
     return digest(
         muscle_key,
+        *areas,
         *(np.asarray(lines[p], dtype=np.float64) for p in sorted(lines)),
         f"{spec['count']}|{spec['points']}|{spec['voxels']}|{_FORMAT}|{__version__}",
     )[:32]
@@ -82,6 +87,8 @@ def fibres_of(muscle: Any, job: dict[str, Any], path: Path | None) -> tuple[Any,
             count=spec["count"],
             points=spec["points"],
             voxels=spec["voxels"],
+            origin=spec.get("origin"),
+            insertion=spec.get("insertion"),
         )
         return {
             "points": fb.points,

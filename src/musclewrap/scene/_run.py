@@ -1138,6 +1138,10 @@ def _run(
                 **_fibre_job(scene, drive, spec),
             }
         )
+        if jobs[-1]["fibres"] is not None:
+            ids = jobs[-1]["input_id"]
+            for key in ("origin", "insertion"):
+                jobs[-1]["fibres"][key] = _attachment_area(scene, drive, spec, key, Vb, ids)
     bar = _Progress(n * len(jobs), progress) if progress is not None else None
     entries: list[tuple[int, str]] = []
 
@@ -1214,6 +1218,37 @@ def _run(
         files=files,
     )
     return summary
+
+
+def _attachment_area(
+    scene: Scene, drive: Drive, spec: Any, key: str, V: FloatArray, input_id: IntArray
+) -> IntArray | None:
+    """A muscle's ``fibre_origin``/``fibre_insertion`` as its vertex numbers (None: default)."""
+    given = getattr(spec, f"fibre_{key}")
+    if given is None:
+        return None
+    where = f"{scene.path}: [muscles.{spec.name}] fibre_{key}"
+    if isinstance(given[0], int):
+        area = np.flatnonzero(np.isin(input_id, np.asarray(given, dtype=np.int64)))
+        if not len(area):
+            raise SceneError(
+                f"{where}: none of its vertex indices is a vertex of {spec.mesh.name} "
+                f"(indices 0 to {int(input_id.max())} after merging and repair)"
+            )
+        return area
+    # landmark points, in the mesh's coordinates: the surface within landmark_radius
+    P = apply(drive.to_body[spec.name], np.array(given, dtype=np.float64))
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(P).query(V)
+    radius = scene.fibres.landmark_radius if scene.fibres is not None else 10.0
+    area = np.flatnonzero(d <= radius)
+    if not len(area):
+        raise SceneError(
+            f"{where}: no vertex of the muscle lies within landmark_radius = {radius:g} of its "
+            f"points (the nearest is {float(d.min()):.3g} away)"
+        )
+    return area
 
 
 def _fibre_job(scene: Scene, drive: Drive, spec: Any) -> dict[str, Any]:
