@@ -13,7 +13,8 @@
    the frames (median and largest |second difference|, mm: what the step leaves of
    the contact's discrete steps; a smooth curve has ~0.1 or less).
 3. Cost: the warm run with ``[fibres]`` against ``--no-fibres``, alternately,
-   ``--repeats`` times each (CLI, all workers), medians and ratio (target <= 1.3x).
+   ``--repeats`` times each (CLI, all workers), medians and ratio (target <= 1.3x);
+   ``--steps ""`` runs only this.
 """
 
 from __future__ import annotations
