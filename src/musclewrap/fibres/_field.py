@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -70,8 +71,15 @@ class Fibres:
 
     def lengths(self, points: npt.ArrayLike | None = None) -> FloatArray:
         """(N,) length of each fibre (its poly-line), at rest or for ``points`` from `at`."""
-        P = self.points if points is None else np.asarray(points, dtype=np.float64)
+        if points is None:
+            return self.rest_lengths
+        P = np.asarray(points, dtype=np.float64)
         return np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1)
+
+    @cached_property
+    def rest_lengths(self) -> FloatArray:
+        """(N,) the fibres' lengths at rest (computed once)."""
+        return np.linalg.norm(np.diff(self.points, axis=1), axis=2).sum(axis=1)
 
 
 def attachment_areas(
@@ -219,26 +227,18 @@ class HarmonicField:
         norm = np.linalg.norm(g, axis=1)
         return sd, g / np.where(norm > 0, norm, np.inf)[:, None]
 
-    @property
+    @cached_property
     def _depth(self) -> tuple[FloatArray, ...]:
-        cached = self.__dict__.get("_depth_cache")
-        if cached is None:
-            from scipy import ndimage
+        from scipy import ndimage
 
-            sd = ndimage.distance_transform_edt(self.domain) - ndimage.distance_transform_edt(
-                ~self.domain
-            )
-            cached = (sd, *np.gradient(sd))
-            object.__setattr__(self, "_depth_cache", cached)
-        return cached
+        sd = ndimage.distance_transform_edt(self.domain) - ndimage.distance_transform_edt(
+            ~self.domain
+        )
+        return (sd, *np.gradient(sd))
 
-    @property
+    @cached_property
     def _gradient(self) -> tuple[FloatArray, ...]:
-        cached = self.__dict__.get("_gradient_cache")
-        if cached is None:
-            cached = tuple(np.gradient(self.values, self.spacing))
-            object.__setattr__(self, "_gradient_cache", cached)
-        return cached
+        return tuple(np.gradient(self.values, self.spacing))
 
 
 def harmonic_field(

@@ -8,10 +8,19 @@ from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
+import numpy as np
+import numpy.typing as npt
+
 from .._typing import PathLike
 from ..mesh import atomic_path
 
-__all__ = ["plot_convergence", "plot_volume_error", "write_csv", "write_pvd"]
+__all__ = [
+    "plot_convergence",
+    "plot_moment_arms",
+    "plot_volume_error",
+    "write_csv",
+    "write_pvd",
+]
 
 
 def write_pvd(path: PathLike, entries: Sequence[tuple[float, str]]) -> Path:
@@ -68,11 +77,12 @@ def _log_axis(ax: Any) -> None:
     ax.grid(True, which="major", alpha=0.3)
 
 
-def _save_png(fig: Any, path: PathLike) -> Path:
-    """Lay out, write atomically and close a matplotlib figure."""
+def _save_png(fig: Any, path: PathLike, *, tight: bool = True) -> Path:
+    """Lay out (``tight``), write atomically and close a matplotlib figure."""
     import matplotlib.pyplot as plt
 
-    fig.tight_layout()
+    if tight:
+        fig.tight_layout()
     p = Path(path)
     with atomic_path(p) as tmp:
         fig.savefig(tmp, format="png")
@@ -227,3 +237,60 @@ def plot_penetration(
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small", ncol=2 if len(after) > 4 else 1)
     return _save_png(fig, path)
+
+
+def plot_moment_arms(
+    path: PathLike,
+    rows: Sequence[Mapping[str, Any]],
+    coordinates: Sequence[str],
+    per_q: npt.ArrayLike,
+) -> Path:
+    """Per muscle (row) and coordinate (column): the fibres' range and mean over the motion.
+
+    Beside them the action line's moment arm (central differences) and OpenSim's.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    per_q = np.asarray(per_q, dtype=np.float64)
+    names = list(dict.fromkeys(r["muscle"] for r in rows))
+    nr, nc = max(1, len(names)), max(1, len(coordinates))
+    fig, axes = plt.subplots(
+        nr, nc, figsize=(3.2 * nc + 0.8, 2.3 * nr + 0.6), squeeze=False, sharex=True
+    )
+    # fixed margins: tight_layout took half of this figure's time
+    fig.subplots_adjust(left=0.09, right=0.98, bottom=0.07, top=0.93, wspace=0.25, hspace=0.15)
+    for i, name in enumerate(names):
+        for j, c in enumerate(coordinates):
+            ax = axes[i, j]
+            sel = [r for r in rows if r["muscle"] == name and r["coordinate"] == c]
+            t = np.array([r["time"] for r in sel])
+            lo, mean, hi, line, osim = (
+                np.array([r[key] for r in sel], dtype=np.float64)
+                for key in (
+                    "fibre_min",
+                    "fibre_mean",
+                    "fibre_max",
+                    "line_moment_arm",
+                    "opensim_moment_arm",
+                )
+            )
+            ax.fill_between(t, lo, hi, color="tab:red", alpha=0.25, lw=0, label="fibres (range)")
+            ax.plot(t, mean, color="tab:red", lw=1.5, label="fibres (mean)")
+            ax.plot(t, line, color="black", lw=1.2, ls="--", label="action line")
+            ax.plot(t, osim, color="tab:blue", lw=0.8, ls=":", label="OpenSim")
+            ax.axhline(0.0, color="0.6", lw=0.5)
+            ax.grid(True, alpha=0.3)
+            if i == 0:
+                ax.set_title(c, fontsize=9)
+            if j == 0:
+                unit = "moment arm" if per_q[j] == 1.0 else "moment arm (-)"
+                ax.set_ylabel(f"{name}\n{unit}", fontsize=8)
+            if i == nr - 1:
+                ax.set_xlabel("time (s)", fontsize=8)
+            ax.tick_params(labelsize=7)
+    axes[0, 0].legend(fontsize=6, loc="best")
+    fig.suptitle("moment arms -dL/dq (mesh units per radian)", fontsize=9)
+    return _save_png(fig, path, tight=False)

@@ -20,7 +20,7 @@ from .. import __version__
 from .._cache import cached_arrays, digest
 from .._typing import FloatArray
 from ..fibres import keep_inside
-from ..mesh import atomic_path, write_mesh
+from ..mesh import write_mesh
 from ._drive import Drive, apply
 
 __all__ = [
@@ -309,61 +309,7 @@ def write_fibre_outputs(
                 "a conditional via point or wrap switches there, and its moment arm has a jump"
             )
     files.append(write_csv(outdir / MOMENT_ARMS_CSV, arm_rows, MOMENT_ARM_FIELDS))
+    from ..output import plot_moment_arms
+
     files.append(plot_moment_arms(outdir / PLOT_MOMENT_ARMS, arm_rows, ma.coordinates, ma.per_q))
     return files
-
-
-def plot_moment_arms(
-    path: Path, rows: Sequence[dict[str, Any]], coordinates: Sequence[str], per_q: FloatArray
-) -> Path:
-    """Per muscle (row) and coordinate (column): the fibres' range and mean over the motion.
-
-    Beside them the action line's moment arm (central differences) and OpenSim's.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    names = list(dict.fromkeys(r["muscle"] for r in rows))
-    nr, nc = max(1, len(names)), max(1, len(coordinates))
-    fig, axes = plt.subplots(
-        nr, nc, figsize=(3.2 * nc + 0.8, 2.3 * nr + 0.6), squeeze=False, sharex=True
-    )
-    # fixed margins: tight_layout took half of this figure's time
-    fig.subplots_adjust(left=0.09, right=0.98, bottom=0.07, top=0.93, wspace=0.25, hspace=0.15)
-    for i, name in enumerate(names):
-        for j, c in enumerate(coordinates):
-            ax = axes[i, j]
-            sel = [r for r in rows if r["muscle"] == name and r["coordinate"] == c]
-            t = np.array([r["time"] for r in sel])
-            lo, mean, hi, line, osim = (
-                np.array([r[key] for r in sel], dtype=np.float64)
-                for key in (
-                    "fibre_min",
-                    "fibre_mean",
-                    "fibre_max",
-                    "line_moment_arm",
-                    "opensim_moment_arm",
-                )
-            )
-            ax.fill_between(t, lo, hi, color="tab:red", alpha=0.25, lw=0, label="fibres (range)")
-            ax.plot(t, mean, color="tab:red", lw=1.5, label="fibres (mean)")
-            ax.plot(t, line, color="black", lw=1.2, ls="--", label="action line")
-            ax.plot(t, osim, color="tab:blue", lw=0.8, ls=":", label="OpenSim")
-            ax.axhline(0.0, color="0.6", lw=0.5)
-            ax.grid(True, alpha=0.3)
-            if i == 0:
-                ax.set_title(c, fontsize=9)
-            if j == 0:
-                unit = "moment arm" if per_q[j] == 1.0 else "moment arm (-)"
-                ax.set_ylabel(f"{name}\n{unit}", fontsize=8)
-            if i == nr - 1:
-                ax.set_xlabel("time (s)", fontsize=8)
-            ax.tick_params(labelsize=7)
-    axes[0, 0].legend(fontsize=6, loc="best")
-    fig.suptitle("moment arms -dL/dq (mesh units per radian)", fontsize=9)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
-    return path
