@@ -424,3 +424,48 @@ def test_poly_lines_and_cell_data_read_back_with_vtk(tmp_path, ext):
                    cell_data={"x": np.zeros(3)})  # fmt: skip
     with pytest.raises(ValueError, match="j >= 2"):
         write_mesh(tmp_path / f"h{ext}", P, np.zeros((0, 3), int), lines=lines[:, :1])
+
+
+def _box(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+
+    b = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
+    for _ in range(subdivisions):
+        b = b.subdivide()
+    return np.asarray(b.vertices), np.asarray(b.faces)
+
+
+def test_winding_numbers_sphere_and_ties():
+    """Exact counts: a sphere against its radius; a box against points on its grid, whose
+    rays along x run through the box's edges and vertices and along faces seen edge-on."""
+    from musclewrap.mesh import winding_numbers
+
+    th = np.linspace(0, np.pi, 201)
+    V, F = rings_mesh(-10 * np.cos(th), 10 * np.sin(th), 200)
+    P = np.random.default_rng(3).uniform(-15, 15, size=(20000, 3))
+    r = np.linalg.norm(P, axis=1)
+    keep = np.abs(r - 10) > 0.05  # the polygonal sphere lies within 0.013 of the round one
+    w = winding_numbers(P[keep], V, F)
+    assert set(np.unique(w)) == {0, 1}
+    assert np.array_equal(w == 1, r[keep] < 10)
+    # rays through the vertices and mid-edges of the sphere
+    E = 0.5 * (V[F[:, 0]] + V[F[:, 1]])
+    Q = np.vstack([V, E])
+    Q = Q[np.abs(Q[:, 0]) > 1] * [0.3, 1.0, 1.0]  # at least 0.05 inside
+    assert len(Q) > 50000 and np.all(winding_numbers(Q, V, F) == 1)
+    Vb, Fb = _box()
+    g = np.stack(np.meshgrid(*[np.linspace(-1.5, 1.5, 13)] * 3), -1).reshape(-1, 3)
+    g = g[np.abs(np.abs(g).max(axis=1) - 1) > 1e-9]  # off the box's faces
+    assert np.array_equal(winding_numbers(g, Vb, Fb), (np.abs(g).max(axis=1) < 1).astype(int))
+
+
+def test_winding_numbers_count_overlaps_and_orientation():
+    from musclewrap.mesh import winding_numbers
+
+    Vb, Fb = _box()
+    V = np.vstack([Vb, Vb + [1.0, 0.5, 0.25]])
+    F = np.vstack([Fb, Fb + len(Vb)])
+    P = np.array([[0.5, 0.5, 0.5], [-0.5, -0.5, -0.5], [1.5, 1.2, 1.0], [3.0, 0, 0]])
+    assert winding_numbers(P, V, F).tolist() == [2, 1, 1, 0]
+    assert winding_numbers(P, Vb, Fb[:, ::-1]).tolist() == [-1, -1, 0, 0]
+    assert winding_numbers(np.zeros((0, 3)), Vb, Fb).shape == (0,)

@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
+from ..mesh import vertex_normals, winding_numbers
 
 if TYPE_CHECKING:
     from ..solver import Muscle
@@ -538,7 +539,9 @@ def keep_inside(
     A deformation carries fibres and surface by the same map, so a fibre leaves its
     muscle only where that map folds the surface onto itself, or where a step that
     moves only the surface (the contact's fine finish) pushes it past the fibre. Such
-    a point (generalized winding number <= 1/2) goes to its closest surface point and
+    a point (winding number below 1: `musclewrap.mesh.winding_numbers`, exact on a
+    closed surface and about a tenth of a winding-number hierarchy's cost) goes to its
+    closest surface point and
     ``depth`` further in along the surface's inward normal; if that is still not
     inside (a thin part, a fold), 0.3, 3, 0.1, 10, 0.03 or 30 times as far, the
     first that is; failing all, the nearest surface vertex moved ``depth`` inward
@@ -562,17 +565,14 @@ def keep_inside(
     left : int
         Points still outside (none unless no surface vertex moved inward is inside).
     """
-    import igl
-
     P = np.array(P, dtype=np.float64)
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    # one hierarchy for every query below: building it is 4/5 of a query's cost
-    bvh = igl.FastWindingNumberBVH()
-    bvh.init(V, F)
-    out = np.flatnonzero(bvh.winding_number(P) <= 0.5)
+    out = np.flatnonzero(winding_numbers(P, V, F) < 1)
     if not len(out):
         return P, 0, 0.0, 0
+    import igl
+
     _, _, C, N = igl.signed_distance(
         P[out], V, F, sign_type=igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_PSEUDONORMAL
     )
@@ -581,7 +581,7 @@ def keep_inside(
     # inside wins (a thin part may be thinner than the larger depths, a fold deeper)
     depths = depth * np.array([1.0, 0.3, 3.0, 0.1, 10.0, 0.03, 30.0])
     cand = C[None] - depths[:, None, None] * N[None]
-    w = bvh.winding_number(cand.reshape(-1, 3)).reshape(len(depths), -1) > 0.5
+    w = winding_numbers(cand.reshape(-1, 3), V, F).reshape(len(depths), -1) >= 1
     first = np.argmax(w, axis=0)
     ok = w[first, np.arange(len(out))]
     P[out] = np.where(ok[:, None], cand[first, np.arange(len(out))], C - depth * N)
@@ -591,8 +591,8 @@ def keep_inside(
         # vertices moved ``depth`` inward along their normals that is inside
         from scipy.spatial import cKDTree
 
-        Q = V - depth * igl.per_vertex_normals(V, F)
-        Q = Q[bvh.winding_number(Q) > 0.5]
+        Q = V - depth * vertex_normals(V, F)
+        Q = Q[winding_numbers(Q, V, F) >= 1]
         if len(Q):
             P[out[todo]] = Q[cKDTree(Q).query(start[todo])[1]]
             todo = todo[:0]

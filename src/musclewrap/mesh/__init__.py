@@ -25,6 +25,7 @@ from ._geometry import (
 )
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
 from ._repair import repair_mesh
+from ._winding import winding_numbers
 from ._volume import (
     combine_pair,
     mean_rows,
@@ -66,5 +67,6 @@ __all__ = [
     "volume_cubic_pair",
     "volume_gradient",
     "volume_hessian_reduced",
+    "winding_numbers",
     "write_mesh",
 ]

@@ -1,0 +1,142 @@
+"""Exact winding numbers of points about a closed triangle surface, by signed ray crossings.
+
+For a closed, consistently oriented surface the winding number of a point is an
+integer: the signed count of the surface's crossings by any ray from the point
+(+1 where the ray leaves through a face, -1 where it enters one). Here the ray runs
+along +x. Each face is tested in the yz plane with edge functions that are computed
+once per edge from the edge's lower-numbered end (so the two faces of an edge get the
+same number, bit for bit) and with ties broken by a symbolic shift of the point
+(Edelsbrunner & Muecke's simulation of simplicity): the test is watertight, and a ray
+through an edge or a vertex is counted exactly once. A uniform grid over the yz
+plane, built per call, keeps the faces tested per point to a few.
+
+This is the inside test for many points against a surface that changes every frame:
+it costs about one pass over the faces plus a few faces per point, where a
+winding-number hierarchy (libigl's ``FastWindingNumberBVH``) costs 10 ms to build
+over a muscle's surface before its first query.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["winding_numbers"]
+
+
+def winding_numbers(P: npt.ArrayLike, V: npt.ArrayLike, F: npt.ArrayLike) -> npt.NDArray[np.int64]:
+    """Winding number of every point of ``P`` about the closed surface ``(V, F)``.
+
+    Exact (an integer) for a closed, consistently oriented triangle surface, also
+    where it intersects itself (then a point may lie inside twice, or -1 times); 1
+    inside and 0 outside a clean outward-oriented surface. A point on the surface
+    itself gets either value of the two sides. On a surface with holes the count
+    depends on the ray's direction: use generalized winding numbers there.
+
+    Parameters
+    ----------
+    P : (k, 3) float array
+        Query points.
+    V : (n, 3) float array
+    F : (m, 3) int array
+        The surface.
+
+    Returns
+    -------
+    (k,) int64 array
+    """
+    P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    out = np.zeros(len(P), dtype=np.int64)
+    if len(P) and len(F):
+        _winding_kernel(P, V, F, max(1, int(np.sqrt(len(F) / 2.0))), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _edge_sign(V, u, v, py, pz):  # noqa: ANN001, ANN202 # pragma: no cover
+    """Side of the point (py, pz) of the directed edge u -> v in the yz plane: +1 or -1 (or 0
+    for an edge that projects to a point). Computed from the lower-numbered end, the same
+    for both faces of the edge; a tie takes the sign of the point shifted by (e, e**2)."""
+    flip = 1
+    if u > v:
+        u, v = v, u
+        flip = -1
+    dy = V[v, 1] - V[u, 1]
+    dz = V[v, 2] - V[u, 2]
+    f = dy * (pz - V[u, 2]) - dz * (py - V[u, 1])
+    if f == 0.0:
+        f = -dz if dz != 0.0 else dy
+    if f > 0.0:
+        return flip
+    if f < 0.0:
+        return -flip
+    return 0
+
+
+@numba.njit(cache=True)
+def _winding_kernel(P, V, F, g, out):  # noqa: ANN001, ANN202 # pragma: no cover
+    y0 = V[:, 1].min()
+    z0 = V[:, 2].min()
+    hy = (V[:, 1].max() - y0) / g
+    hz = (V[:, 2].max() - z0) / g
+    if hy <= 0.0:
+        hy = 1.0
+    if hz <= 0.0:
+        hz = 1.0
+    m = F.shape[0]
+    lo = np.empty((m, 4), dtype=np.int64)  # cell ranges of each face's yz box
+    count = np.zeros(g * g + 1, dtype=np.int64)
+    for t in range(m):
+        a, b, c = F[t, 0], F[t, 1], F[t, 2]
+        ya = min(V[a, 1], V[b, 1], V[c, 1])
+        yb = max(V[a, 1], V[b, 1], V[c, 1])
+        za = min(V[a, 2], V[b, 2], V[c, 2])
+        zb = max(V[a, 2], V[b, 2], V[c, 2])
+        i0 = min(g - 1, int((ya - y0) / hy))
+        i1 = min(g - 1, int((yb - y0) / hy))
+        j0 = min(g - 1, int((za - z0) / hz))
+        j1 = min(g - 1, int((zb - z0) / hz))
+        lo[t, 0], lo[t, 1], lo[t, 2], lo[t, 3] = i0, i1, j0, j1
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                count[i * g + j + 1] += 1
+    for k in range(g * g):
+        count[k + 1] += count[k]
+    fill = count[:-1].copy()
+    cells = np.empty(count[-1], dtype=np.int64)
+    for t in range(m):
+        for i in range(lo[t, 0], lo[t, 1] + 1):
+            for j in range(lo[t, 2], lo[t, 3] + 1):
+                cells[fill[i * g + j]] = t
+                fill[i * g + j] += 1
+    y1 = y0 + g * hy
+    z1 = z0 + g * hz
+    for q in range(P.shape[0]):
+        px, py, pz = P[q, 0], P[q, 1], P[q, 2]
+        if not (y0 <= py <= y1 and z0 <= pz <= z1):
+            continue  # the ray misses the surface's box
+        i = min(g - 1, int((py - y0) / hy))
+        j = min(g - 1, int((pz - z0) / hz))
+        w = 0
+        for k in range(count[i * g + j], count[i * g + j + 1]):
+            t = cells[k]
+            a, b, c = F[t, 0], F[t, 1], F[t, 2]
+            s = _edge_sign(V, b, c, py, pz)
+            if s == 0 or _edge_sign(V, c, a, py, pz) != s or _edge_sign(V, a, b, py, pz) != s:
+                continue
+            # crossing: is it beyond the point? the hit's x, weighted by the (positive,
+            # up to s) edge functions, against the point's
+            wa = (V[c, 1] - V[b, 1]) * (pz - V[b, 2]) - (V[c, 2] - V[b, 2]) * (py - V[b, 1])
+            wb = (V[a, 1] - V[c, 1]) * (pz - V[c, 2]) - (V[a, 2] - V[c, 2]) * (py - V[c, 1])
+            wc = (V[b, 1] - V[a, 1]) * (pz - V[a, 2]) - (V[b, 2] - V[a, 2]) * (py - V[a, 1])
+            tot = wa + wb + wc
+            if tot == 0.0:
+                continue  # a face seen edge-on: no area to cross
+            ahead = (wa * (V[a, 0] - px) + wb * (V[b, 0] - px) + wc * (V[c, 0] - px)) / tot
+            if ahead > 0.0:
+                w += s
+        out[q] = w
+
