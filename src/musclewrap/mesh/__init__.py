@@ -25,7 +25,6 @@ from ._geometry import (
 )
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
 from ._repair import repair_mesh
-from ._winding import winding_numbers
 from ._volume import (
     combine_pair,
     mean_rows,
@@ -35,6 +34,7 @@ from ._volume import (
     volume_gradient,
     volume_hessian_reduced,
 )
+from ._winding import winding_numbers
 
 __all__ = [
     "FORMATS",

@@ -57,9 +57,12 @@ def winding_numbers(P: npt.ArrayLike, V: npt.ArrayLike, F: npt.ArrayLike) -> npt
 
 @numba.njit(cache=True)
 def _edge_sign(V, u, v, py, pz):  # noqa: ANN001, ANN202 # pragma: no cover
-    """Side of the point (py, pz) of the directed edge u -> v in the yz plane: +1 or -1 (or 0
-    for an edge that projects to a point). Computed from the lower-numbered end, the same
-    for both faces of the edge; a tie takes the sign of the point shifted by (e, e**2)."""
+    """Side of the point (py, pz) of the directed edge u -> v in the yz plane: +1, -1 or 0.
+
+    0 only for an edge that projects to a point. Computed from the lower-numbered end,
+    the same for both faces of the edge; a tie takes the sign of the point shifted by
+    (e, e**2).
+    """
     flip = 1
     if u > v:
         u, v = v, u
