@@ -23,9 +23,9 @@ ROOT = Path(__file__).resolve().parents[1]
 def main() -> None:
     import igl
 
-    import musclewrap.scene._run as run
+    import musclewrap.scene._work as work
     from musclewrap.fibres import fibres_at_rest
-    from musclewrap.scene import load_scene
+    from musclewrap.scene import load_scene, run_scene
 
     p = argparse.ArgumentParser()
     p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
@@ -33,21 +33,22 @@ def main() -> None:
     p.add_argument("--count", type=int, default=100)
     a = p.parse_args()
     kept = {}
-    deformer = run._deformer
+    chunk = work._deform_chunk
 
-    def keep(job):  # noqa: ANN001, ANN202
-        out = deformer(job)
-        kept[job["name"]] = (out[0], out[1], job)
+    def keep(job, span):  # noqa: ANN001, ANN202
+        out = chunk(job, span)
+        m, d = work._deformer(job)[:2]
+        kept[job.name] = (m, d, job, span)
         return out
 
-    run._deformer = keep
+    work._deform_chunk = keep
     with tempfile.TemporaryDirectory() as tmp:
         scene = load_scene(Path(a.scene))
-        run.run_scene(scene, Path(tmp), frames=a.frames, workers=1, progress=None, render=False)
-    for name, (m, d, job) in kept.items():
+        run_scene(scene, Path(tmp), frames=a.frames, workers=1, progress=None, render=False)
+    for name, (m, d, job, span) in kept.items():
         t = time.perf_counter()
         try:
-            fb = fibres_at_rest(m, job["rest_lines"], count=a.count)
+            fb = fibres_at_rest(m, job.rest_lines, count=a.count)
         except ValueError as exc:
             print(f"{name:18s} no fibres: {exc}")
             continue
@@ -55,15 +56,15 @@ def main() -> None:
         worst = min(
             float(igl.fast_winding_number(r.V, m.F, fb.at(r.cage).reshape(-1, 3)).min())
             for r in (
-                d.deform(job["lines"][k], reference_point=job["references"][k])
-                for k in range(len(job["frames"]))
+                d.deform(span.lines[k], reference_point=span.references[k])
+                for k in range(len(span))
             )
         )
         L = fb.lengths()
         print(
             f"{name:18s} {seconds:4.1f} s, lengths {L.min():.0f}-{L.max():.0f} mm, areas "
             f"{len(fb.origin)}/{len(fb.insertion)} vertices, smallest winding number over "
-            f"{len(job['frames'])} frames {worst:.3f}"
+            f"{len(span)} frames {worst:.3f}"
         )
 
 

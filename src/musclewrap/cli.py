@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -87,11 +89,22 @@ def _parser() -> argparse.ArgumentParser:
             "muscle, and write OUTDIR/<muscle>/<muscle>_<frame>.vtp, bones, action lines, "
             "scene.pvd (ParaView), report.csv, volume_error.png, convergence.png, "
             "penetration.png (scenes with bones) and scene.gif. Muscles are kept out of the "
-            "scene's bones unless --no-collisions or [collisions] enabled = false."
+            "scene's bones unless --no-collisions or [collisions] enabled = false. Several "
+            "scenes run as one batch, into OUTDIR/<scene file stem>/ each."
         ),
     )
-    ru.add_argument("scene", help="scene file (.toml)")
-    ru.add_argument("-o", "--output", help="output folder (default: the scene's name next to it)")
+    ru.add_argument("scene", nargs="+", help="scene file(s) (.toml)")
+    ru.add_argument(
+        "-o",
+        "--output",
+        help="output folder (default for one scene: its name next to it; required for several)",
+    )
+    ru.add_argument(
+        "--scheduler",
+        default=os.environ.get("MUSCLEWRAP_SCHEDULER") or None,
+        help="address of a dask.distributed scheduler to run the tasks on (default: "
+        "$MUSCLEWRAP_SCHEDULER; none: this machine); needs the [dask] extra",
+    )
     ru.add_argument(
         "--frames", help="START:STOP[:STEP] over the motion's rows, e.g. 0:211:1 (default all)"
     )
@@ -364,31 +377,49 @@ def _cmd_demo(a: argparse.Namespace) -> int:
 
 def _cmd_run(a: argparse.Namespace) -> int:
     import dataclasses
-    import os
 
-    from .scene import load_scene, run_scene
+    from .scene import load_scene, run_batch
 
-    scene = load_scene(a.scene)
-    out = Path(a.output) if a.output else scene.path.parent / f"{scene.path.stem}_out"
-    workers = a.workers if a.workers is not None else min(os.cpu_count() or 1, len(scene.muscles))
+    scenes = [load_scene(p) for p in a.scene]
+    if len(scenes) > 1 and not a.output:
+        raise ValueError("several scenes: give the batch's output folder with -o")
+    stems = [sc.path.stem for sc in scenes]
+    if len(set(stems)) != len(stems):
+        raise ValueError(
+            "two scenes of the batch have the same file name ("
+            + ", ".join(sorted({s for s in stems if stems.count(s) > 1}))
+            + "): their output folders would clash"
+        )
+    if a.output:
+        base = Path(a.output)
+        outs = [base] if len(scenes) == 1 else [base / s for s in stems]
+    else:
+        outs = [scenes[0].path.parent / f"{scenes[0].path.stem}_out"]
+    muscles = sum(len(sc.muscles) for sc in scenes)
+    workers = a.workers if a.workers is not None else min(os.cpu_count() or 1, muscles)
     if workers < 1:
         raise ValueError(f"--workers must be at least 1, got {workers}")
     cache: Path | bool = False if a.no_cache else (Path(a.cache_dir) if a.cache_dir else True)
-    # several motions (e.g. sweeps): one output folder each
-    if a.no_fibres:
-        scene = dataclasses.replace(scene, fibres=None)
-    runs = (
-        [(scene, out)]
-        if len(scene.motions) <= 1
-        else [(dataclasses.replace(scene, motions=(m,)), out / m.stem) for m in scene.motions]
-    )
-    unconverged = 0
-    for sc, folder in runs:
-        if len(runs) > 1:
-            print(f"motion {sc.motion.name}:")
-        summary = run_scene(
-            sc,
-            folder,
+    runs, folders = [], []
+    for scene, out in zip(scenes, outs, strict=True):
+        if a.no_fibres:
+            scene = dataclasses.replace(scene, fibres=None)
+        # several motions (e.g. sweeps): one output folder each
+        if len(scene.motions) <= 1:
+            runs.append(scene)
+            folders.append(out)
+        else:
+            runs += [dataclasses.replace(scene, motions=(m,)) for m in scene.motions]
+            folders += [out / m.stem for m in scene.motions]
+    with contextlib.ExitStack() as stack:
+        client = None
+        if a.scheduler:
+            from .scene._dask import connect
+
+            client = stack.enter_context(connect(a.scheduler, log=lambda m: print(m, file=sys.stderr)))
+        summaries = run_batch(
+            runs,
+            folders,
             frames=a.frames,
             workers=workers,
             cache_dir=cache,
@@ -397,7 +428,12 @@ def _cmd_run(a: argparse.Namespace) -> int:
             log=lambda m: print(m, file=sys.stderr),
             resume=a.resume,
             collisions=False if a.no_collisions else None,
+            executor=client,
         )
+    unconverged = 0
+    for sc, summary in zip(runs, summaries, strict=True):
+        if len(runs) > 1:
+            print(f"{sc.path.name}" + (f", motion {sc.motion.name}" if sc.motion else "") + ":")
         print(summary.text())
         unconverged += summary.unconverged
     if unconverged and not a.allow_unconverged:

@@ -3,17 +3,21 @@
 from ._config import BoneSpec, MuscleSpec, Scene, load_scene
 from ._drive import Drive, drive_scene, parse_frames
 from ._errors import SceneError
+from ._execute import Executor, LocalExecutor, ProcessExecutor
 from ._motion import Motion, read_motion
 from ._opensim import OpenSimModel
-from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_scene
+from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_batch, run_scene
 
 __all__ = [
     "REPORT_FIELDS",
     "BoneSpec",
     "Drive",
+    "Executor",
+    "LocalExecutor",
     "Motion",
     "MuscleSpec",
     "OpenSimModel",
+    "ProcessExecutor",
     "RunSummary",
     "Scene",
     "SceneError",
@@ -22,5 +26,6 @@ __all__ = [
     "load_scene",
     "parse_frames",
     "read_motion",
+    "run_batch",
     "run_scene",
 ]

@@ -22,6 +22,7 @@ from .._typing import FloatArray
 from ..fibres import keep_inside
 from ..mesh import write_mesh
 from ._drive import Drive, apply
+from ._plan import MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
 
 __all__ = [
     "FIBRES_CSV",
@@ -54,22 +55,22 @@ _FORMAT = 1  # of the cached fibres
 INSIDE_DEPTH = 0.1
 
 
-def fibres_key(muscle_key: str, job: dict[str, Any]) -> str:
+def fibres_key(muscle_key: str, job: MuscleJob) -> str:
     """The cache key of a muscle's fibres: its preparation's key, rest lines and settings."""
-    spec, lines = job["fibres"], job["rest_lines"]
+    spec, lines = job.fibres, job.rest_lines
+    assert spec is not None
     areas = [
-        np.asarray([-1] if spec.get(k) is None else spec[k], dtype=np.int64)
-        for k in ("origin", "insertion")
+        np.asarray([-1] if a is None else a, dtype=np.int64) for a in (spec.origin, spec.insertion)
     ]
     return digest(
         muscle_key,
         *areas,
         *(np.asarray(lines[p], dtype=np.float64) for p in sorted(lines)),
-        f"{spec['count']}|{spec['points']}|{spec['voxels']}|{_FORMAT}|{__version__}",
+        f"{spec.count}|{spec.points}|{spec.voxels}|{_FORMAT}|{__version__}",
     )[:32]
 
 
-def fibres_of(muscle: Any, job: dict[str, Any], path: Path | None) -> tuple[Any, str | None]:
+def fibres_of(muscle: Any, job: MuscleJob, path: Path | None) -> tuple[Any, str | None]:
     """The muscle's fibres at rest, read from the cache file ``path`` or built (and cached).
 
     Returns
@@ -78,17 +79,18 @@ def fibres_of(muscle: Any, job: dict[str, Any], path: Path | None) -> tuple[Any,
     """
     from ..fibres import Fibres, fibres_at_rest
 
-    spec = job["fibres"]
+    spec = job.fibres
+    assert spec is not None
 
     def build() -> dict[str, np.ndarray]:
         fb = fibres_at_rest(
             muscle,
-            job["rest_lines"],
-            count=spec["count"],
-            points=spec["points"],
-            voxels=spec["voxels"],
-            origin=spec.get("origin"),
-            insertion=spec.get("insertion"),
+            job.rest_lines,
+            count=spec.count,
+            points=spec.points,
+            voxels=spec.voxels,
+            origin=spec.origin,
+            insertion=spec.insertion,
         )
         return {
             "points": fb.points,
@@ -101,7 +103,7 @@ def fibres_of(muscle: Any, job: dict[str, Any], path: Path | None) -> tuple[Any,
     try:
         z = cached_arrays(path, build)
     except ValueError as exc:
-        return None, f"{job['name']}: no fibres ({exc})"
+        return None, f"{job.name}: no fibres ({exc})"
     return Fibres(
         points=z["points"],
         W=z["W"],
@@ -116,7 +118,8 @@ def frame_fibres(
     F: Any,
     res: Any,
     k: int,
-    job: dict[str, Any],
+    ma: MomentArmSettings | None,
+    side: SidePoses | None,
     solve: Callable[[Any, Any, FloatArray, dict[str, FloatArray], bool, bool], Any],
 ) -> dict[str, Any]:
     """One frame's fibres: their lengths and, where asked, their moment arms.
@@ -129,9 +132,11 @@ def frame_fibres(
     res : DeformationResult
         The frame's deformation.
     k : int
-        The frame's position in ``job``'s slice.
-    job : dict
-        The muscle's job (``ma_*`` entries where moment arms are asked).
+        The frame's position in ``side``.
+    ma : MomentArmSettings or None
+        The moment arms asked for (None: lengths only).
+    side : SidePoses or None
+        The side poses of the frames (with ``ma``).
     solve : callable
         ``solve(lines, reference, T, bone_T, finish, bones)``: the deformation at a
         pose with the muscle body's transform ``T`` and each bone's ``bone_T``;
@@ -146,8 +151,7 @@ def frame_fibres(
         ``moved``, ``farthest``, ``left`` from `musclewrap.fibres.keep_inside`.
     """
     n = len(fb.points)
-    ma = job.get("ma")
-    coords = () if ma is None else ma["coordinates"]
+    coords = () if ma is None or side is None else ma.coordinates
     out: dict[str, Any] = {
         "points": None,
         "lengths": np.full(n, np.nan),
@@ -168,22 +172,21 @@ def frame_fibres(
     out["lengths"] = fb.lengths(out["points"])
     for j in range(len(coords)):
         L = []
-        for side in (0, 1):
-            bone_T = {b: T[k, j, side] for b, T in job["ma_bone_T"].items()}
+        for s in (0, 1):
             r = solve(
-                job["ma_lines"][k][j][side],
-                job["ma_references"][k][j][side],
-                job["ma_to_output"][k, j, side],
-                bone_T,
+                side.lines[k][j][s],
+                side.references[k][j][s],
+                side.to_output[k, j, s],
+                {b: T[k, j, s] for b, T in side.bone_T.items()},
                 False,  # the fine finish moves no cage vertex: the fibres are the same
-                ma["contact"],
+                ma.contact,
             )
             if not (r.converged and np.isfinite(r.cage).all()):
                 out["unconverged"] += 1
                 break
             L.append(fb.lengths(fb.at(r.cage)))
         if len(L) == 2:
-            out["moment_arms"][j] = -(L[1] - L[0]) / (2 * ma["steps"][j]) * ma["per_q"][j]
+            out["moment_arms"][j] = -(L[1] - L[0]) / (2 * ma.steps[j]) * ma.per_q[j]
     return out
 
 
@@ -205,7 +208,7 @@ def write_frame_fibres(path: Path, fb: Any, points: FloatArray, T: FloatArray) -
 
 
 def _rows(
-    drive: Drive, results: Sequence[dict[str, Any]], muscles: dict[str, tuple[str, ...]]
+    drive: Drive, results: Sequence[MuscleOutcome], muscles: dict[str, tuple[str, ...]]
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     ma = drive.moment_arms
     coords = () if ma is None else ma.coordinates
@@ -213,14 +216,14 @@ def _rows(
     arm_rows: list[dict[str, Any]] = []
     position = {f: k for k, f in enumerate(drive.frames)}
     for res in results:
-        name = res["name"]
-        for fr in res["fibres"]:
-            k = position[fr["frame"]]
-            lengths = np.asarray(fr["lengths"], dtype=np.float64)
-            arms = np.asarray(fr["moment_arms"], dtype=np.float64).reshape(
+        name = res.name
+        for fr in res.fibres:
+            k = position[fr.frame]
+            lengths = np.asarray(fr.lengths, dtype=np.float64)
+            arms = np.asarray(fr.moment_arms, dtype=np.float64).reshape(
                 len(coords), len(lengths)
             )
-            base = {"frame": fr["frame"], "time": fr["time"], "muscle": name}
+            base = {"frame": fr.frame, "time": fr.time, "muscle": name}
             if not coords:
                 fibre_rows += [
                     {**base, "fibre": i, "length": float(x), "coordinate": "", "moment_arm": ""}
@@ -258,7 +261,7 @@ def _rows(
 def write_fibre_outputs(
     outdir: Path,
     drive: Drive,
-    results: Sequence[dict[str, Any]],
+    results: Sequence[MuscleOutcome],
     muscles: dict[str, tuple[str, ...]],
     notes: list[str],
 ) -> list[Path]:
@@ -277,21 +280,21 @@ def write_fibre_outputs(
     fibre_rows, arm_rows = _rows(drive, results, muscles)
     files = [write_csv(outdir / FIBRES_CSV, fibre_rows, FIBRE_FIELDS)]
     for res in results:
-        moved = [fr for fr in res["fibres"] if fr.get("moved")]
+        moved = [fr for fr in res.fibres if fr.moved]
         if moved:
-            n = sum(fr["moved"] for fr in moved)
-            far = max(fr["farthest"] for fr in moved)
-            left = sum(fr["left"] for fr in moved)
+            n = sum(fr.moved for fr in moved)
+            far = max(fr.farthest for fr in moved)
+            left = sum(fr.left for fr in moved)
             notes.append(
-                f"{res['name']}: {n} fibre point(s) on {len(moved)} frame(s) lay outside the "
+                f"{res.name}: {n} fibre point(s) on {len(moved)} frame(s) lay outside the "
                 f"deformed surface (where it folds onto itself, or the contact pushed it past "
                 f"them) and were moved inside it, by up to {far:.2g}"
                 + (f"; {left} stayed outside" if left else "")
             )
-        bad = sum(fr["unconverged"] for fr in res["fibres"])
+        bad = sum(fr.unconverged for fr in res.fibres)
         if bad:
             notes.append(
-                f"{res['name']}: {bad} solve(s) at a moment arm's side pose did not converge: "
+                f"{res.name}: {bad} solve(s) at a moment arm's side pose did not converge: "
                 "those moment arms are empty (nan)"
             )
     ma = drive.moment_arms

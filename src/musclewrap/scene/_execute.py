@@ -1,0 +1,320 @@
+"""Executing a plan: one interface over where tasks run, one loop that feeds it.
+
+An `Executor` runs a task (`._work`: an object with ``run()``) and gives a
+`concurrent.futures.Future` of its result. Three stand behind the same interface:
+
+- `LocalExecutor`: in this process, at once (``--workers 1``);
+- `ProcessExecutor`: spawned worker processes on this machine (the default);
+- `DaskExecutor` (`._dask`): the workers of a ``dask.distributed`` cluster.
+
+`Runner` holds the plan's tasks (`Node`: a task, or a function that makes it from
+the results of the nodes it waits for) and hands each to the executor once the
+nodes it waits for are done, so that a batch of scenes, the chunks of a muscle and,
+later, muscles placed in an order against each other all go through one loop.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue as queue_mod
+import threading
+import time
+from collections.abc import Callable, Hashable, Iterable
+from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from typing import Any
+
+from ._work import set_tick
+
+__all__ = ["Executor", "LocalExecutor", "Node", "ProcessExecutor", "Runner", "run_task"]
+
+
+def run_task(task: Any) -> Any:
+    """What a worker calls: the task's ``run()``."""
+    return task.run()
+
+
+class Executor:
+    """Where tasks run.
+
+    Attributes
+    ----------
+    workers : int
+        How many tasks run at once.
+    fine_progress : bool
+        True when `ticks` reports every frame; else the runner counts a chunk's
+        frames when it comes back.
+    remote : bool
+        True when workers may run on other machines (the output and cache folders
+        must then be paths every worker shares).
+    """
+
+    workers: int = 1
+    fine_progress: bool = True
+    remote: bool = False
+
+    def submit(self, task: Any) -> Future[Any]:
+        raise NotImplementedError
+
+    def attach(self, progress: Callable[[int], None] | None) -> None:
+        """Where frames done in this process go at once (only `LocalExecutor` has any)."""
+
+    def step(self) -> bool:
+        """Run one queued task in this process, if this executor runs any here."""
+        return False
+
+    def ticks(self, timeout: float | None) -> int:
+        """Frames done since the last call (waits up to ``timeout`` for the first)."""
+        if timeout:
+            time.sleep(timeout)
+        return 0
+
+    def close(self, cancel: bool = False) -> None:
+        """Stop the workers (``cancel``: drop queued tasks)."""
+
+    def __enter__(self) -> Executor:
+        return self
+
+    def __exit__(self, kind: object, *_: object) -> None:
+        self.close(cancel=kind is not None)
+
+
+class _Sink:
+    def __init__(self) -> None:
+        self.progress: Callable[[int], None] | None = None
+
+    def put(self, n: int) -> None:
+        if self.progress is not None:
+            self.progress(n)
+
+
+class LocalExecutor(Executor):
+    """Runs the tasks in this process, one per `step` (the runner's loop calls it)."""
+
+    def __init__(self) -> None:
+        self._sink = _Sink()
+        self._queue: list[tuple[Any, Future[Any]]] = []
+
+    def attach(self, progress: Callable[[int], None] | None) -> None:
+        self._sink.progress = progress
+
+    def submit(self, task: Any) -> Future[Any]:
+        f: Future[Any] = Future()
+        self._queue.append((task, f))
+        return f
+
+    def step(self) -> bool:
+        if not self._queue:
+            return False
+        task, f = self._queue.pop(0)
+        set_tick(self._sink)
+        try:
+            f.set_result(task.run())
+        except Exception as exc:  # noqa: BLE001  # raised where the runner takes the result
+            f.set_exception(exc)
+        finally:
+            set_tick(None)
+        return True
+
+
+def _init_worker(queue: Any, threads: int) -> None:
+    set_tick(queue)
+    # A failing initializer breaks the whole pool: thread limits are best effort.
+    try:
+        import numba
+
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(threads)
+    except Exception:  # pragma: no cover  # noqa: BLE001
+        pass
+
+
+def warm_up() -> None:
+    """Import what the tasks need (a worker does this while the client reads the scene)."""
+    import igl  # noqa: F401
+
+    from .. import contact  # noqa: F401
+    from ..solver import Muscle  # noqa: F401
+
+
+class ProcessExecutor(Executor):
+    """Spawned worker processes on this machine, with a queue for the frames-done ticks."""
+
+    def __init__(self, n: int) -> None:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        ctx = mp.get_context("spawn")
+        self.queue = ctx.Queue()
+        threads = max(1, (os.cpu_count() or 1) // n)
+        self.pool = ProcessPoolExecutor(
+            max_workers=n, mp_context=ctx, initializer=_init_worker, initargs=(self.queue, threads)
+        )
+        self.workers = n
+        # one task per worker starts them all now, each importing what the tasks need
+        for _ in range(n):
+            self.pool.submit(warm_up)
+
+    def submit(self, task: Any) -> Future[Any]:
+        return self.pool.submit(run_task, task)
+
+    def ticks(self, timeout: float | None) -> int:
+        n = 0
+        try:
+            n += self.queue.get(timeout=timeout) if timeout else self.queue.get_nowait()
+            while True:
+                n += self.queue.get_nowait()
+        except queue_mod.Empty:
+            pass
+        return n
+
+    def close(self, cancel: bool = False) -> None:
+        # On an error, queued work is dropped, but the workers are still waited for: one
+        # left starting up after this process unlinked the queue's semaphore would print
+        # a traceback of its own.
+        self.pool.shutdown(wait=True, cancel_futures=cancel)
+
+
+@dataclass
+class Node:
+    """One task of a plan.
+
+    Parameters
+    ----------
+    key : hashable
+        Unique in the plan.
+    task : object with ``run()``, or callable
+        The task; or a function of the results of ``after`` (a dict by key) that
+        makes it, called once they are done.
+    after : tuple of keys
+        Nodes that must be done first.
+    done : callable, optional
+        Called in this process with the result (e.g. to record it in the journal).
+    result : object, optional
+        Set for a node already done (kept from an interrupted run): not run.
+    frames : int
+        Muscle-frames the task covers (for the progress where the executor reports
+        whole tasks only).
+    """
+
+    key: Hashable
+    task: Any
+    after: tuple[Hashable, ...] = ()
+    done: Callable[[Any], Any] | None = None
+    result: Any = None
+    finished: bool = False
+    frames: int = 0
+    future: Future[Any] | None = field(default=None, repr=False)
+
+
+class Runner:
+    """Feeds nodes to an executor as their dependencies finish; collects their results."""
+
+    def __init__(self, executor: Executor, progress: Callable[[int], None] | None) -> None:
+        self.executor = executor
+        self.progress = progress
+        self.nodes: dict[Hashable, Node] = {}
+        self.pending: list[Node] = []
+        self.running: list[Node] = []
+        executor.attach(progress)
+
+    def add(self, nodes: Iterable[Node]) -> None:
+        """Add nodes (their ``after`` must name nodes added already, or with them).
+
+        A node whose key is taken already is the same work (a muscle or bone that two
+        scenes of a batch share): it is not added again.
+        """
+        for n in nodes:
+            if n.key in self.nodes:
+                continue
+            self.nodes[n.key] = n
+            if n.finished:
+                self._count(n.frames)
+            else:
+                self.pending.append(n)
+        self._submit()
+
+    def result(self, key: Hashable) -> Any:
+        return self.nodes[key].result
+
+    def _count(self, frames: int) -> None:
+        if self.progress is not None and frames:
+            self.progress(frames)
+
+    def _submit(self) -> None:
+        ready = [n for n in self.pending if all(self.nodes[a].finished for a in n.after)]
+        for n in ready:
+            self.pending.remove(n)
+            task = n.task
+            if not hasattr(task, "run"):
+                task = task({a: self.nodes[a].result for a in n.after})
+            n.future = self.executor.submit(task)
+            self.running.append(n)
+
+    def poll(self, timeout: float = 0.05) -> None:
+        """Take in what finished (waiting up to ``timeout`` for something), submit what is ready."""
+        from concurrent.futures import FIRST_COMPLETED, wait
+
+        self.executor.step()
+        futures = [n.future for n in self.running if n.future is not None]
+        idle = futures and not any(f.done() for f in futures)
+        if self.executor.fine_progress and self.progress is not None:
+            n = self.executor.ticks(timeout if idle else None)
+            if n:
+                self.progress(n)
+        elif idle:
+            wait(futures, timeout=timeout, return_when=FIRST_COMPLETED)
+        for node in [n for n in self.running if n.future is not None and n.future.done()]:
+            self.running.remove(node)
+            try:
+                result = node.future.result()  # type: ignore[union-attr]  # the task's error
+            except BrokenProcessPool:
+                raise RuntimeError(
+                    "a worker process died without a Python error (out of memory, a crash in "
+                    "a compiled library, or, from a Python script, run_scene called outside an "
+                    "`if __name__ == '__main__':` block); rerun with --workers 1 to see where"
+                ) from None
+            node.future = None
+            if node.done is not None:
+                result = node.done(result)
+            node.result, node.finished = result, True
+            if not self.executor.fine_progress:
+                self._count(node.frames)
+        self._submit()
+
+    def busy(self, keys: Iterable[Hashable] | None = None) -> bool:
+        """Whether any of ``keys`` (default: any node) is not done yet."""
+        if keys is None:
+            return bool(self.pending or self.running)
+        return not all(self.nodes[k].finished for k in keys)
+
+    def wait(self, keys: Iterable[Hashable] | None = None) -> None:
+        keys = None if keys is None else list(keys)
+        while self.busy(keys):
+            if self.pending and not self.running:
+                raise RuntimeError(
+                    "tasks wait for each other: "
+                    + ", ".join(repr(n.key) for n in self.pending[:5])
+                )
+            self.poll()
+        if self.progress is not None and self.executor.fine_progress:  # the last ticks
+            n = self.executor.ticks(None)
+            if n:
+                self.progress(n)
+
+
+def import_plotting_meanwhile() -> None:
+    """Import matplotlib in a thread (this process waits for workers meanwhile)."""
+
+    def go() -> None:
+        with contextlib.suppress(Exception):
+            import matplotlib
+
+            matplotlib.use("Agg")
+            import matplotlib.pyplot  # noqa: F401
+
+    threading.Thread(target=go, daemon=True).start()

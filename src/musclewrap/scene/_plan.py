@@ -1,0 +1,393 @@
+"""A run as a plan of typed tasks: what each task gets, and what it gives back.
+
+Reading a scene (`._read`) gives one `MuscleJob` per muscle (what every task of
+that muscle needs, the same for all of them) and one `FrameSpan` (the motion's
+per-frame data: lines, transforms, the moment arms' side poses), cut into chunks.
+The tasks are:
+
+- `Prepare`: a muscle's preparation (and its fibres) into the cache;
+- `ProbeBone`: a bone's signed-distance probe into the cache;
+- `DeformChunk`: one muscle on one chunk of frames, its files written;
+- `Compare`: one muscle's comparison with the paper's iteration on a few frames.
+
+Each is a frozen dataclass whose ``run`` method (in `._work`) executes it in any
+process: the executor (`._execute`) only hands tasks to workers and results back.
+Large data (prepared muscles, bone probes, fibres) travels through the cache folder,
+which every worker reads; tasks carry only what differs between them. Results are
+small records that the journal keeps as JSON, so that an interrupted run goes on.
+
+A chunk task names the tasks it waits for (``after``): its muscle's and its bones'
+preparation today; the same mechanism lets a later muscle of the same frames wait
+for the muscles already placed (muscle-muscle contact in an order).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from .._cache import digest
+from .._typing import FloatArray, IntArray
+
+__all__ = [
+    "BoneMesh",
+    "ChunkResult",
+    "Comparison",
+    "FibreFrame",
+    "FibreSettings",
+    "FrameSpan",
+    "MomentArmSettings",
+    "MuscleJob",
+    "Prepared",
+    "SidePoses",
+]
+
+
+@dataclass(frozen=True)
+class BoneMesh:
+    """A bone's mesh in its body's frame, and the name of its probe in the cache."""
+
+    name: str
+    V: FloatArray
+    F: IntArray
+    probe: str
+
+
+@dataclass(frozen=True)
+class FibreSettings:
+    """A muscle's ``[fibres]`` settings and attachment areas (vertex numbers; None: default)."""
+
+    count: int
+    points: int
+    voxels: int
+    origin: IntArray | None = None
+    insertion: IntArray | None = None
+
+
+@dataclass(frozen=True)
+class MomentArmSettings:
+    """Coordinates of the moment arms, their steps (model units) and per-radian factors."""
+
+    coordinates: tuple[str, ...]
+    steps: FloatArray
+    per_q: FloatArray
+    contact: bool
+
+
+@dataclass(frozen=True)
+class MuscleJob:
+    """What every task of one muscle needs: mesh, settings, rest pose, where things go."""
+
+    name: str
+    source: str
+    V: FloatArray
+    F: IntArray
+    input_id: IntArray
+    cage_size: int | None
+    cage_coarsening: Any
+    method: str
+    max_iterations: int | None
+    rest_lines: dict[str, FloatArray]
+    rest_reference: FloatArray | None
+    anchors: IntArray | None
+    contact: dict[str, FloatArray | None] | None
+    margin: float
+    bones: tuple[BoneMesh, ...]
+    fibres: FibreSettings | None
+    moment_arms: MomentArmSettings | None
+    paper_frames: int
+    cache_dir: str | None
+    outdir: str
+    run: str
+
+    def cache_key(self) -> str:
+        """Hash of the mesh and the preparation's settings (names its cache file)."""
+        from ..solver._muscle import _FORMAT
+
+        return digest(
+            np.asarray(self.V, dtype=np.float64),
+            np.asarray(self.F, dtype=np.int64),
+            np.asarray(self.input_id, dtype=np.int64),
+            f"{self.cage_size}|{self.cage_coarsening}|{_FORMAT}|{__version__}",
+        )[:32]
+
+    def prepare_path(self) -> Path | None:
+        """The cache file of the muscle's preparation (None: no cache)."""
+        if self.cache_dir is None:
+            return None
+        return Path(self.cache_dir) / f"{self.name}-{self.cache_key()}.npz"
+
+    def fibres_path(self) -> Path | None:
+        """The cache file of the muscle's fibres (None: no cache or no fibres)."""
+        if self.cache_dir is None or self.fibres is None:
+            return None
+        from ._fibres import fibres_key
+
+        return Path(self.cache_dir) / f"fibres-{self.name}-{fibres_key(self.cache_key(), self)}.npz"
+
+
+@dataclass(frozen=True)
+class SidePoses:
+    """The moment arms' side poses of some frames: ``[k][coordinate][side]`` (q -/+ h)."""
+
+    lines: list[list[tuple[dict[str, FloatArray], dict[str, FloatArray]]]]
+    references: list[list[tuple[FloatArray | None, FloatArray | None]]]
+    to_output: FloatArray  # (k, C, 2, 4, 4), the muscle's body
+    bone_T: dict[str, FloatArray]  # bone -> (k, C, 2, 4, 4)
+
+    def slice(self, a: int, b: int) -> SidePoses:
+        return SidePoses(
+            self.lines[a:b],
+            self.references[a:b],
+            self.to_output[a:b],
+            {n: T[a:b] for n, T in self.bone_T.items()},
+        )
+
+
+@dataclass(frozen=True)
+class FrameSpan:
+    """One muscle's per-frame data on consecutive frames of a run (from its ``start``)."""
+
+    start: int
+    frames: IntArray
+    times: FloatArray
+    lines: list[dict[str, FloatArray]]
+    references: list[FloatArray | None]
+    to_output: FloatArray  # (k, 4, 4): the muscle's body frame -> output frame
+    bone_T: dict[str, FloatArray]  # bone -> (k, 4, 4)
+    side: SidePoses | None = None
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def slice(self, a: int, b: int) -> FrameSpan:
+        """Frames ``a`` to ``b`` of this span (indices into it)."""
+        return FrameSpan(
+            self.start + a,
+            self.frames[a:b],
+            self.times[a:b],
+            self.lines[a:b],
+            self.references[a:b],
+            self.to_output[a:b],
+            {n: T[a:b] for n, T in self.bone_T.items()},
+            None if self.side is None else self.side.slice(a, b),
+        )
+
+
+@dataclass
+class Prepared:
+    """What a muscle's preparation reports."""
+
+    name: str
+    seconds: float
+    cache_hit: bool
+    note: str | None
+
+
+@dataclass
+class FibreFrame:
+    """One frame's fibres of a muscle: lengths, moment arms ``(C, N)``, what was corrected."""
+
+    frame: int
+    time: float
+    lengths: list[float]
+    moment_arms: list[list[float]]
+    unconverged: int
+    moved: int
+    farthest: float
+    left: int
+
+
+@dataclass
+class ChunkResult:
+    """One muscle's frames of a chunk: report rows, files written (frame index, name), fibres."""
+
+    name: str
+    rows: list[dict[str, Any]]
+    entries: list[tuple[int, str]]
+    fibres: list[FibreFrame] = field(default_factory=list)
+    seconds_prepare: float = 0.0
+    cache_hit: bool = False
+    note: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> ChunkResult:
+        return cls(
+            name=d["name"],
+            rows=d["rows"],
+            entries=[(int(k), str(f)) for k, f in d["entries"]],
+            fibres=[FibreFrame(**f) for f in d["fibres"]],
+            seconds_prepare=d["seconds_prepare"],
+            cache_hit=d["cache_hit"],
+            note=d["note"],
+        )
+
+
+@dataclass
+class Comparison:
+    """The paper's iteration beside the default, and the worst frame's convergence histories.
+
+    ``paper`` has (frame, volume error, iterations, seconds) on a few frames.
+    """
+
+    paper: list[tuple[int, float, int, float]] = field(default_factory=list)
+    worst_frame: int | None = None
+    convergence: dict[str, list[tuple[float, ...]]] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> Comparison:
+        return cls(
+            paper=[tuple(p) for p in d["paper"]],  # type: ignore[misc]
+            worst_frame=d["worst_frame"],
+            convergence={k: [tuple(h) for h in v] for k, v in d["convergence"].items()},
+        )
+
+
+@dataclass
+class MuscleOutcome:
+    """One muscle's whole run: its chunks in frame order, its preparation, its comparison."""
+
+    name: str
+    rows: list[dict[str, Any]]
+    entries: list[tuple[int, str]]
+    fibres: list[FibreFrame]
+    seconds_prepare: float
+    cache_hit: bool
+    note: str | None
+    comparison: Comparison
+
+    @classmethod
+    def merge(
+        cls, name: str, parts: list[ChunkResult], prepared: Prepared | None, comparison: Comparison
+    ) -> MuscleOutcome:
+        first = parts[0]
+        notes = [n for n in [prepared and prepared.note, *(p.note for p in parts)] if n]
+        return cls(
+            name=name,
+            rows=[r for p in parts for r in p.rows],
+            entries=[e for p in parts for e in p.entries],
+            fibres=[f for p in parts for f in p.fibres],
+            seconds_prepare=prepared.seconds if prepared is not None else first.seconds_prepare,
+            cache_hit=prepared.cache_hit if prepared is not None else first.cache_hit,
+            note="; ".join(dict.fromkeys(notes)) or None,
+            comparison=comparison,
+        )
+
+
+# ---------------------------------------------------------------------------- planning
+def chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
+    """Frame ranges per muscle: about three tasks per worker, for an even finish.
+
+    At most 128 frames each: a chunk is also what an interrupted run keeps.
+    """
+    k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), n_frames // 20))
+    k = max(k, -(-n_frames // 128))
+    edges = np.linspace(0, n_frames, k + 1).round().astype(int)
+    return [range(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+
+
+def muscle_jobs(inputs: Any, outdir: Path, cache: Path | None, run: str) -> list[MuscleJob]:
+    """One job per muscle of a read scene (`._read.Inputs`), largest first.
+
+    Largest first: the workers then finish about together.
+    """
+    from ._read import attachment_area
+
+    scene, drive = inputs.scene, inputs.drive
+    bones = tuple(
+        BoneMesh(b.name, *inputs.bones[b.name], _probe_name(*inputs.bones[b.name]))
+        for b in scene.bones
+    )
+    jobs = []
+    for spec in scene.muscles:
+        V, F = inputs.muscles[spec.name]
+        ids = inputs.input_ids.get(spec.name, np.arange(len(V)))
+        fibres = None
+        if scene.fibres is not None:
+            f = scene.fibres
+            fibres = FibreSettings(
+                f.count,
+                f.points,
+                f.voxels,
+                attachment_area(scene, drive, spec, "origin", V, ids),
+                attachment_area(scene, drive, spec, "insertion", V, ids),
+            )
+        ma = drive.moment_arms
+        jobs.append(
+            MuscleJob(
+                name=spec.name,
+                source=str(spec.mesh),
+                V=V,
+                F=F,
+                input_id=ids,
+                cage_size=spec.cage_size,
+                cage_coarsening=spec.cage_coarsening,
+                method=spec.method,
+                max_iterations=spec.max_iterations,
+                rest_lines=drive.rest_lines[spec.name],
+                rest_reference=drive.rest_reference[spec.name],
+                anchors=None if inputs.anchors is None else inputs.anchors[spec.name],
+                contact=None if inputs.contact is None else inputs.contact[spec.name],
+                margin=scene.margin,
+                bones=bones,
+                fibres=fibres,
+                moment_arms=(
+                    None
+                    if fibres is None or ma is None
+                    else MomentArmSettings(
+                        tuple(ma.coordinates),
+                        np.asarray(ma.steps),
+                        np.asarray(ma.per_q),
+                        scene.fibres.moment_arm_contact,
+                    )
+                ),
+                paper_frames=scene.paper_frames,
+                cache_dir=None if cache is None else str(cache),
+                outdir=str(outdir),
+                run=run,
+            )
+        )
+    jobs.sort(key=lambda j: -len(j.V))
+    return jobs
+
+
+def frame_span(inputs: Any, name: str) -> FrameSpan:
+    """A muscle's per-frame data over the whole run."""
+    scene, drive = inputs.scene, inputs.drive
+    spec = next(s for s in scene.muscles if s.name == name)
+    ma = drive.moment_arms
+    side = None
+    if scene.fibres is not None and ma is not None:
+        side = SidePoses(
+            ma.lines[name],
+            ma.references[name],
+            ma.to_output[spec.body],
+            {b.name: ma.to_output[b.body] for b in scene.bones},
+        )
+    return FrameSpan(
+        0,
+        np.asarray(drive.frames),
+        np.asarray(drive.times),
+        drive.lines[name],
+        drive.references[name],
+        drive.to_output[spec.body],
+        {b.name: drive.to_output[b.body] for b in scene.bones},
+        side,
+    )
+
+
+def _probe_name(V: FloatArray, F: IntArray) -> str:
+    from ..contact import Obstacle
+
+    return str(Obstacle.cache_name(V, F))

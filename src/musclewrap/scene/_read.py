@@ -1,0 +1,508 @@
+"""Reading a scene's inputs: meshes (cleaned, cached), the motion, the rest overlap.
+
+Everything here runs in the client (the process that reads the scene file); what it
+gives (`Inputs`) is planned into tasks by `._plan`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from .._cache import cached_arrays, digest
+from .._paths import overwrite_clash
+from .._typing import FloatArray, IntArray
+from ..contact import Obstacle
+from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, vertex_origins
+from ._config import Scene
+from ._drive import Drive, apply, drive_scene
+from ._errors import SceneError
+from ._plan import BoneMesh
+from ._work import bone_probe
+from ._write import TOP_FILES
+
+__all__ = ["Inputs", "default_cache_dir", "read_inputs"]
+
+
+@dataclass
+class Inputs:
+    """A scene read: meshes in their bodies' frames, the motion, the rest-pose outcome.
+
+    ``contact`` is None without collisions, else per muscle the bones it is kept
+    out of with each one's allowance; ``anchors`` per muscle its vertices held at
+    the bone its body carries (see `_rest_overlap`).
+    """
+
+    scene: Scene
+    drive: Drive
+    muscles: dict[str, tuple[FloatArray, IntArray]]
+    bones: dict[str, tuple[FloatArray, IntArray]]
+    input_ids: dict[str, IntArray]
+    contact: dict[str, dict[str, FloatArray | None]] | None
+    anchors: dict[str, IntArray] | None
+    cache: Path | None
+    key: str
+
+
+def read_inputs(
+    scene: Scene,
+    frames: str | None,
+    cache: Path | None,
+    collisions: bool,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> Inputs:
+    """Read every mesh of ``scene``, drive it over ``frames``, settle the rest overlap."""
+    muscles = {}
+    input_ids: dict[str, IntArray] = {}
+    for spec in scene.muscles:
+        V, F, mnotes, input_ids[spec.name] = _read_muscle(spec, cache)
+        for n in mnotes:
+            notes.append(f"{spec.name}: {n}")
+            say(f"{spec.name}: {n}")
+        muscles[spec.name] = (V, F)
+    bones = {}
+    for b in scene.bones:
+        V, F, flipped, open_edges = _read_bone(b.mesh, cache)
+        if flipped:
+            notes.append(f"{b.name}: faces were oriented inward: flipped")
+        if collisions:
+            V, F = _closed_bone(b, V, F, open_edges, cache, say, notes)
+        bones[b.name] = (V, F)
+    centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
+    drive = drive_scene(scene, frames, centroids)
+    notes += drive.notes
+    # every mesh in the frame of the body that carries it
+    muscles = {m: (apply(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}
+    bones = {b: (apply(drive.to_body[b], V), F) for b, (V, F) in bones.items()}
+    _check_units(scene, drive, muscles)
+    contact = anchors = None
+    if collisions:
+        muscles, contact, anchors = _rest_overlap(scene, drive, muscles, bones, cache, say, notes)
+    return Inputs(
+        scene,
+        drive,
+        muscles,
+        bones,
+        input_ids,
+        contact,
+        anchors,
+        cache,
+        run_key(scene, drive, collisions),
+    )
+
+
+def default_cache_dir() -> Path:
+    """``$MUSCLEWRAP_CACHE``, else ``$XDG_CACHE_HOME/musclewrap``, else ``~/.cache/musclewrap``."""
+    env = os.environ.get("MUSCLEWRAP_CACHE")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return Path(xdg if xdg else Path.home() / ".cache") / "musclewrap"
+
+
+def _cached_mesh(
+    path: Path, cache: Path | None, tag: str, build: Callable[[], dict[str, np.ndarray]]
+) -> dict[str, np.ndarray]:
+    """Arrays `build` makes from a mesh file, cached by the file's bytes and ``tag``."""
+    key = digest(path.read_bytes(), f"{tag}|{__version__}|first-appearance order")
+    return cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
+
+
+def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, list[str], IntArray]:
+    """Read and clean (or repair) a muscle mesh; cached.
+
+    Returns the mesh, the notes, and each vertex's index in the file (``input_id``,
+    `musclewrap.mesh.vertex_origins`).
+    """
+
+    def build() -> dict[str, np.ndarray]:
+        V0, F0 = read_mesh(spec.mesh)
+        V, F, notes = clean_mesh(V0, F0, source=str(spec.mesh), repair=spec.repair)
+        ids = vertex_origins(V0, V)
+        return {"V": V, "F": F, "notes": np.array(notes, dtype=str), "input_id": ids}
+
+    d = _cached_mesh(
+        spec.mesh,
+        cache,
+        f"muscle|{spec.repair}|self-intersection, fans, orientation, input_id",
+        build,
+    )
+    return d["V"], d["F"], [str(n) for n in d["notes"]], d["input_id"]
+
+
+def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bool, int]:
+    """Read, tidy and orient outward a bone mesh (not required to be manifold); cached.
+
+    Returns the vertices, the faces, whether they were flipped, and the number of
+    boundary edges (an open bone: contact has to close it).
+    """
+
+    def build() -> dict[str, np.ndarray]:
+        V, F, _ = tidy_mesh(*read_mesh(path))
+        check = check_mesh(V, F)
+        flip = check.volume < 0
+        return {
+            "V": V,
+            "F": F[:, ::-1].copy() if flip else F,
+            "flipped": np.array(flip),
+            "boundary_edges": np.array(check.boundary_edges),
+        }
+
+    d = _cached_mesh(path, cache, "bone|boundary edges", build)
+    return d["V"], d["F"], bool(d["flipped"]), int(d["boundary_edges"])
+
+
+def _closed_bone(
+    b: Any,
+    V: FloatArray,
+    F: IntArray,
+    boundary_edges: int,
+    cache: Path | None,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> tuple[FloatArray, IntArray]:
+    """A bone that contact can use: closed (an open one is repaired, or refused); cached.
+
+    Contact needs an inside: a bone with holes is closed by PyMeshFix, as a muscle is, and
+    the run says so; one that cannot be is refused, naming the file.
+    """
+    from ..contact import bone_surface
+    from ..mesh import MeshError
+
+    if not boundary_edges:
+        return V, F
+
+    def build() -> dict[str, np.ndarray]:
+        try:
+            RV, RF, rnotes = bone_surface(V, F, source=str(b.mesh), close=True)
+        except MeshError as exc:
+            raise SceneError(
+                f"{b.mesh}: the bone '{b.name}' is open ({boundary_edges} boundary "
+                f"edges) and could not be closed ({exc}); contact needs its inside: close it, "
+                "leave it out of the muscles' bones, or set [collisions] enabled = false"
+            ) from None
+        return {"V": RV, "F": RF, "notes": np.array(rnotes, dtype=str)}
+
+    d = _cached_mesh(b.mesh, cache, "bone-closed", build)
+    for n in (str(x) for x in d["notes"]):
+        notes.append(f"{b.name}: {n}")
+        say(f"{b.name}: {n}")
+    return d["V"], d["F"]
+
+
+def _push_out_rest(
+    V: FloatArray, F: IntArray, placed: list[Any], margin: float, cache: Path | None
+) -> tuple[FloatArray | None, Any, str]:
+    """The rest pose's push-out (cached): with the bone vertices, else without, else none.
+
+    Taking the bones' vertices out of the muscle as well (`push_out` with
+    ``bone_vertices``) costs seconds and can fold the surface where a bone's
+    edge is thin: a result whose surface passes through itself is not used.
+    Returns the positions (None: every variant folded), the report and which
+    variant was used.
+    """
+    from ..mesh import self_intersecting_faces, volume
+    from ..solver import ContactReport, push_out
+
+    key = digest(
+        V,
+        F,
+        *(np.asarray(pl.T) for pl in placed),
+        "|".join(Obstacle.cache_name(pl.obstacle.V, pl.obstacle.F) for pl in placed),
+        f"{margin}|{__version__}|rest-overlap",
+    )
+    path = None if cache is None else cache / f"rest-{key[:32]}.npz"
+    done: list[Any] = []
+
+    def build() -> dict[str, np.ndarray]:
+        rep = None
+        for how in ("bone vertices", "vertices"):
+            P, rep = push_out(
+                V, F, placed, volume_target=volume(V, F), margin=margin,
+                bone_vertices=how == "bone vertices",
+            )  # fmt: skip
+            if rep.rounds == 0 or not rep.ok or self_intersecting_faces(P, F) == 0:
+                done.append((P, rep, how))
+                break
+        else:
+            done.append((None, rep, "none"))
+        P, rep, how = done[0]
+        return {
+            "P": np.zeros((0, 3)) if P is None else P,
+            "report": np.array(json.dumps(dataclasses.asdict(rep))),
+            "how": np.array(how),
+        }
+
+    d = cached_arrays(path, build)
+    try:
+        rep = ContactReport(**json.loads(str(d["report"])))
+    except (TypeError, ValueError):
+        # written by a development version whose report had other fields: rebuilt
+        if path is not None:
+            path.unlink(missing_ok=True)
+        d = cached_arrays(path, build)
+        rep = ContactReport(**json.loads(str(d["report"])))
+    how = str(d["how"])
+    return (None if how == "none" else d["P"]), rep, how
+
+
+def _rest_overlap(
+    scene: Scene,
+    drive: Drive,
+    muscles: dict[str, tuple[FloatArray, IntArray]],
+    bones: dict[str, tuple[FloatArray, IntArray]],
+    cache: Path | None,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> tuple[
+    dict[str, tuple[FloatArray, IntArray]],
+    dict[str, dict[str, FloatArray | None]],
+    dict[str, IntArray],
+]:
+    """Muscles out of their bones at the rest pose (or their overlap kept), once per run.
+
+    Every mesh is in its body's frame. With ``rest_overlap = "resolve"`` each
+    muscle's vertices inside (or within the margin of) a bone at the rest pose
+    are pushed out, volume-exact (`musclewrap.solver.push_out`), and the pushed
+    mesh is the one prepared; with ``"keep"`` each vertex may stay as deep as it
+    was. A muscle with most of its vertices inside one bone is refused: its
+    mesh, frame or units do not match the bone's.
+
+    Returns the muscles; per muscle, the bones it is kept out of with each one's
+    allowance (``"keep"``); and per muscle its anchors: the vertices within
+    ``defaults.anchor_reach`` mean edge lengths of the margin of a bone that its
+    own body carries, in patches near an end of its action lines (an origin,
+    which moves with that bone: `Muscle.bind`'s anchors keep them in place, so
+    the deformation does not drive the muscle into the bone it starts from;
+    `musclewrap.solver.attachment_patches`).
+    """
+    from ..constants import defaults
+    from ..mesh import mean_edge_length, vertex_adjacency
+    from ..solver import Placed, attachment_patches
+
+    cache_str = None if cache is None else str(cache)
+    probes: dict[str, Any] = {}
+
+    def probe(b: str) -> Any:  # built (or read back) only where a muscle's outcome is not kept
+        if b not in probes:
+            V, F = bones[b]
+            probes[b] = bone_probe(BoneMesh(b, V, F, Obstacle.cache_name(V, F)), cache_str)
+        return probes[b]
+
+    body_of = {b.name: b.body for b in scene.bones}
+    out_muscles = dict(muscles)
+    contact: dict[str, dict[str, FloatArray | None]] = {}
+    anchors: dict[str, IntArray] = {}
+    for spec in scene.muscles:
+        V, F = muscles[spec.name]
+        names = list(spec.bones) if spec.bones is not None else list(bones)
+        T = {b: drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name]) for b in names}
+        lines = drive.rest_lines[spec.name]
+        key = digest(
+            V,
+            F,
+            *(Obstacle.cache_name(*bones[b]) for b in names),
+            *(T[b] for b in names),
+            *(np.asarray(lines[k], dtype=np.float64) for k in sorted(lines)),
+            repr((names, sorted(lines), [body_of[b] == spec.body for b in names])),
+            repr((spec.name, scene.margin, scene.rest_overlap, scene.mesh_unit)),
+            repr((defaults.anchor_reach, defaults.anchor_end_reach, __version__)),
+        )
+
+        def build(
+            spec: Any = spec,
+            V: FloatArray = V,
+            F: IntArray = F,
+            names: list[str] = names,
+            T: dict[str, FloatArray] = T,
+            lines: dict[str, FloatArray] = lines,
+        ) -> dict[str, np.ndarray]:
+            said: list[str] = []
+            placed = []
+            for b in names:
+                pl = Placed(probe(b), T[b], None, b)
+                n_in, depth = pl.obstacle.measure(pl.to_obstacle(V))
+                if n_in > 0.5 * len(V):
+                    raise SceneError(
+                        f"{spec.mesh}: {n_in} of the {len(V)} vertices of '{spec.name}' lie "
+                        f"inside the bone '{b}' ({depth:.3g} {scene.mesh_unit} deep) at the rest "
+                        "pose: the muscle and bone meshes must be the same subject's, in the same "
+                        "frame and units (or leave this bone out of the muscle's [muscles] bones)"
+                    )
+                placed.append(pl)
+            keep = scene.rest_overlap == "keep"
+            if placed and not keep:
+                _, V, keep = _resolve_rest(spec, V, F, placed, scene, cache, _silent, said)
+            out: dict[str, np.ndarray] = {"V": V, "notes": np.array(said, dtype=str)}
+            for pl in placed:
+                a = _kept_allowance(pl, V, scene.margin) if keep else None
+                if a is not None:
+                    out[f"allowance {pl.name}"] = a
+            reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
+            found = [
+                pl.obstacle.query(pl.to_obstacle(V), reach)[0]
+                for pl in placed
+                if body_of[pl.name] == spec.body
+            ]
+            out["anchors"] = attachment_patches(
+                vertex_adjacency(F, len(V)),
+                V,
+                np.concatenate(found) if found else np.zeros(0, np.int64),
+                lines,
+            )
+            return out
+
+        d = cached_arrays(None if cache is None else cache / f"rest-outcome-{key[:32]}.npz", build)
+        for n in (str(x) for x in d["notes"]):
+            notes.append(n)
+            say(n)
+        contact[spec.name] = {b: d.get(f"allowance {b}") for b in names}
+        out_muscles[spec.name] = (np.asarray(d["V"], dtype=np.float64), F)
+        anchors[spec.name] = np.asarray(d["anchors"], dtype=np.int64)
+    return out_muscles, contact, anchors
+
+
+def _silent(_: str) -> None:
+    """Says nothing (what is said is kept, and said on every run)."""
+
+
+def _kept_allowance(pl: Any, V: FloatArray, margin: float) -> FloatArray | None:
+    """A kept rest overlap: each vertex nearer the bone than the margin may stay as near."""
+    idx, phi, _, _ = pl.obstacle.query(pl.to_obstacle(V), margin)
+    if not len(idx):
+        return None
+    a = np.full(len(V), np.inf)
+    a[idx] = phi
+    return a
+
+
+def _resolve_rest(
+    spec: Any,
+    V: FloatArray,
+    F: IntArray,
+    placed: list[Any],
+    scene: Scene,
+    cache: Path | None,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> tuple[Any, FloatArray, bool]:
+    """One muscle's rest overlap pushed out (`_push_out_rest`), said in the notes.
+
+    Returns the push-out's report, the positions to prepare, and whether the
+    overlap is kept instead (every push folded the surface).
+    """
+    P, rep, how = _push_out_rest(V, F, placed, scene.margin, cache)
+    if rep.rounds == 0:
+        return rep, V, False
+    if not rep.ok:
+        raise SceneError(
+            f"{spec.mesh}: the overlap of '{spec.name}' with its bones at the rest pose "
+            f"cannot be resolved ({rep.reason}); set [collisions] rest_overlap = 'keep'"
+        )
+    if P is None:
+        msg = (
+            f"{spec.name}: rest overlap with bones kept (up to {rep.depth_before:.3g} "
+            f"{scene.mesh_unit} deep): pushing it out folds the surface; only new "
+            "penetration is prevented"
+        )
+    else:
+        msg = (
+            f"{spec.name}: rest overlap with bones resolved: {rep.contact_vertices} vertices "
+            f"now at the bones, up to {rep.depth_before:.3g} {scene.mesh_unit} deep before; "
+            f"largest displacement {rep.moved_max:.3g} {scene.mesh_unit}; volume kept"
+            + ("" if how == "bone vertices" else "; bone vertices inside the muscle left")
+        )
+    notes.append(msg)
+    say(msg)
+    return rep, (V if P is None else P), P is None
+
+
+def input_files(scene: Scene) -> list[Path]:
+    """Every file the scene reads."""
+    files = [scene.path, *scene.motions, *(m.mesh for m in scene.muscles)]
+    files += [b.mesh for b in scene.bones]
+    files += [p for p in (scene.osim, scene.lines_csv) if p is not None]
+    if scene.registration is not None:
+        files += [lm.mesh for lm in scene.registration.landmarks]
+    return files
+
+
+def check_outputs_spare_inputs(scene: Scene, outdir: Path) -> None:
+    """Refuse an output folder where the run would write over one of its inputs."""
+    clash = overwrite_clash(
+        input_files(scene),
+        [outdir / n for n in TOP_FILES],
+        [outdir / m.name for m in scene.muscles] + [outdir / b.name for b in scene.bones],
+    )
+    if clash is not None:
+        raise SceneError(
+            f"{clash[0]}: an input of the scene lies where the run writes its outputs (in "
+            f"{outdir}); musclewrap never writes over its inputs: choose another output "
+            "folder (-o)"
+        )
+
+
+def run_key(scene: Scene, drive: Drive, collisions: bool) -> str:
+    """Hash of everything a run's outputs depend on: files, settings, frames, version."""
+    files = input_files(scene)
+    return digest(
+        *(f.read_bytes() for f in files),
+        np.asarray(drive.frames),
+        f"{__version__}|collisions={collisions}",
+    )
+
+
+def _check_units(
+    scene: Scene, drive: Drive, muscles: dict[str, tuple[FloatArray, IntArray]]
+) -> None:
+    """Refuse a muscle whose rest lines cannot belong to its mesh (both in its body frame)."""
+    from ..conditions import placement_problem
+
+    for spec in scene.muscles:
+        problem = placement_problem(muscles[spec.name][0], drive.rest_lines[spec.name])
+        if problem is not None:
+            raise SceneError(
+                f"{spec.mesh}: the rest action lines of '{spec.name}' ({scene.mesh_unit}): "
+                f"{problem}: check [units] (mesh = '{scene.mesh_unit}', model = "
+                f"'{scene.model_unit}'), the muscle's body ('{spec.body}'), or the rest pose"
+            )
+
+
+def attachment_area(
+    scene: Scene, drive: Drive, spec: Any, key: str, V: FloatArray, input_id: IntArray
+) -> IntArray | None:
+    """A muscle's ``fibre_origin``/``fibre_insertion`` as its vertex numbers (None: default)."""
+    given = getattr(spec, f"fibre_{key}")
+    if given is None:
+        return None
+    where = f"{scene.path}: [muscles.{spec.name}] fibre_{key}"
+    if isinstance(given[0], int):
+        area = np.flatnonzero(np.isin(input_id, np.asarray(given, dtype=np.int64)))
+        if not len(area):
+            raise SceneError(
+                f"{where}: none of its vertex indices is a vertex of {spec.mesh.name} "
+                f"(indices 0 to {int(input_id.max())} after merging and repair)"
+            )
+        return area
+    # landmark points, in the mesh's coordinates: the surface within landmark_radius
+    P = apply(drive.to_body[spec.name], np.array(given, dtype=np.float64))
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(P).query(V)
+    radius = scene.fibres.landmark_radius if scene.fibres is not None else 10.0
+    area = np.flatnonzero(d <= radius)
+    if not len(area):
+        raise SceneError(
+            f"{where}: no vertex of the muscle lies within landmark_radius = {radius:g} of its "
+            f"points (the nearest is {float(d.min()):.3g} away)"
+        )
+    return area

@@ -1,0 +1,331 @@
+"""The tasks of a run, and what they do in whichever process runs them.
+
+Every task is a frozen dataclass with a ``run()`` method. A worker process keeps the
+muscle it deformed last (bound to its rest lines), its fibres and the bone probes it
+read, so that the next chunk of the same muscle starts at once; what it builds goes
+into the cache folder, which the other workers read.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..mesh import write_mesh
+from ._drive import apply, invert_rigid
+from ._fibres import fibres_of, frame_fibres, write_frame_fibres
+from ._plan import (
+    BoneMesh,
+    ChunkResult,
+    Comparison,
+    FibreFrame,
+    FrameSpan,
+    MuscleJob,
+    Prepared,
+)
+
+__all__ = ["Compare", "DeformChunk", "Prepare", "ProbeBone", "bone_probe", "set_tick"]
+
+# ---------------------------------------------------------------------------- per process
+_tick_sink: Any = None
+_probes: dict[tuple[str, str | None], Any] = {}
+# per thread (a Dask worker may run several tasks at once): the muscle deformed last
+_kept = threading.local()
+
+
+def _kept_dict(name: str) -> dict[tuple[str, str], Any]:
+    d = getattr(_kept, name, None)
+    if d is None:
+        d = {}
+        setattr(_kept, name, d)
+    return d
+
+
+def set_tick(sink: Any) -> None:
+    """Where this process's frames-done ticks go (an object with ``put(n)``, or None)."""
+    global _tick_sink
+    _tick_sink = sink
+
+
+def _tick(n: int = 1) -> None:
+    if _tick_sink is not None:
+        _tick_sink.put(n)
+
+
+def _prepare(job: MuscleJob) -> tuple[Any, bool, str | None]:
+    """The prepared muscle: read from the cache, else built (and cached)."""
+    from ..solver import Muscle
+
+    path = job.prepare_path()
+    note = None
+    if path is not None and path.is_file():
+        try:
+            # the name is the hash of the input mesh and settings; load() checks the content
+            return Muscle.load(path), True, None
+        except ValueError as exc:
+            note = f"{job.name}: cached preparation unusable ({exc}): rebuilt"
+    m = Muscle.from_mesh(
+        job.V,
+        job.F,
+        cage_size=job.cage_size,
+        cage_coarsening=job.cage_coarsening,
+        source=job.source,
+        cleaned=True,  # by the reading, and only moved rigidly since
+        input_id=job.input_id,
+    )
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            m.save(path)
+        except OSError as exc:
+            note = f"{job.name}: could not write the cache {path} ({exc.strerror})"
+    return m, False, note
+
+
+def bone_probe(bone: BoneMesh, cache_dir: str | None) -> Any:
+    """The bone's signed-distance probe: kept per process, cached."""
+    from ..contact import Obstacle
+
+    key = (bone.probe, cache_dir)
+    if key not in _probes:
+        _probes[key] = Obstacle.cached(
+            bone.V, bone.F, None if cache_dir is None else Path(cache_dir), name=bone.probe
+        )
+    return _probes[key]
+
+
+def _deformer(job: MuscleJob) -> tuple[Any, Any, bool, str | None, float]:
+    """The muscle bound to its rest lines, kept per process (a muscle comes in chunks)."""
+    _deformers = _kept_dict("deformers")
+    key = (job.name, job.run)
+    if key in _deformers:
+        muscle, d = _deformers[key]
+        return muscle, d, True, None, 0.0
+    t0 = time.perf_counter()
+    muscle, hit, note = _prepare(job)
+    seconds = time.perf_counter() - t0
+    d = muscle.bind(job.rest_lines, reference_point=job.rest_reference, anchors=job.anchors)
+    _deformers.clear()  # one muscle at a time is enough
+    _deformers[key] = (muscle, d)
+    return muscle, d, hit, note, seconds
+
+
+def _fibres(job: MuscleJob, muscle: Any) -> tuple[Any, str | None]:
+    """The muscle's fibres (None without a ``[fibres]`` table), kept per process."""
+    if job.fibres is None:
+        return None, None
+    _fibres_kept = _kept_dict("fibres")
+    key = (job.name, job.run)
+    if key not in _fibres_kept:
+        _fibres_kept.clear()
+        _fibres_kept[key] = fibres_of(muscle, job, job.fibres_path())
+    return _fibres_kept[key]  # type: ignore[no-any-return]
+
+
+# ---------------------------------------------------------------------------- tasks
+@dataclass(frozen=True)
+class Prepare:
+    """A muscle's preparation, and its fibres, into the cache."""
+
+    job: MuscleJob
+    fibres_only: bool = False
+
+    def run(self) -> Prepared | None:
+        t0 = time.perf_counter()
+        muscle, hit, note = _prepare(self.job)
+        if self.job.fibres is not None:
+            fibres_of(muscle, self.job, self.job.fibres_path())
+        if self.fibres_only:
+            return None
+        return Prepared(self.job.name, time.perf_counter() - t0, hit, note)
+
+
+@dataclass(frozen=True)
+class ProbeBone:
+    """A bone's signed-distance probe into the cache."""
+
+    bone: BoneMesh
+    cache_dir: str | None
+
+    def run(self) -> None:
+        bone_probe(self.bone, self.cache_dir)
+
+
+@dataclass(frozen=True)
+class DeformChunk:
+    """One muscle on a chunk of frames: deformed, measured, its files written."""
+
+    job: MuscleJob
+    span: FrameSpan
+
+    def run(self) -> ChunkResult:
+        return _deform_chunk(self.job, self.span)
+
+
+@dataclass(frozen=True)
+class Compare:
+    """The paper's iteration beside the default on a few solved frames and the worst.
+
+    ``solved`` are the frames (indices into ``span``) with positions, ``worst`` the
+    one with the most iterations, then the largest volume error.
+    """
+
+    job: MuscleJob
+    span: FrameSpan
+    worst: int | None
+    solved: tuple[int, ...]
+
+    def run(self) -> Comparison:
+        if self.worst is None:
+            return Comparison()
+        _, d, *_ = _deformer(self.job)
+        span, worst, solved = self.span, self.worst, self.solved
+        spread = np.linspace(0, len(solved) - 1, self.job.paper_frames).round().astype(int)
+        picks = {solved[i] for i in spread.tolist()}
+        out = Comparison(worst_frame=int(span.frames[worst]))
+        for k in sorted(picks | {worst}):
+            r = d.deform(span.lines[k], reference_point=span.references[k], method="paper")
+            out.paper.append((int(span.frames[k]), r.relative_volume_error, r.iterations, r.seconds))
+            if k == worst:
+                out.convergence["paper"] = [tuple(h) for h in r.history]
+        r = d.deform(span.lines[worst], reference_point=span.references[worst], method="exact")
+        out.convergence["exact"] = [tuple(h) for h in r.history]
+        return out
+
+    @staticmethod
+    def frames_of(rows: list[dict[str, Any]]) -> tuple[int | None, tuple[int, ...]]:
+        """The frames solved (with positions) and the worst of them (None: none solved)."""
+        solved = [k for k, r in enumerate(rows) if np.isfinite(r["relative_volume_error"])]
+        worst = max(
+            solved,
+            key=lambda k: (rows[k]["iterations"], abs(rows[k]["relative_volume_error"])),
+            default=None,
+        )
+        return worst, tuple(solved)
+
+
+def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
+    from ..conditions import LineError
+    from ..solver import DeformationResult, Placed
+
+    muscle, d, hit, note, seconds_prepare = _deformer(job)
+    probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]
+    contact = job.contact  # None (no collisions), or {bone: allowance or None}
+    out = Path(job.outdir)
+    name = job.name
+    result = ChunkResult(name, [], [], seconds_prepare=seconds_prepare, cache_hit=hit)
+    fb, fibre_note = _fibres(job, muscle)
+    result.note = "; ".join(n for n in (note, fibre_note) if n) or None
+    kw: dict[str, Any] = {"method": job.method, "max_iterations": job.max_iterations}
+    if contact is not None:
+        kw["margin"] = job.margin
+
+    def solve(
+        lines: dict[str, FloatArray],
+        reference: FloatArray | None,
+        T: FloatArray,
+        bone_T: dict[str, FloatArray],
+        finish: bool = True,
+        bones: bool = True,
+    ) -> Any:
+        # the scene's bones where contact is on (and ``bones``), else none
+        obstacles = (
+            [
+                # muscle's body frame -> bone's body frame in one transform
+                Placed(probe, invert_rigid(bone_T[bname]) @ T, contact[bname], bname)
+                for probe, bname in probes
+                if bname in contact
+            ]
+            if contact is not None and bones
+            else None
+        )
+        try:
+            return d.deform(
+                lines, reference_point=reference, finish=finish, obstacles=obstacles, **kw
+            )
+        except LineError as exc:
+            # this pose's lines cannot drive the muscle (e.g. a path collapsed to a point):
+            # the frame is reported as failed and the motion goes on
+            return DeformationResult.failed(
+                len(muscle.V),
+                len(muscle.cage.C),
+                muscle.volume_rest,
+                f"invalid action lines in this frame: {exc}",
+            )
+
+    for k in range(len(span)):
+        frame = span.frames[k]
+        T = span.to_output[k]
+        res = solve(span.lines[k], span.references[k], T, {b: TB[k] for b, TB in span.bone_T.items()})
+        ok_values = np.isfinite(res.V).all()
+        shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
+        n_in, depth = (0, 0.0) if ok_values else (float("nan"), float("nan"))
+        if ok_values:
+            Vo = apply(T, res.V)
+            if contact is not None:
+                # the contact finish counted its bones exactly
+                n_in, depth = res.penetration_vertices, res.penetration_depth
+            for probe, bname in probes:
+                if contact is not None and bname in contact:
+                    continue
+                n, dep = probe.measure(apply(invert_rigid(span.bone_T[bname][k]) @ T, res.V))
+                n_in += n
+                depth = max(depth, dep)
+            fname = f"{name}/{name}_{frame:04d}.vtp"
+            write_mesh(out / fname, Vo, muscle.F, point_data={"input_id": muscle.input_id})
+            result.entries.append((span.start + k, fname))
+        lname = f"{name}/{name}_lines_{frame:04d}.vtp"
+        P, segs, o = [], [], 0
+        for pts in span.lines[k].values():
+            Pp = apply(T, np.asarray(pts, dtype=np.float64))
+            P.append(Pp)
+            segs += [[o + i, o + i + 1] for i in range(len(Pp) - 1)]
+            o += len(Pp)
+        write_mesh(out / lname, np.vstack(P), np.zeros((0, 3), int), lines=np.array(segs))
+        result.entries.append((span.start + k, lname))
+        if fb is not None:
+            got = frame_fibres(fb, muscle.F, res, k, job.moment_arms, span.side, solve)
+            if got["points"] is not None:
+                fname = f"{name}/{name}_fibres_{frame:04d}.vtp"
+                write_frame_fibres(out / fname, fb, got["points"], T)
+                result.entries.append((span.start + k, fname))
+            result.fibres.append(
+                FibreFrame(
+                    frame=int(frame),
+                    time=float(span.times[k]),
+                    lengths=got["lengths"].tolist(),
+                    moment_arms=got["moment_arms"].tolist(),
+                    unconverged=got["unconverged"],
+                    moved=got["moved"],
+                    farthest=got["farthest"],
+                    left=got["left"],
+                )
+            )
+        result.rows.append(
+            {
+                "frame": int(frame),
+                "time": float(span.times[k]),
+                "muscle": name,
+                "iterations": res.iterations,
+                "converged": res.converged,
+                "relative_volume_error": res.relative_volume_error,
+                "skeleton_fit_mean": res.skeleton_fit_mean,
+                "seconds": res.seconds,
+                "shape_change_max": shape,
+                "penetration_share": n_in / len(muscle.V),
+                "penetration_depth_max": depth,
+                "contact_vertices": res.contact_vertices,
+                "penetration_depth_before": (
+                    res.penetration_depth_before if contact is not None else depth
+                ),
+                "reason": res.reason,
+            }
+        )
+        _tick()
+    return result
