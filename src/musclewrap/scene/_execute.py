@@ -212,14 +212,22 @@ class Node:
 
 
 class Runner:
-    """Feeds nodes to an executor as their dependencies finish; collects their results."""
+    """Feeds nodes to an executor as their dependencies finish; collects their results.
+
+    Each node counts the nodes it still waits for; a finished node's future puts it on
+    a queue (from whichever thread completes it), and `poll` takes the queue in: the
+    cost per task is constant, whatever the plan's size.
+    """
 
     def __init__(self, executor: Executor, progress: Callable[[int], None] | None) -> None:
         self.executor = executor
         self.progress = progress
         self.nodes: dict[Hashable, Node] = {}
-        self.pending: list[Node] = []
-        self.running: list[Node] = []
+        self.waiting: dict[Hashable, int] = {}  # unfinished dependencies of pending nodes
+        self.dependents: dict[Hashable, list[Hashable]] = {}
+        self.ready: list[Node] = []
+        self.running = 0
+        self.finished_q: queue_mod.SimpleQueue[Node] = queue_mod.SimpleQueue()
         executor.attach(progress)
 
     def add(self, nodes: Iterable[Node]) -> None:
@@ -228,14 +236,25 @@ class Runner:
         A node whose key is taken already is the same work (a muscle or bone that two
         scenes of a batch share): it is not added again.
         """
+        new = []
         for n in nodes:
             if n.key in self.nodes:
                 continue
             self.nodes[n.key] = n
+            new.append(n)
+        for n in new:
             if n.finished:
                 self._count(n.frames)
-            else:
-                self.pending.append(n)
+                continue
+            missing = [a for a in n.after if a not in self.nodes]
+            if missing:
+                raise ValueError(f"the task {n.key!r} waits for unknown tasks {missing!r}")
+            left = [a for a in n.after if not self.nodes[a].finished]
+            self.waiting[n.key] = len(left)
+            for a in left:
+                self.dependents.setdefault(a, []).append(n.key)
+            if not left:
+                self.ready.append(n)
         self._submit()
 
     def result(self, key: Hashable) -> Any:
@@ -246,59 +265,67 @@ class Runner:
             self.progress(frames)
 
     def _submit(self) -> None:
-        ready = [n for n in self.pending if all(self.nodes[a].finished for a in n.after)]
+        ready, self.ready = self.ready, []
         for n in ready:
-            self.pending.remove(n)
+            del self.waiting[n.key]
             task = n.task
             if not hasattr(task, "run"):
                 task = task({a: self.nodes[a].result for a in n.after})
             n.future = self.executor.submit(task)
-            self.running.append(n)
+            self.running += 1
+            n.future.add_done_callback(lambda _, n=n: self.finished_q.put(n))
 
     def poll(self, timeout: float = 0.05) -> None:
         """Take in what finished (waiting up to ``timeout`` for something), submit what is ready."""
-        from concurrent.futures import FIRST_COMPLETED, wait
-
         self.executor.step()
-        futures = [n.future for n in self.running if n.future is not None]
-        idle = futures and not any(f.done() for f in futures)
+        idle = self.running > 0 and self.finished_q.empty()
         if self.executor.fine_progress and self.progress is not None:
             n = self.executor.ticks(timeout if idle else None)
             if n:
                 self.progress(n)
-        elif idle:
-            wait(futures, timeout=timeout, return_when=FIRST_COMPLETED)
-        for node in [n for n in self.running if n.future is not None and n.future.done()]:
-            self.running.remove(node)
+            idle = False
+        while True:
             try:
-                result = node.future.result()  # type: ignore[union-attr]  # the task's error
-            except BrokenProcessPool:
-                raise RuntimeError(
-                    "a worker process died without a Python error (out of memory, a crash in "
-                    "a compiled library, or, from a Python script, run_scene called outside an "
-                    "`if __name__ == '__main__':` block); rerun with --workers 1 to see where"
-                ) from None
-            node.future = None
-            if node.done is not None:
-                result = node.done(result)
-            node.result, node.finished = result, True
-            if not self.executor.fine_progress:
-                self._count(node.frames)
+                node = self.finished_q.get(timeout=timeout) if idle else self.finished_q.get_nowait()
+            except queue_mod.Empty:
+                break
+            idle = False
+            self._take(node)
         self._submit()
+
+    def _take(self, node: Node) -> None:
+        self.running -= 1
+        try:
+            result = node.future.result()  # type: ignore[union-attr]  # the task's error
+        except BrokenProcessPool:
+            raise RuntimeError(
+                "a worker process died without a Python error (out of memory, a crash in "
+                "a compiled library, or, from a Python script, run_scene called outside an "
+                "`if __name__ == '__main__':` block); rerun with --workers 1 to see where"
+            ) from None
+        node.future = None
+        if node.done is not None:
+            result = node.done(result)
+        node.result, node.finished = result, True
+        if not self.executor.fine_progress:
+            self._count(node.frames)
+        for k in self.dependents.pop(node.key, ()):
+            self.waiting[k] -= 1
+            if self.waiting[k] == 0:
+                self.ready.append(self.nodes[k])
 
     def busy(self, keys: Iterable[Hashable] | None = None) -> bool:
         """Whether any of ``keys`` (default: any node) is not done yet."""
         if keys is None:
-            return bool(self.pending or self.running)
+            return bool(self.waiting or self.running)
         return not all(self.nodes[k].finished for k in keys)
 
     def wait(self, keys: Iterable[Hashable] | None = None) -> None:
         keys = None if keys is None else list(keys)
         while self.busy(keys):
-            if self.pending and not self.running:
+            if self.waiting and not self.running and not self.ready:
                 raise RuntimeError(
-                    "tasks wait for each other: "
-                    + ", ".join(repr(n.key) for n in self.pending[:5])
+                    "tasks wait for each other: " + ", ".join(repr(k) for k in list(self.waiting)[:5])
                 )
             self.poll()
         if self.progress is not None and self.executor.fine_progress:  # the last ticks
