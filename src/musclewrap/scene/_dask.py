@@ -11,6 +11,7 @@ by the scheduler; the task writes the same files (each one whole, or not at all)
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import threading
 from collections.abc import Callable, Iterator, Sequence
@@ -52,6 +53,15 @@ def connect(address: str, *, log: Callable[[str], None] | None = None) -> Iterat
         client.close()
 
 
+def _identity(x: Any) -> Any:
+    return x
+
+
+def _run_with_job(task: Any, job: Any) -> Any:
+    """On a worker: the task with its muscle's job put back (it travelled once per worker)."""
+    return dataclasses.replace(task, job=job).run()
+
+
 def _check_paths(paths: Sequence[str], token: str) -> str | None:
     """On a worker: each folder holds the client's token file, and takes a new file."""
     import socket
@@ -85,15 +95,33 @@ class DaskExecutor(Executor):
         self.workers = max(1, sum(w.get("nthreads", 1) for w in info.get("workers", {}).values()))
         self._held: set[Any] = set()
         self._lock = threading.Lock()
+        # per muscle job: its future on the cluster and how many submitted tasks use it
+        self._jobs: dict[int, list[Any]] = {}
 
     @property
     def dashboard(self) -> str | None:
         return getattr(self.client, "dashboard_link", None)
 
     def submit(self, task: Any) -> Future[Any]:
+        """Submit ``task``, its muscle's ``job`` sent once per muscle, not with every chunk.
+
+        The job becomes the result of a task of its own, which the chunks wait for (and
+        which the scheduler computes again, like any task, if the worker holding it dies).
+        """
         f: Future[Any] = Future()
-        df = self.client.submit(run_task, task, pure=False)
+        job = getattr(task, "job", None)
         with self._lock:
+            if job is not None:
+                entry = self._jobs.get(id(job))
+                if entry is None:
+                    entry = [self.client.submit(_identity, job, pure=False), 0, job]
+                    self._jobs[id(job)] = entry
+                entry[1] += 1
+                df = self.client.submit(
+                    _run_with_job, dataclasses.replace(task, job=None), entry[0], pure=False
+                )
+            else:
+                df = self.client.submit(run_task, task, pure=False)
             self._held.add(df)
 
         def done(d: Any) -> None:
@@ -104,6 +132,11 @@ class DaskExecutor(Executor):
             finally:
                 with self._lock:
                     self._held.discard(d)
+                    if job is not None:
+                        entry = self._jobs[id(job)]
+                        entry[1] -= 1
+                        if entry[1] == 0:  # released on the cluster; sent again if needed
+                            del self._jobs[id(job)]
 
         df.add_done_callback(done)
         return f

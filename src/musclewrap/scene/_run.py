@@ -162,6 +162,7 @@ def run_batch(
                     _check_shared(ex, r)
                 runner.add(r.nodes)
                 r.write_bones()  # while the workers start on its tasks
+                runner.poll(0)  # take in what finished meanwhile, submit what it unblocked
                 _finish_ready(runs, runner, progress)
             from ._execute import import_plotting_meanwhile
 
