@@ -16,6 +16,7 @@ later, muscles placed in an order against each other all go through one loop.
 from __future__ import annotations
 
 import contextlib
+import heapq
 import os
 import queue as queue_mod
 import threading
@@ -199,6 +200,9 @@ class Node:
     frames : int
         Muscle-frames the task covers (for the progress where the executor reports
         whole tasks only).
+    priority : int
+        Among ready tasks, lower goes first (reading a scene before deforming the
+        last one: the workers never wait for the main process to plan).
     """
 
     key: Hashable
@@ -208,6 +212,7 @@ class Node:
     result: Any = None
     finished: bool = False
     frames: int = 0
+    priority: int = 2
     future: Future[Any] | None = field(default=None, repr=False)
 
 
@@ -225,8 +230,12 @@ class Runner:
         self.nodes: dict[Hashable, Node] = {}
         self.waiting: dict[Hashable, int] = {}  # unfinished dependencies of pending nodes
         self.dependents: dict[Hashable, list[Hashable]] = {}
-        self.ready: list[Node] = []
+        self.ready: list[tuple[int, int, Node]] = []  # a heap: (priority, order, node)
         self.running = 0
+        self.count = 0
+        # tasks handed out at once: enough to keep every worker busy, few enough that a
+        # task of higher priority made ready later does not queue behind all the rest
+        self.capacity = max(1, 2 * executor.workers)
         self.finished_q: queue_mod.SimpleQueue[Node] = queue_mod.SimpleQueue()
         executor.attach(progress)
 
@@ -254,8 +263,12 @@ class Runner:
             for a in left:
                 self.dependents.setdefault(a, []).append(n.key)
             if not left:
-                self.ready.append(n)
+                self._ready(n)
         self._submit()
+
+    def _ready(self, n: Node) -> None:
+        self.count += 1
+        heapq.heappush(self.ready, (n.priority, self.count, n))
 
     def result(self, key: Hashable) -> Any:
         return self.nodes[key].result
@@ -265,8 +278,8 @@ class Runner:
             self.progress(frames)
 
     def _submit(self) -> None:
-        ready, self.ready = self.ready, []
-        for n in ready:
+        while self.ready and self.running < self.capacity:
+            n = heapq.heappop(self.ready)[2]
             del self.waiting[n.key]
             task = n.task
             if not hasattr(task, "run"):
@@ -286,7 +299,9 @@ class Runner:
             idle = False
         while True:
             try:
-                node = self.finished_q.get(timeout=timeout) if idle else self.finished_q.get_nowait()
+                node = (
+                    self.finished_q.get(timeout=timeout) if idle else self.finished_q.get_nowait()
+                )
             except queue_mod.Empty:
                 break
             idle = False
@@ -312,7 +327,7 @@ class Runner:
         for k in self.dependents.pop(node.key, ()):
             self.waiting[k] -= 1
             if self.waiting[k] == 0:
-                self.ready.append(self.nodes[k])
+                self._ready(self.nodes[k])
 
     def busy(self, keys: Iterable[Hashable] | None = None) -> bool:
         """Whether any of ``keys`` (default: any node) is not done yet."""
@@ -325,7 +340,8 @@ class Runner:
         while self.busy(keys):
             if self.waiting and not self.running and not self.ready:
                 raise RuntimeError(
-                    "tasks wait for each other: " + ", ".join(repr(k) for k in list(self.waiting)[:5])
+                    "tasks wait for each other: "
+                    + ", ".join(repr(k) for k in list(self.waiting)[:5])
                 )
             self.poll()
         if self.progress is not None and self.executor.fine_progress:  # the last ticks

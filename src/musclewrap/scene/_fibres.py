@@ -220,9 +220,7 @@ def _rows(
         for fr in res.fibres:
             k = position[fr.frame]
             lengths = np.asarray(fr.lengths, dtype=np.float64)
-            arms = np.asarray(fr.moment_arms, dtype=np.float64).reshape(
-                len(coords), len(lengths)
-            )
+            arms = np.asarray(fr.moment_arms, dtype=np.float64).reshape(len(coords), len(lengths))
             base = {"frame": fr.frame, "time": fr.time, "muscle": name}
             if not coords:
                 fibre_rows += [

@@ -25,6 +25,7 @@ from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, vertex_origins
 from ._config import Scene
 from ._drive import Drive, apply, drive_scene
 from ._errors import SceneError
+from ._execute import Node
 from ._plan import BoneMesh
 from ._work import bone_probe
 from ._write import TOP_FILES
@@ -59,23 +60,38 @@ def read_inputs(
     collisions: bool,
     say: Callable[[str], None],
     notes: list[str],
+    runner: Any = None,
 ) -> Inputs:
-    """Read every mesh of ``scene``, drive it over ``frames``, settle the rest overlap."""
+    """Read every mesh of ``scene``, drive it over ``frames``, settle the rest overlap.
+
+    The per-mesh work (cleaning or repairing a muscle, reading and closing a bone,
+    each muscle's rest overlap) runs as tasks through ``runner`` (a
+    `._execute.Runner`: on the run's workers, while they deform the scenes read
+    before), or here when it is None; the motion is driven here.
+    """
+    c = None if cache is None else str(cache)
+    nodes = [
+        Node(("read-muscle", str(m.mesh), m.repair, c), ReadMuscle(m, c)) for m in scene.muscles
+    ]
+    nodes += [
+        Node(("read-bone", str(b.mesh), collisions, c), ReadBone(b, c, collisions))
+        for b in scene.bones
+    ]
+    done = gather(runner, nodes)
     muscles = {}
     input_ids: dict[str, IntArray] = {}
-    for spec in scene.muscles:
-        V, F, mnotes, input_ids[spec.name] = _read_muscle(spec, cache)
+    for spec, node in zip(scene.muscles, nodes, strict=False):
+        V, F, mnotes, input_ids[spec.name] = done[node.key]
         for n in mnotes:
             notes.append(f"{spec.name}: {n}")
             say(f"{spec.name}: {n}")
         muscles[spec.name] = (V, F)
     bones = {}
-    for b in scene.bones:
-        V, F, flipped, open_edges = _read_bone(b.mesh, cache)
-        if flipped:
-            notes.append(f"{b.name}: faces were oriented inward: flipped")
-        if collisions:
-            V, F = _closed_bone(b, V, F, open_edges, cache, say, notes)
+    for b, node in zip(scene.bones, nodes[len(scene.muscles) :], strict=True):
+        V, F, bnotes = done[node.key]
+        for n in bnotes:
+            notes.append(n)
+            say(n)
         bones[b.name] = (V, F)
     centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
     drive = drive_scene(scene, frames, centroids)
@@ -86,7 +102,9 @@ def read_inputs(
     _check_units(scene, drive, muscles)
     contact = anchors = None
     if collisions:
-        muscles, contact, anchors = _rest_overlap(scene, drive, muscles, bones, cache, say, notes)
+        muscles, contact, anchors = _rest_overlap(
+            scene, drive, muscles, bones, cache, say, notes, runner
+        )
     return Inputs(
         scene,
         drive,
@@ -98,6 +116,58 @@ def read_inputs(
         cache,
         run_key(scene, drive, collisions),
     )
+
+
+@dataclass(frozen=True)
+class ReadMuscle:
+    """A muscle's mesh read and cleaned (or repaired); cached by the file's bytes."""
+
+    spec: Any
+    cache: str | None
+
+    def cached(self) -> bool:
+        """Read already (then reading it back here is cheaper than sending it out)."""
+        cache = None if self.cache is None else Path(self.cache)
+        f = _mesh_cache_file(self.spec.mesh, cache, f"muscle|{self.spec.repair}|{_MUSCLE_TAG}")
+        return f is not None and f.is_file()
+
+    def run(self) -> tuple[FloatArray, IntArray, list[str], IntArray]:
+        return _read_muscle(self.spec, None if self.cache is None else Path(self.cache))
+
+
+@dataclass(frozen=True)
+class ReadBone:
+    """A bone's mesh read, oriented outward and, for contact, closed; cached."""
+
+    bone: Any
+    cache: str | None
+    closed: bool
+
+    def cached(self) -> bool:
+        """Read (and, for contact, closed) already."""
+        cache = None if self.cache is None else Path(self.cache)
+        read = _mesh_cache_file(self.bone.mesh, cache, "bone|boundary edges")
+        if read is None or not read.is_file():
+            return False
+        if not self.closed:
+            return True
+        closed = _mesh_cache_file(self.bone.mesh, cache, "bone-closed")
+        if closed is not None and closed.is_file():
+            return True
+        try:  # a closed bone needs no closing
+            with np.load(read) as z:
+                return int(z["boundary_edges"]) == 0
+        except (OSError, KeyError, ValueError):
+            return False
+
+    def run(self) -> tuple[FloatArray, IntArray, list[str]]:
+        b = self.bone
+        cache = None if self.cache is None else Path(self.cache)
+        V, F, flipped, open_edges = _read_bone(b.mesh, cache)
+        notes = [f"{b.name}: faces were oriented inward: flipped"] if flipped else []
+        if self.closed:
+            V, F = _closed_bone(b, V, F, open_edges, cache, _silent, notes)
+        return V, F, notes
 
 
 def default_cache_dir() -> Path:
@@ -113,8 +183,17 @@ def _cached_mesh(
     path: Path, cache: Path | None, tag: str, build: Callable[[], dict[str, np.ndarray]]
 ) -> dict[str, np.ndarray]:
     """Arrays `build` makes from a mesh file, cached by the file's bytes and ``tag``."""
+    return cached_arrays(_mesh_cache_file(path, cache, tag), build)
+
+
+def _mesh_cache_file(path: Path, cache: Path | None, tag: str) -> Path | None:
+    if cache is None:
+        return None
     key = digest(path.read_bytes(), f"{tag}|{__version__}|first-appearance order")
-    return cached_arrays(None if cache is None else cache / f"mesh-{key[:32]}.npz", build)
+    return cache / f"mesh-{key[:32]}.npz"
+
+
+_MUSCLE_TAG = "self-intersection, fans, orientation, input_id"
 
 
 def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, list[str], IntArray]:
@@ -133,7 +212,7 @@ def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, l
     d = _cached_mesh(
         spec.mesh,
         cache,
-        f"muscle|{spec.repair}|self-intersection, fans, orientation, input_id",
+        f"muscle|{spec.repair}|{_MUSCLE_TAG}",
         build,
     )
     return d["V"], d["F"], [str(n) for n in d["notes"]], d["input_id"]
@@ -263,6 +342,7 @@ def _rest_overlap(
     cache: Path | None,
     say: Callable[[str], None],
     notes: list[str],
+    runner: Any = None,
 ) -> tuple[
     dict[str, tuple[FloatArray, IntArray]],
     dict[str, dict[str, FloatArray | None]],
@@ -283,92 +363,156 @@ def _rest_overlap(
     own body carries, in patches near an end of its action lines (an origin,
     which moves with that bone: `Muscle.bind`'s anchors keep them in place, so
     the deformation does not drive the muscle into the bone it starts from;
-    `musclewrap.solver.attachment_patches`).
+    `musclewrap.solver.attachment_patches`). Each muscle's outcome is a task
+    (`RestOutcome`, after its bones' probes), run by ``runner``'s executor where
+    it is not cached yet, else here.
     """
-    from ..constants import defaults
-    from ..mesh import mean_edge_length, vertex_adjacency
-    from ..solver import Placed, attachment_patches
+    from ._work import ProbeBone
 
     cache_str = None if cache is None else str(cache)
-    probes: dict[str, Any] = {}
-
-    def probe(b: str) -> Any:  # built (or read back) only where a muscle's outcome is not kept
-        if b not in probes:
-            V, F = bones[b]
-            probes[b] = bone_probe(BoneMesh(b, V, F, Obstacle.cache_name(V, F)), cache_str)
-        return probes[b]
-
+    meshes = {b: BoneMesh(b, *bones[b], Obstacle.cache_name(*bones[b])) for b in bones}
     body_of = {b.name: b.body for b in scene.bones}
+    tasks: dict[str, RestOutcome] = {}
+    for spec in scene.muscles:
+        V, F = muscles[spec.name]
+        names = tuple(spec.bones) if spec.bones is not None else tuple(bones)
+        tasks[spec.name] = RestOutcome(
+            scene,
+            spec,
+            V,
+            F,
+            {b: meshes[b] for b in names},
+            {b: drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name]) for b in names},
+            drive.rest_lines[spec.name],
+            body_of,
+            cache_str,
+        )
+    # probes are built (or read back) only where a muscle's outcome is not cached
+    todo = {m: t for m, t in tasks.items() if t.path() is None or not t.path().is_file()}
+    probe_keys = {}
+    nodes = []
+    for b in sorted({b for t in todo.values() for b in t.bones}):
+        probe_keys[b] = ("probe", cache_str, meshes[b].probe)
+        nodes.append(Node(probe_keys[b], ProbeBone(meshes[b], cache_str)))
+    for m, t in todo.items():
+        nodes.append(Node(("rest", t.key(), m), t, tuple(probe_keys[b] for b in t.bones)))
+    done = gather(runner, nodes)
     out_muscles = dict(muscles)
     contact: dict[str, dict[str, FloatArray | None]] = {}
     anchors: dict[str, IntArray] = {}
     for spec in scene.muscles:
-        V, F = muscles[spec.name]
-        names = list(spec.bones) if spec.bones is not None else list(bones)
-        T = {b: drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name]) for b in names}
-        lines = drive.rest_lines[spec.name]
-        key = digest(
-            V,
-            F,
-            *(Obstacle.cache_name(*bones[b]) for b in names),
-            *(T[b] for b in names),
+        t = tasks[spec.name]
+        d = done[("rest", t.key(), spec.name)] if spec.name in todo else t.run()
+        for n in (str(x) for x in d["notes"]):
+            notes.append(n)
+            say(n)
+        contact[spec.name] = {b: d.get(f"allowance {b}") for b in t.bones}
+        out_muscles[spec.name] = (np.asarray(d["V"], dtype=np.float64), t.F)
+        anchors[spec.name] = np.asarray(d["anchors"], dtype=np.int64)
+    return out_muscles, contact, anchors
+
+
+def gather(runner: Any, nodes: list[Node]) -> dict[Any, Any]:
+    """Run ``nodes`` through ``runner`` and wait; results by key.
+
+    Here, in order, without a runner, and for a task whose result is cached already
+    (its ``cached()`` says so: reading it back costs less than a round trip).
+    """
+    here = [n for n in nodes if runner is None or getattr(n.task, "cached", lambda: False)()]
+    out = {n.key: n.task.run() for n in here}
+    away = [n for n in nodes if n.key not in out]
+    for n in away:
+        n.priority = 0  # the main process waits for these
+    if away:
+        runner.add(away)
+        runner.wait([n.key for n in away])
+        out.update({n.key: runner.result(n.key) for n in away})
+    return out
+
+
+@dataclass(frozen=True)
+class RestOutcome:
+    """One muscle at the rest pose against its bones: pushed out, or its overlap kept (cached).
+
+    ``T`` takes the muscle's body frame to each bone's; the result holds the positions
+    to prepare (``V``), the notes, each kept overlap's allowance and the anchors.
+    """
+
+    scene: Scene
+    spec: Any
+    V: FloatArray
+    F: IntArray
+    bones: dict[str, BoneMesh]
+    T: dict[str, FloatArray]
+    lines: dict[str, FloatArray]
+    body_of: dict[str, str]
+    cache: str | None
+
+    def key(self) -> str:
+        from ..constants import defaults
+
+        scene, spec, names = self.scene, self.spec, list(self.bones)
+        lines = self.lines
+        return digest(
+            self.V,
+            self.F,
+            *(self.bones[b].probe for b in names),
+            *(self.T[b] for b in names),
             *(np.asarray(lines[k], dtype=np.float64) for k in sorted(lines)),
-            repr((names, sorted(lines), [body_of[b] == spec.body for b in names])),
+            repr((names, sorted(lines), [self.body_of[b] == spec.body for b in names])),
             repr((spec.name, scene.margin, scene.rest_overlap, scene.mesh_unit)),
             repr((defaults.anchor_reach, defaults.anchor_end_reach, __version__)),
         )
 
-        def build(
-            spec: Any = spec,
-            V: FloatArray = V,
-            F: IntArray = F,
-            names: list[str] = names,
-            T: dict[str, FloatArray] = T,
-            lines: dict[str, FloatArray] = lines,
-        ) -> dict[str, np.ndarray]:
-            said: list[str] = []
-            placed = []
-            for b in names:
-                pl = Placed(probe(b), T[b], None, b)
-                n_in, depth = pl.obstacle.measure(pl.to_obstacle(V))
-                if n_in > 0.5 * len(V):
-                    raise SceneError(
-                        f"{spec.mesh}: {n_in} of the {len(V)} vertices of '{spec.name}' lie "
-                        f"inside the bone '{b}' ({depth:.3g} {scene.mesh_unit} deep) at the rest "
-                        "pose: the muscle and bone meshes must be the same subject's, in the same "
-                        "frame and units (or leave this bone out of the muscle's [muscles] bones)"
-                    )
-                placed.append(pl)
-            keep = scene.rest_overlap == "keep"
-            if placed and not keep:
-                _, V, keep = _resolve_rest(spec, V, F, placed, scene, cache, _silent, said)
-            out: dict[str, np.ndarray] = {"V": V, "notes": np.array(said, dtype=str)}
-            for pl in placed:
-                a = _kept_allowance(pl, V, scene.margin) if keep else None
-                if a is not None:
-                    out[f"allowance {pl.name}"] = a
-            reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
-            found = [
-                pl.obstacle.query(pl.to_obstacle(V), reach)[0]
-                for pl in placed
-                if body_of[pl.name] == spec.body
-            ]
-            out["anchors"] = attachment_patches(
-                vertex_adjacency(F, len(V)),
-                V,
-                np.concatenate(found) if found else np.zeros(0, np.int64),
-                lines,
-            )
-            return out
+    def path(self) -> Path | None:
+        if self.cache is None:
+            return None
+        return Path(self.cache) / f"rest-outcome-{self.key()[:32]}.npz"
 
-        d = cached_arrays(None if cache is None else cache / f"rest-outcome-{key[:32]}.npz", build)
-        for n in (str(x) for x in d["notes"]):
-            notes.append(n)
-            say(n)
-        contact[spec.name] = {b: d.get(f"allowance {b}") for b in names}
-        out_muscles[spec.name] = (np.asarray(d["V"], dtype=np.float64), F)
-        anchors[spec.name] = np.asarray(d["anchors"], dtype=np.int64)
-    return out_muscles, contact, anchors
+    def run(self) -> dict[str, np.ndarray]:
+        return cached_arrays(self.path(), self._build)
+
+    def _build(self) -> dict[str, np.ndarray]:
+        from ..constants import defaults
+        from ..mesh import mean_edge_length, vertex_adjacency
+        from ..solver import Placed, attachment_patches
+
+        scene, spec, V, F = self.scene, self.spec, self.V, self.F
+        cache = None if self.cache is None else Path(self.cache)
+        said: list[str] = []
+        placed = []
+        for b, mesh in self.bones.items():
+            pl = Placed(bone_probe(mesh, self.cache), self.T[b], None, b)
+            n_in, depth = pl.obstacle.measure(pl.to_obstacle(V))
+            if n_in > 0.5 * len(V):
+                raise SceneError(
+                    f"{spec.mesh}: {n_in} of the {len(V)} vertices of '{spec.name}' lie "
+                    f"inside the bone '{b}' ({depth:.3g} {scene.mesh_unit} deep) at the rest "
+                    "pose: the muscle and bone meshes must be the same subject's, in the same "
+                    "frame and units (or leave this bone out of the muscle's [muscles] bones)"
+                )
+            placed.append(pl)
+        keep = scene.rest_overlap == "keep"
+        if placed and not keep:
+            _, V, keep = _resolve_rest(spec, V, F, placed, scene, cache, _silent, said)
+        out: dict[str, np.ndarray] = {"V": V, "notes": np.array(said, dtype=str)}
+        for pl in placed:
+            a = _kept_allowance(pl, V, scene.margin) if keep else None
+            if a is not None:
+                out[f"allowance {pl.name}"] = a
+        reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
+        found = [
+            pl.obstacle.query(pl.to_obstacle(V), reach)[0]
+            for pl in placed
+            if self.body_of[pl.name] == spec.body
+        ]
+        out["anchors"] = attachment_patches(
+            vertex_adjacency(F, len(V)),
+            V,
+            np.concatenate(found) if found else np.zeros(0, np.int64),
+            self.lines,
+        )
+        return out
 
 
 def _silent(_: str) -> None:

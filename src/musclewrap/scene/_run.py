@@ -127,7 +127,9 @@ def run_batch(
     if len(set(dirs)) != len(dirs):
         raise ValueError("two runs of the batch would write into the same output folder")
     say = log or (lambda s: None)
-    runs = [_SceneRun(sc, Path(o), render, collisions) for sc, o in zip(scenes, outdirs, strict=True)]
+    runs = [
+        _SceneRun(sc, Path(o), render, collisions) for sc, o in zip(scenes, outdirs, strict=True)
+    ]
     for r in runs:
         check_outputs_spare_inputs(r.scene, r.outdir)
     bar = Progress(0, progress) if progress is not None else None
@@ -157,7 +159,7 @@ def run_batch(
 
         try:
             for i, r in enumerate(runs):
-                r.plan(frames, cache_for(r.scene), ex, say, resume, i, bar)
+                r.plan(frames, cache_for(r.scene), ex, say, resume, i, bar, runner)
                 if ex.remote:
                     _check_shared(ex, r)
                 runner.add(r.nodes)
@@ -239,12 +241,13 @@ class _SceneRun:
         resume: bool,
         tag: int,
         bar: Progress | None,
+        runner: Runner | None = None,
     ) -> None:
         scene = self.scene
         self.cache = cache
         on = scene.collisions if self.collisions is None else bool(self.collisions and scene.bones)
         self.on = on
-        self.inputs: Inputs = read_inputs(scene, frames, cache, on, say, self.notes)
+        self.inputs: Inputs = read_inputs(scene, frames, cache, on, say, self.notes, runner)
         drive = self.inputs.drive
         self.outdir.mkdir(parents=True, exist_ok=True)
         n = len(drive.frames)
@@ -264,7 +267,9 @@ class _SceneRun:
         if cache is not None:
             for b in self.jobs[0].bones if self.jobs else ():
                 if not (cache / b.probe).is_file():
-                    nodes.append(Node(("probe", str(cache), b.probe), ProbeBone(b, str(cache))))
+                    nodes.append(
+                        Node(("probe", str(cache), b.probe), ProbeBone(b, str(cache)), priority=1)
+                    )
                     shared.append(nodes[-1].key)
         self.prepare_keys: dict[str, Any] = {}
         for j in self.jobs:
@@ -272,12 +277,12 @@ class _SceneRun:
             p = j.prepare_path()
             if p is None or not p.is_file():
                 key = ("prepare", str(p), j.name) if p is not None else ("prepare", tag, j.name)
-                nodes.append(Node(key, Prepare(j)))
+                nodes.append(Node(key, Prepare(j), priority=1))
                 after.append(key)
                 self.prepare_keys[j.name] = key
             elif (fp := j.fibres_path()) is not None and not fp.is_file():
                 key = ("fibres", str(fp))
-                nodes.append(Node(key, Prepare(j, fibres_only=True)))
+                nodes.append(Node(key, Prepare(j, fibres_only=True), priority=1))
                 after.append(key)
             chunk_keys = []
             for ks in parts:
@@ -305,6 +310,7 @@ class _SceneRun:
                     self._compare_task(j, spans[j.name], chunk_keys),
                     tuple(chunk_keys),
                     done=self._compare_done(j.name),
+                    priority=3,
                 )
                 if found is not None:
                     node.result, node.finished = Comparison.from_json(found), True
@@ -332,7 +338,9 @@ class _SceneRun:
         return done
 
     @staticmethod
-    def _compare_task(job: Any, span: Any, chunk_keys: list[Any]) -> Callable[[dict[Any, Any]], Any]:
+    def _compare_task(
+        job: Any, span: Any, chunk_keys: list[Any]
+    ) -> Callable[[dict[Any, Any]], Any]:
         def make(results: dict[Any, Any]) -> Compare:
             rows = [r for k in chunk_keys for r in results[k].rows]
             worst, solved = Compare.frames_of(rows)

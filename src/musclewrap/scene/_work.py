@@ -191,7 +191,9 @@ class Compare:
         out = Comparison(worst_frame=int(span.frames[worst]))
         for k in sorted(picks | {worst}):
             r = d.deform(span.lines[k], reference_point=span.references[k], method="paper")
-            out.paper.append((int(span.frames[k]), r.relative_volume_error, r.iterations, r.seconds))
+            out.paper.append(
+                (int(span.frames[k]), r.relative_volume_error, r.iterations, r.seconds)
+            )
             if k == worst:
                 out.convergence["paper"] = [tuple(h) for h in r.history]
         r = d.deform(span.lines[worst], reference_point=span.references[worst], method="exact")
@@ -262,7 +264,9 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
     for k in range(len(span)):
         frame = span.frames[k]
         T = span.to_output[k]
-        res = solve(span.lines[k], span.references[k], T, {b: TB[k] for b, TB in span.bone_T.items()})
+        res = solve(
+            span.lines[k], span.references[k], T, {b: TB[k] for b, TB in span.bone_T.items()}
+        )
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
         n_in, depth = (0, 0.0) if ok_values else (float("nan"), float("nan"))

@@ -223,8 +223,7 @@ class Progress:
         if self.tty:
             bar = "#" * (pct // 4)
             self.stream.write(
-                f"\r[{bar:<25}] {self.done}/{self.total} muscle-frames {elapsed:5.1f} s "
-                f"({tail})   "
+                f"\r[{bar:<25}] {self.done}/{self.total} muscle-frames {elapsed:5.1f} s ({tail})   "
             )
             if self.done >= self.total:
                 self.stream.write("\n")
