@@ -159,6 +159,11 @@ def run_batch(
 
         try:
             for i, r in enumerate(runs):
+                # at most _AHEAD scenes planned but not written: the main process holds
+                # their jobs (meshes, per-frame lines) until then
+                while i >= _AHEAD and not runs[i - _AHEAD].finished:
+                    runner.poll()
+                    _finish_ready(runs, runner, progress)
                 r.plan(frames, cache_for(r.scene), ex, say, resume, i, bar, runner)
                 if ex.remote:
                     _check_shared(ex, r)
@@ -180,6 +185,10 @@ def run_batch(
     for r in runs:
         out.append(r.summary_after_render())
     return out
+
+
+#: scenes of a batch planned ahead of the oldest one not written yet
+_AHEAD = 3
 
 
 def _finish_ready(runs: list[_SceneRun], runner: Runner, progress: Any) -> None:
