@@ -15,7 +15,10 @@ quoted. Parts:
   output folders, one preparation per muscle) on ``--workers 1`` and ``--workers 2``;
 - ``dask``: the walk on a Dask cluster of two one-thread workers started here
   (``dask scheduler`` / ``dask worker``, loopback) against the local default;
-- ``overhead``: 400 empty tasks through each executor, per task (the scheduling cost).
+- ``overhead``: 400 empty tasks through each executor, per task (the scheduling cost);
+- ``phases``: the walk in this process with 2 workers, cold cache then warm: the seconds
+  the main process spends reading (with the reading tasks it waits for), writing the bones'
+  display meshes and writing the series, report and plots; output bytes per muscle-frame.
 """
 
 from __future__ import annotations
@@ -225,13 +228,48 @@ def part_overhead(tmp: Path, n: int = 400) -> None:
     )
 
 
+def part_phases(tmp: Path) -> None:
+    import musclewrap.scene._run as run
+    from musclewrap.scene import load_scene, run_batch
+
+    spent: dict[str, float] = {}
+
+    def timed(name: str) -> None:
+        f = getattr(run, name)
+
+        def g(*a: object, **k: object) -> object:
+            t = time.perf_counter()
+            out = f(*a, **k)
+            spent[name] = spent.get(name, 0.0) + time.perf_counter() - t
+            return out
+
+        setattr(run, name, g)
+
+    for name in ("read_inputs", "write_bones", "write_outputs"):
+        timed(name)
+    scene = load_scene(WALK)
+    for label in ("cold", "warm"):
+        spent.clear()
+        out = tmp / f"phases-{label}"
+        t = time.perf_counter()
+        s = run_batch([scene], [out], workers=2, progress=None, render=False,
+                      cache_dir=tmp / "cache-phases")[0]  # fmt: skip
+        wall = time.perf_counter() - t
+        size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
+        print(
+            f"walk, {label} cache, 2 workers: {wall:.1f} s; main process: "
+            + ", ".join(f"{k} {v:.2f} s" for k, v in spent.items())
+            + f"; {size / len(s.rows) / 1e3:.0f} KB per muscle-frame"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--baseline", default=None, help="git revision for the walk's comparison")
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--parts", default="walk,scaling,dask,overhead")
+    ap.add_argument("--parts", default="walk,scaling,dask,overhead,phases")
     a = ap.parse_args()
     parts = a.parts.split(",")
     print(f"{os.cpu_count()} CPUs; warm caches, no GIF, cases alternating, {a.repeats} runs each")
@@ -245,6 +283,8 @@ def main() -> None:
             part_dask(tmp, a.repeats)
         if "overhead" in parts:
             part_overhead(tmp)
+        if "phases" in parts:
+            part_phases(tmp)
 
 
 if __name__ == "__main__":

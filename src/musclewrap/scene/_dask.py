@@ -38,7 +38,7 @@ def _distributed() -> Any:
 
 @contextlib.contextmanager
 def connect(address: str, *, log: Callable[[str], None] | None = None) -> Iterator[Any]:
-    """A client of the Dask scheduler at ``address`` (closed at the end); says its dashboard."""
+    """A client of the Dask scheduler at ``address`` (closed at the end); says its workers."""
     distributed = _distributed()
     try:
         client = distributed.Client(address, timeout="20s")
@@ -47,7 +47,7 @@ def connect(address: str, *, log: Callable[[str], None] | None = None) -> Iterat
     try:
         if log is not None:
             n = len(client.scheduler_info().get("workers", {}))
-            log(f"Dask scheduler {address}: {n} worker(s); dashboard {client.dashboard_link}")
+            log(f"Dask scheduler {address}: {n} worker(s)")
         yield client
     finally:
         client.close()
@@ -93,14 +93,11 @@ class DaskExecutor(Executor):
         self.client = client
         info = client.scheduler_info()
         self.workers = max(1, sum(w.get("nthreads", 1) for w in info.get("workers", {}).values()))
+        self.dashboard = getattr(client, "dashboard_link", None)
         self._held: set[Any] = set()
         self._lock = threading.Lock()
         # per muscle job: its future on the cluster and how many submitted tasks use it
         self._jobs: dict[int, list[Any]] = {}
-
-    @property
-    def dashboard(self) -> str | None:
-        return getattr(self.client, "dashboard_link", None)
 
     def submit(self, task: Any) -> Future[Any]:
         """Submit ``task``, its muscle's ``job`` sent once per muscle, not with every chunk.

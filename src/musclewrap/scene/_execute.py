@@ -21,10 +21,11 @@ import os
 import queue as queue_mod
 import threading
 import time
-from collections.abc import Callable, Hashable, Iterable
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from concurrent.futures import Future
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from ._work import set_tick
@@ -55,6 +56,7 @@ class Executor:
     workers: int = 1
     fine_progress: bool = True
     remote: bool = False
+    dashboard: str | None = None
 
     def submit(self, task: Any) -> Future[Any]:
         raise NotImplementedError
@@ -65,6 +67,14 @@ class Executor:
     def step(self) -> bool:
         """Run one queued task in this process, if this executor runs any here."""
         return False
+
+    def result(self, future: Future[Any]) -> Any:
+        """A finished task's result (raises its error, in words a user can act on)."""
+        return future.result()
+
+    def check_shared(self, paths: Sequence[Path]) -> str | None:
+        """None if every worker reaches every folder of ``paths`` (here: they all do)."""
+        return None
 
     def ticks(self, timeout: float | None) -> int:
         """Frames done since the last call (waits up to ``timeout`` for the first)."""
@@ -172,6 +182,16 @@ class ProcessExecutor(Executor):
         except queue_mod.Empty:
             pass
         return n
+
+    def result(self, future: Future[Any]) -> Any:
+        try:
+            return future.result()
+        except BrokenProcessPool:
+            raise RuntimeError(
+                "a worker process died without a Python error (out of memory, a crash in "
+                "a compiled library, or, from a Python script, run_scene called outside an "
+                "`if __name__ == '__main__':` block); rerun with --workers 1 to see where"
+            ) from None
 
     def close(self, cancel: bool = False) -> None:
         # On an error, queued work is dropped, but the workers are still waited for: one
@@ -310,14 +330,7 @@ class Runner:
 
     def _take(self, node: Node) -> None:
         self.running -= 1
-        try:
-            result = node.future.result()  # type: ignore[union-attr]  # the task's error
-        except BrokenProcessPool:
-            raise RuntimeError(
-                "a worker process died without a Python error (out of memory, a crash in "
-                "a compiled library, or, from a Python script, run_scene called outside an "
-                "`if __name__ == '__main__':` block); rerun with --workers 1 to see where"
-            ) from None
+        result = self.executor.result(node.future)  # type: ignore[arg-type]  # raises its error
         node.future = None
         if node.done is not None:
             result = node.done(result)

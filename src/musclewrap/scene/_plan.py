@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -105,8 +106,9 @@ class MuscleJob:
     outdir: str
     run: str
 
+    @cached_property
     def cache_key(self) -> str:
-        """Hash of the mesh and the preparation's settings (names its cache file)."""
+        """Hash of the mesh and the preparation's settings (names its cache file; once)."""
         from ..solver._muscle import _FORMAT
 
         return digest(
@@ -120,7 +122,7 @@ class MuscleJob:
         """The cache file of the muscle's preparation (None: no cache)."""
         if self.cache_dir is None:
             return None
-        return Path(self.cache_dir) / f"{self.name}-{self.cache_key()}.npz"
+        return Path(self.cache_dir) / f"{self.name}-{self.cache_key}.npz"
 
     def fibres_path(self) -> Path | None:
         """The cache file of the muscle's fibres (None: no cache or no fibres)."""
@@ -128,7 +130,7 @@ class MuscleJob:
             return None
         from ._fibres import fibres_key
 
-        return Path(self.cache_dir) / f"fibres-{self.name}-{fibres_key(self.cache_key(), self)}.npz"
+        return Path(self.cache_dir) / f"fibres-{self.name}-{fibres_key(self.cache_key, self)}.npz"
 
 
 @dataclass(frozen=True)
@@ -297,7 +299,7 @@ def chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
     return [range(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
 
 
-def muscle_jobs(inputs: Any, outdir: Path, cache: Path | None, run: str) -> list[MuscleJob]:
+def muscle_jobs(inputs: Any, outdir: Path, run: str) -> list[MuscleJob]:
     """One job per muscle of a read scene (`._read.Inputs`), largest first.
 
     Largest first: the workers then finish about together.
@@ -305,10 +307,8 @@ def muscle_jobs(inputs: Any, outdir: Path, cache: Path | None, run: str) -> list
     from ._read import attachment_area
 
     scene, drive = inputs.scene, inputs.drive
-    bones = tuple(
-        BoneMesh(b.name, *inputs.bones[b.name], _probe_name(*inputs.bones[b.name]))
-        for b in scene.bones
-    )
+    bones = tuple(inputs.bones[b.name] for b in scene.bones)
+    cache = inputs.cache
     jobs = []
     for spec in scene.muscles:
         V, F = inputs.muscles[spec.name]
@@ -385,9 +385,3 @@ def frame_span(inputs: Any, name: str) -> FrameSpan:
         {b.name: drive.to_output[b.body] for b in scene.bones},
         side,
     )
-
-
-def _probe_name(V: FloatArray, F: IntArray) -> str:
-    from ..contact import Obstacle
-
-    return str(Obstacle.cache_name(V, F))

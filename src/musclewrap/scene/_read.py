@@ -11,6 +11,7 @@ import json
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +46,7 @@ class Inputs:
     scene: Scene
     drive: Drive
     muscles: dict[str, tuple[FloatArray, IntArray]]
-    bones: dict[str, tuple[FloatArray, IntArray]]
+    bones: dict[str, BoneMesh]
     input_ids: dict[str, IntArray]
     contact: dict[str, dict[str, FloatArray | None]] | None
     anchors: dict[str, IntArray] | None
@@ -98,18 +99,21 @@ def read_inputs(
     notes += drive.notes
     # every mesh in the frame of the body that carries it
     muscles = {m: (apply(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}
-    bones = {b: (apply(drive.to_body[b], V), F) for b, (V, F) in bones.items()}
+    meshes = {}
+    for b, (V, F) in bones.items():
+        Vb = apply(drive.to_body[b], V)
+        meshes[b] = BoneMesh(b, Vb, F, Obstacle.cache_name(Vb, F))  # the probe's name, once
     _check_units(scene, drive, muscles)
     contact = anchors = None
     if collisions:
         muscles, contact, anchors = _rest_overlap(
-            scene, drive, muscles, bones, cache, say, notes, runner
+            scene, drive, muscles, meshes, cache, say, notes, runner
         )
     return Inputs(
         scene,
         drive,
         muscles,
-        bones,
+        meshes,
         input_ids,
         contact,
         anchors,
@@ -338,7 +342,7 @@ def _rest_overlap(
     scene: Scene,
     drive: Drive,
     muscles: dict[str, tuple[FloatArray, IntArray]],
-    bones: dict[str, tuple[FloatArray, IntArray]],
+    bones: dict[str, BoneMesh],
     cache: Path | None,
     say: Callable[[str], None],
     notes: list[str],
@@ -370,7 +374,6 @@ def _rest_overlap(
     from ._work import ProbeBone
 
     cache_str = None if cache is None else str(cache)
-    meshes = {b: BoneMesh(b, *bones[b], Obstacle.cache_name(*bones[b])) for b in bones}
     body_of = {b.name: b.body for b in scene.bones}
     tasks: dict[str, RestOutcome] = {}
     for spec in scene.muscles:
@@ -381,28 +384,28 @@ def _rest_overlap(
             spec,
             V,
             F,
-            {b: meshes[b] for b in names},
+            {b: bones[b] for b in names},
             {b: drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name]) for b in names},
             drive.rest_lines[spec.name],
             body_of,
             cache_str,
         )
     # probes are built (or read back) only where a muscle's outcome is not cached
-    todo = {m: t for m, t in tasks.items() if t.path() is None or not t.path().is_file()}
+    todo = {m: t for m, t in tasks.items() if t.path is None or not t.path.is_file()}
     probe_keys = {}
     nodes = []
     for b in sorted({b for t in todo.values() for b in t.bones}):
-        probe_keys[b] = ("probe", cache_str, meshes[b].probe)
-        nodes.append(Node(probe_keys[b], ProbeBone(meshes[b], cache_str)))
+        probe_keys[b] = ("probe", cache_str, bones[b].probe)
+        nodes.append(Node(probe_keys[b], ProbeBone(bones[b], cache_str)))
     for m, t in todo.items():
-        nodes.append(Node(("rest", t.key(), m), t, tuple(probe_keys[b] for b in t.bones)))
+        nodes.append(Node(("rest", t.key, m), t, tuple(probe_keys[b] for b in t.bones)))
     done = gather(runner, nodes)
     out_muscles = dict(muscles)
     contact: dict[str, dict[str, FloatArray | None]] = {}
     anchors: dict[str, IntArray] = {}
     for spec in scene.muscles:
         t = tasks[spec.name]
-        d = done[("rest", t.key(), spec.name)] if spec.name in todo else t.run()
+        d = done[("rest", t.key, spec.name)] if spec.name in todo else t.run()
         for n in (str(x) for x in d["notes"]):
             notes.append(n)
             say(n)
@@ -448,7 +451,9 @@ class RestOutcome:
     body_of: dict[str, str]
     cache: str | None
 
+    @cached_property
     def key(self) -> str:
+        """Hash of everything the outcome depends on (names its cache file; once)."""
         from ..constants import defaults
 
         scene, spec, names = self.scene, self.spec, list(self.bones)
@@ -464,13 +469,14 @@ class RestOutcome:
             repr((defaults.anchor_reach, defaults.anchor_end_reach, __version__)),
         )
 
+    @cached_property
     def path(self) -> Path | None:
         if self.cache is None:
             return None
-        return Path(self.cache) / f"rest-outcome-{self.key()[:32]}.npz"
+        return Path(self.cache) / f"rest-outcome-{self.key[:32]}.npz"
 
     def run(self) -> dict[str, np.ndarray]:
-        return cached_arrays(self.path(), self._build)
+        return cached_arrays(self.path, self._build)
 
     def _build(self) -> dict[str, np.ndarray]:
         from ..constants import defaults

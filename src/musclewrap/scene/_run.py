@@ -4,8 +4,9 @@ A run goes through four rooms: reading (`._read`: meshes, motion, rest overlap, 
 this process), planning (`._plan`: typed tasks), executing (`._execute`: one loop
 over one executor interface, in this process, in local worker processes or on a
 Dask cluster, `._dask`) and writing (`._write`; the frame files are written by the
-tasks themselves). A batch of scenes is one plan over one executor: while the
-workers deform one scene, this process reads the next and writes the finished.
+tasks themselves). A batch of scenes is one plan over one executor: the per-mesh
+reading of the next scene goes to the workers before the last scene's chunks, and
+this process drives the motions, plans, and writes each finished scene.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ._config import Scene
+from ._errors import SceneError
 from ._execute import Executor, LocalExecutor, Node, ProcessExecutor, Runner
 from ._journal import Journal
 from ._plan import ChunkResult, Comparison, MuscleOutcome, chunks, frame_span, muscle_jobs
@@ -136,8 +138,8 @@ def run_batch(
     with contextlib.ExitStack() as stack:
         ex = _executor(executor, workers, sum(len(sc.muscles) for sc in scenes), stack)
         runner = Runner(ex, None if bar is None else bar.add)
-        if getattr(ex, "dashboard", None):
-            say(f"Dask dashboard: {ex.dashboard}")  # type: ignore[attr-defined]
+        if ex.dashboard:
+            say(f"Dask dashboard: {ex.dashboard}")
         temp: list[Path] = []
 
         def cache_for(scene: Scene) -> Path | None:
@@ -148,6 +150,8 @@ def run_batch(
             # no cache: the workers still share what they build, for this batch only
             if not temp:
                 where = dirs[0] if ex.remote else None
+                if where is not None:
+                    where.mkdir(parents=True, exist_ok=True)
                 temp.append(
                     Path(
                         stack.enter_context(
@@ -164,9 +168,12 @@ def run_batch(
                 while i >= _AHEAD and not runs[i - _AHEAD].finished:
                     runner.poll()
                     _finish_ready(runs, runner, progress)
-                r.plan(frames, cache_for(r.scene), ex, say, resume, i, bar, runner)
-                if ex.remote:
-                    _check_shared(ex, r)
+                cache = cache_for(r.scene)
+                # before any task of the scene: its reading tasks write into the cache
+                problem = ex.check_shared([r.outdir] + ([] if cache is None else [cache]))
+                if problem is not None:
+                    raise SceneError(problem)
+                r.plan(frames, cache, ex, say, resume, i, bar, runner)
                 runner.add(r.nodes)
                 r.write_bones()  # while the workers start on its tasks
                 runner.poll(0)  # take in what finished meanwhile, submit what it unblocked
@@ -210,19 +217,6 @@ def _executor(executor: Any, workers: int, muscles: int, stack: contextlib.ExitS
     return LocalExecutor()
 
 
-def _check_shared(ex: Executor, r: _SceneRun) -> None:
-    """Refuse a run whose output (or cache) folder a worker of the cluster cannot reach."""
-    from ._errors import SceneError
-
-    check = getattr(ex, "check_shared", None)
-    if check is None:
-        return
-    paths = [r.outdir] + ([] if r.cache is None else [r.cache])
-    problem = check(paths)
-    if problem is not None:
-        raise SceneError(problem)
-
-
 @dataclass
 class _SceneRun:
     """One scene of a batch: read, planned into nodes, finished (written) when they are."""
@@ -240,6 +234,14 @@ class _SceneRun:
     rendering: list[Any] = field(default_factory=list)
     t0: float = field(default_factory=time.perf_counter)
     cache: Path | None = None
+    # set by plan()
+    inputs: Inputs = field(init=False)
+    jobs: list[Any] = field(init=False)
+    journal: Journal = field(init=False)
+    prepare_keys: dict[str, Any] = field(init=False)
+    chunk_keys: dict[str, list[Any]] = field(init=False)
+    tag: int = field(init=False)
+    bone_entries: list[tuple[int, str]] = field(init=False)
 
     def plan(
         self,
@@ -255,17 +257,17 @@ class _SceneRun:
         scene = self.scene
         self.cache = cache
         on = scene.collisions if self.collisions is None else bool(self.collisions and scene.bones)
-        self.on = on
-        self.inputs: Inputs = read_inputs(scene, frames, cache, on, say, self.notes, runner)
+        self.inputs = read_inputs(scene, frames, cache, on, say, self.notes, runner)
         drive = self.inputs.drive
         self.outdir.mkdir(parents=True, exist_ok=True)
         n = len(drive.frames)
         run = os.urandom(8).hex()  # tells a worker's kept muscle from another run's
-        self.jobs = muscle_jobs(self.inputs, self.outdir, cache, run)
+        self.jobs = muscle_jobs(self.inputs, self.outdir, run)
         spans = {j.name: frame_span(self.inputs, j.name) for j in self.jobs}
         parts = chunks(n, len(self.jobs), ex.workers)
         journal = Journal(self.outdir, self.inputs.key, [(c.start, c.stop) for c in parts], resume)
         self.journal = journal
+        self.tag = tag
         self.notes += journal.notes
         parts = [range(a, b) for a, b in journal.chunks]
         if bar is not None:
@@ -274,13 +276,13 @@ class _SceneRun:
         # what is not cached yet is built first, spread over the workers, then read back by all
         shared: list[Any] = []
         if cache is not None:
-            for b in self.jobs[0].bones if self.jobs else ():
+            for b in self.inputs.bones.values():
                 if not (cache / b.probe).is_file():
                     nodes.append(
                         Node(("probe", str(cache), b.probe), ProbeBone(b, str(cache)), priority=1)
                     )
                     shared.append(nodes[-1].key)
-        self.prepare_keys: dict[str, Any] = {}
+        self.prepare_keys = {}
         for j in self.jobs:
             after = list(shared)
             p = j.prepare_path()
@@ -329,7 +331,6 @@ class _SceneRun:
         self.chunk_keys = {
             j.name: [(tag, "chunk", j.name, ks.start) for ks in parts] for j in self.jobs
         }
-        self.tag = tag
         self.planned = True
 
     def _chunk_done(self, name: str, ks: range) -> Callable[[ChunkResult], ChunkResult]:
@@ -359,10 +360,9 @@ class _SceneRun:
 
     def write_bones(self) -> None:
         drive = self.inputs.drive
-        jobs_bones = self.jobs[0].bones if self.jobs else ()
         self.bone_entries = write_bones(
             self.outdir,
-            jobs_bones,
+            list(self.inputs.bones.values()),
             {b.name: drive.to_output[b.body] for b in self.scene.bones},
             drive.frames,
             self.scene.bone_display_faces,
