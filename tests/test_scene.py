@@ -764,3 +764,89 @@ def test_a_batch_of_four_scenes_writes_each_as_a_single_run(tmp_path):
                     assert math.isclose(float(a[k]), float(b[k]), rel_tol=1e-9, abs_tol=1e-12), k
                 except ValueError:
                     assert a[k] == b[k], k
+
+
+def _gif_frames(path):
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return [im.seek(i) or im.convert("RGB") for i in range(im.n_frames)]
+
+
+def _picture_scene(tmp_path):
+    """Two muscles (the worker pool), 41 frames (two parts of frames on two workers), a
+    picture every 8th frame: 0, 8, 16 in the first part, 24, 32, 40 in the second."""
+    _, toml = _twin_scene(tmp_path, n_frames=41)
+    toml.write_text(toml.read_text().replace("gif = false\n", "gif = true\ngif_every = 8\n"))
+    return load_scene(toml)
+
+
+def test_the_gif_is_drawn_by_the_runs_tasks_the_same_on_one_or_two_workers(tmp_path):
+    """The pictures are tasks of the run, a part of the frames each, on the workers: the GIF
+    is the same picture by picture on 1 and 2 workers, and as the written series drawn
+    alone, and the progress counts them."""
+    import io
+
+    from PIL import ImageChops
+
+    from musclewrap.output import render_series
+
+    scene = _picture_scene(tmp_path)
+    for w in (1, 2):
+        stream = io.StringIO()
+        s = run_scene(
+            scene, tmp_path / f"w{w}", workers=w, cache_dir=tmp_path / "cache", progress=stream
+        )
+        not_written = [n for n in s.notes if "scene.gif not written" in n]
+        if not_written:
+            assert "no working off-screen rendering backend" in not_written[0]
+            pytest.skip(f"no off-screen rendering here: {not_written[0]}")
+        assert "6/6 pictures drawn" in stream.getvalue()
+        assert tmp_path / f"w{w}" / "scene.gif" in s.files
+    render_series(tmp_path / "w1" / "scene.pvd", tmp_path / "alone.gif", every=8, bones=("thigh",))
+    gifs = [_gif_frames(p) for p in (tmp_path / "w1" / "scene.gif", tmp_path / "w2" / "scene.gif")]
+    alone = _gif_frames(tmp_path / "alone.gif")
+    assert len(alone) == 6
+    for frames in gifs:
+        assert len(frames) == 6
+        for a, b in zip(frames, alone, strict=True):
+            assert ImageChops.difference(a, b).getbbox() is None
+    # the still: the middle picture (frame 24), drawn by the second part's task
+    assert (tmp_path / "w2" / "scene.png").read_bytes() == (tmp_path / "alone.png").read_bytes()
+
+
+def test_a_renderer_that_crashes_leaves_the_run_whole_without_a_gif(tmp_path, monkeypatch):
+    """No off-screen OpenGL (VTK crashes at its first render): said once, everything but
+    the GIF written, no GIF or still, part or whole."""
+    import io
+
+    from musclewrap.output import _render
+
+    crash = tmp_path / "crash.py"
+    crash.write_text("import os, signal\nos.kill(os.getpid(), signal.SIGSEGV)\n")
+    monkeypatch.setattr(_render, "_SERVER", crash)
+    scene = _picture_scene(tmp_path)
+    stream = io.StringIO()
+    s = run_scene(scene, tmp_path / "out", workers=1, cache_dir=False, progress=stream)
+    notes = [n for n in s.notes if "scene.gif not written" in n]
+    assert len(notes) == 1
+    assert "no working off-screen rendering backend: the renderer crashed (signal 11)" in notes[0]
+    assert "apt install libegl1" in notes[0]
+    out = tmp_path / "out"
+    assert not (out / "scene.gif").exists() and not (out / "scene.png").exists()
+    assert not [p for p in out.rglob("*") if p.name.startswith(".")]
+    assert len(_rows(out / "report.csv")) == 2 * 41
+    assert "6/6 pictures drawn" in stream.getvalue()  # accounted for, though not drawn
+
+
+def test_a_renderer_that_hangs_is_stopped(tmp_path, monkeypatch):
+    from musclewrap.output import PictureTask, _render
+
+    hang = tmp_path / "hang.py"
+    hang.write_text("import time\nprint('ready', flush=True)\ntime.sleep(600)\n")
+    monkeypatch.setattr(_render, "_SERVER", hang)
+    r = _render.Renderer()
+    task = PictureTask(str(tmp_path), (), ((0.0, ()),), 0, None, (64, 48), timeout=1.0)
+    got = task.run(r)
+    assert got.error == "a renderer took more than 1 s to draw" and len(got) == 0
+    assert not r.alive

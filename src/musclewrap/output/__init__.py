@@ -1,6 +1,6 @@
 """Outputs: ParaView series, CSV reports, plots and pictures."""
 
-from ._render import Rendering, render_series, start_rendering
+from ._render import Pictures, PictureTask, RenderingError, render_series, save_gif
 from ._series import (
     plot_convergence,
     plot_moment_arms,
@@ -11,13 +11,15 @@ from ._series import (
 )
 
 __all__ = [
-    "Rendering",
+    "PictureTask",
+    "Pictures",
+    "RenderingError",
     "plot_convergence",
     "plot_moment_arms",
     "plot_penetration",
     "plot_volume_error",
     "render_series",
-    "start_rendering",
+    "save_gif",
     "write_csv",
     "write_pvd",
 ]

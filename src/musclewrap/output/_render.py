@@ -1,24 +1,44 @@
-"""Off-screen pictures of a written scene (PyVista/VTK), isolated in a subprocess.
+"""Off-screen pictures of written meshes, and the GIF made of them.
 
-VTK segfaults at the first render when no OpenGL backend exists (no display,
-no EGL, no OSMesa), so rendering runs in a child process: a missing backend
+A `PictureTask` draws a contiguous run of a series' time steps: a scene run hands
+such tasks to its workers once the frames they show are written, so the GIF is
+drawn beside the deformation, and `render_series` draws a written ``.pvd``. Each
+task asks a renderer process (`Renderer`: ``_picture_server.py``, VTK only) that the
+process running the task keeps for its next tasks. VTK may crash at the first render
+where no OpenGL backend exists (no display, no EGL, no OSMesa): in that child, so it
 becomes a clear message, never a crash of the run that produced the data.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import selectors
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
+
+import numpy as np
 
 from .._typing import PathLike
 from ..mesh import atomic_path
 
-__all__ = ["Rendering", "render_series", "start_rendering"]
+__all__ = [
+    "PictureTask",
+    "Pictures",
+    "Renderer",
+    "RenderingError",
+    "label_files",
+    "render_series",
+    "save_gif",
+]
 
 _PALETTE = [
     (0.80, 0.25, 0.22),
@@ -28,160 +48,324 @@ _PALETTE = [
     (0.35, 0.65, 0.35),
     (0.75, 0.45, 0.45),
 ]
+_BONE = (0.93, 0.90, 0.80)
+_INSTALL = (
+    ". Install EGL (Debian/Ubuntu: apt install libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1) "
+    "or OSMesa, or run under xvfb-run"
+)
+
+_SERVER = Path(__file__).with_name("_picture_server.py")
+
+#: a file shown in a picture: (part, how it is drawn, file relative to the series' folder);
+#: drawn as "line", or in a colour "r,g,b"
+Shown = tuple[str, str, str]
 
 
-def render_series(pvd: PathLike, gif: PathLike, **options: Any) -> Path:
-    """`start_rendering` and `Rendering.finish` in one call: the GIF, written.
+class RenderingError(RuntimeError):
+    """No picture could be drawn (no off-screen backend, a renderer that failed or hung)."""
 
-    ``options`` are `start_rendering`'s (every, size, bones, timeout, processes,
-    progress).
+
+class Renderer:
+    """A renderer process (``_picture_server.py``): started, then asked for pictures.
+
+    It starts at once (VTK, an off-screen OpenGL context: about 0.4 s) and draws each
+    request in turn; `close` ends it, as does the end of this process.
 
     Raises
     ------
-    RuntimeError
-        As `Rendering.finish`.
-    """
-    return start_rendering(pvd, gif, **options).finish()
-
-
-class Rendering:
-    """Renderer processes of a GIF (`start_rendering`): `go`, then `finish` writes it.
-
-    The renderers start at once (imports, an OpenGL context) and wait until `go`
-    says the files are written: a scene run starts them before its work and lets
-    them go when the frames are written, while it draws its plots. Each takes a
-    contiguous run of the pictures and places the camera from the first time
-    step, so the pictures are the same whatever their number.
+    RenderingError
+        If it cannot start: no working off-screen backend (what to install is said).
     """
 
-    def __init__(
-        self,
-        pvd: Path,
-        gif: Path,
-        every: int,
-        size: tuple[int, int],
-        bones: tuple[str, ...],
-        timeout: float,
-        processes: int,
-        progress: TextIO | None,
-    ) -> None:
-        self.pvd, self.gif, self.every = Path(pvd), Path(gif), every
-        self.timeout, self.progress = timeout, progress
+    def __init__(self, timeout: float = 120.0) -> None:
         env = dict(os.environ)
         if not env.get("DISPLAY"):
             env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-        self._tmp = tempfile.TemporaryDirectory(prefix="musclewrap-render-")
-        tmp = Path(self._tmp.name)
-        k = max(1, processes)
-        self.parts = [tmp / f"part{i}.npy" for i in range(k)]
-        self.errs = [open(tmp / f"err{i}.txt", "w+") for i in range(k)]  # noqa: SIM115
-        self._gone = False
-        self.procs = [
-            subprocess.Popen(
-                [
-                    sys.executable,
-                    "-c",
-                    "import sys; from musclewrap.output._render import _main; "
-                    "sys.exit(_main(sys.argv[1:]))",
-                    str(self.pvd),
-                    str(self.parts[i]),
-                    str(every),
-                    str(size[0]),
-                    str(size[1]),
-                    ",".join(bones),
-                    str(i),
-                    str(k),
-                ],
-                env=env,
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=self.errs[i],  # a file: a chatty renderer cannot fill a pipe and stall
-                text=True,
-            )
-            for i in range(k)
-        ]
+        # a file: a chatty renderer cannot fill a pipe and stall
+        self._err = tempfile.TemporaryFile("w+")  # noqa: SIM115  # closed by close()
+        self._proc = subprocess.Popen(
+            [sys.executable, str(_SERVER)],
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=self._err,
+            text=True,
+        )
+        self._sel = selectors.DefaultSelector()
+        self._sel.register(self._proc.stdout, selectors.EVENT_READ)  # type: ignore[arg-type]
+        self._reply("ready", timeout, "start")  # on failure, it is closed
 
-    def go(self) -> None:
-        """The collection is written: the renderers read it and draw their pictures."""
-        if self._gone:
-            return
-        self._gone = True
-        for p in self.procs:
-            try:
-                p.stdin.write("go\n")  # type: ignore[union-attr]
-                p.stdin.close()  # type: ignore[union-attr]
-            except OSError:
-                pass  # it has ended already: finish() says why
-
-    def cancel(self) -> None:
-        """Stop the renderers without a picture (the run failed)."""
-        for p in self.procs:
-            p.kill()
-            p.wait()
-            for f in (p.stdin, p.stdout):
-                if f is not None:
-                    f.close()
-        for fh in self.errs:
-            fh.close()
-        self._tmp.cleanup()
-
-    def finish(self) -> Path:
-        """Let the renderers go if not yet, wait for them, write the GIF and its PNG.
+    def draw(self, request: dict[str, Any], timeout: float) -> None:
+        """Draw a request (what `PictureTask.run` sends) into the file it names.
 
         Raises
         ------
-        RuntimeError
-            If no off-screen rendering backend works here (with what to install),
-            a renderer failed, or they ran past the time limit.
+        RenderingError
+            With the renderer's reason, or if it ran past ``timeout`` seconds (it is
+            then stopped).
         """
-        import numpy as np
+        import json
 
         try:
-            n = len(_timesteps(self.pvd)[:: self.every])
-            if n == 0:
-                raise RuntimeError(f"{self.pvd}: the collection has no time steps")
-            self.go()
-            try:
-                _follow(self.procs, n, self.timeout, self.progress)
-            except BaseException:
-                for p in self.procs:
-                    p.kill()
-                raise
-            finally:
-                for p in self.procs:
-                    if p.stdout is not None:
-                        p.stdout.close()
-            messages = []
-            for p, fh in zip(self.procs, self.errs, strict=True):
-                p.wait()
-                fh.seek(0)
-                messages.append(fh.read())
-            for p, part, err in zip(self.procs, self.parts, messages, strict=True):
-                if p.returncode != 0 or not part.is_file():
-                    why = err.strip().splitlines()[-1:] or [f"exit status {p.returncode}"]
-                    if p.returncode is not None and p.returncode < 0:
-                        why = [f"the renderer crashed (signal {-p.returncode})"]
-                    raise RuntimeError(
-                        "no working off-screen rendering backend: "
-                        + why[0]
-                        + ". Install EGL (Debian/Ubuntu: apt install libegl1 libegl-mesa0 "
-                        "libgl1-mesa-dri libgbm1) or OSMesa, or run under xvfb-run; the meshes "
-                        "and plots are written"
+            self._proc.stdin.write(json.dumps(request) + "\n")  # type: ignore[union-attr]
+            self._proc.stdin.flush()  # type: ignore[union-attr]
+        except OSError:
+            pass  # it has ended: _reply says why
+        self._reply("done", timeout, "draw")
+
+    def _reply(self, expect: str, timeout: float, doing: str) -> None:
+        t0 = time.perf_counter()
+        while True:
+            left = timeout - (time.perf_counter() - t0)
+            if left <= 0:
+                self.close(kill=True)
+                raise RenderingError(f"a renderer took more than {timeout:.0f} s to {doing}")
+            if not self._sel.select(timeout=min(left, 1.0)):
+                continue
+            line = self._proc.stdout.readline()  # type: ignore[union-attr]
+            if line.strip() == expect:
+                return
+            if line.startswith("error:"):
+                raise RenderingError(line[6:].strip())
+            if not line:  # it ended: a crash at its first render is a missing backend
+                code = self._proc.wait()
+                self._err.seek(0)
+                why = self._err.read().strip().splitlines()[-1:] or [f"exit status {code}"]
+                if code < 0:
+                    why = [f"the renderer crashed (signal {-code})"]
+                self.close()
+                if doing == "start":
+                    raise RenderingError(
+                        "no working off-screen rendering backend: " + why[0] + _INSTALL
                     )
-            frames = np.concatenate([np.load(q) for q in self.parts])
-            _save_gif(frames, self.gif, self.gif.with_suffix(".png"))
-            return self.gif
-        finally:
-            for p in self.procs:
-                if p.poll() is None:
-                    p.kill()
-                    p.wait()
-            for fh in self.errs:
-                fh.close()
-            self._tmp.cleanup()
+                raise RenderingError(f"a renderer stopped while drawing: {why[0]}")
+
+    @property
+    def alive(self) -> bool:
+        return self._proc.poll() is None
+
+    def close(self, kill: bool = False) -> None:
+        """End the renderer: at the end of its input (or at once, ``kill``)."""
+        if kill:
+            self._proc.kill()
+        with contextlib.suppress(OSError):
+            self._proc.stdin.close()  # type: ignore[union-attr]  # end of input: it exits
+        try:
+            self._proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()
+            self._proc.wait()
+        with contextlib.suppress(OSError, ValueError, KeyError):
+            self._sel.close()
+        self._proc.stdout.close()  # type: ignore[union-attr]
+        self._err.close()
 
 
-def start_rendering(
+# per thread (a Dask worker may run several tasks at once): its renderer, or why none starts
+_local = threading.local()
+
+
+def start_renderer() -> Renderer:
+    """The renderer of this thread, started if not yet (tasks then find it ready).
+
+    Raises
+    ------
+    RenderingError
+        If it cannot start (and every later call, without trying again).
+    """
+    failed = getattr(_local, "failed", None)
+    if failed is not None:
+        raise RenderingError(failed)  # said once per process: no retry per task
+    r = getattr(_local, "renderer", None)
+    if r is None or not r.alive:
+        try:
+            r = _local.renderer = Renderer()
+        except RenderingError as exc:
+            _local.failed = str(exc)
+            raise
+    return r
+
+
+def close_renderer() -> None:
+    """End this thread's renderer, if it started one, and forget why one did not start.
+
+    The next task starts another (a run calls this at its end; a worker process's
+    renderer ends with it).
+    """
+    r = getattr(_local, "renderer", None)
+    if r is not None:
+        r.close()
+    _local.renderer = _local.failed = None
+
+
+@dataclass
+class Pictures:
+    """What a `PictureTask` drew: its pictures in 256 colours each, or why none.
+
+    ``indices`` (n, h, w) index ``palettes`` (RGB bytes per picture); ``still`` is the
+    picture ``PictureTask.still`` in full colour, when the task drew it.
+    """
+
+    first: int
+    indices: np.ndarray | None = None
+    palettes: list[bytes] = field(default_factory=list)
+    still: np.ndarray | None = None
+    error: str | None = None
+
+    def __len__(self) -> int:
+        return 0 if self.indices is None else len(self.indices)
+
+
+@dataclass(frozen=True)
+class PictureTask:
+    """Pictures ``first``, ``first + 1``, ... of a GIF: one per time step of ``steps``.
+
+    Parameters
+    ----------
+    folder : str
+        The series' folder (absolute: the task may run in another process).
+    camera : tuple of Shown
+        The series' first time step, which places the camera (the same in every
+        task of a series, so the pictures do not depend on how they are shared out).
+    steps : tuple of (time, tuple of Shown)
+        What each picture shows, labelled with its time.
+    first : int
+        Index of the first picture in the GIF.
+    still : int or None
+        Index of the picture also kept in full colour (the GIF's still).
+    size : (int, int)
+        Pixels.
+    timeout : float
+        Seconds before the renderer is stopped.
+    """
+
+    folder: str
+    camera: tuple[Shown, ...]
+    steps: tuple[tuple[float, tuple[Shown, ...]], ...]
+    first: int
+    still: int | None
+    size: tuple[int, int] = (800, 600)
+    timeout: float = 600.0
+
+    def run(self, renderer: Renderer | None = None) -> Pictures:
+        """Draw (with ``renderer``, default this thread's) and reduce to 256 colours."""
+        from PIL import Image
+
+        try:
+            r = renderer or start_renderer()
+            with tempfile.TemporaryDirectory(prefix="musclewrap-pictures-") as tmp:
+                out = Path(tmp) / "pictures.npy"
+                r.draw(
+                    {
+                        "folder": self.folder,
+                        "camera": [list(s) for s in self.camera],
+                        "steps": [[t, [list(s) for s in shown]] for t, shown in self.steps],
+                        "size": list(self.size),
+                        "out": str(out),
+                    },
+                    self.timeout,
+                )
+                rgb = np.load(out)
+        except RenderingError as exc:
+            return Pictures(self.first, error=str(exc))
+        indices = np.empty(rgb.shape[:3], dtype=np.uint8)
+        palettes = []
+        for i, picture in enumerate(rgb):
+            q = Image.fromarray(picture).quantize(colors=256, method=Image.Quantize.FASTOCTREE)
+            indices[i] = np.asarray(q)
+            palettes.append(bytes(q.getpalette() or []))
+        still = None
+        if self.still is not None and 0 <= self.still - self.first < len(rgb):
+            still = rgb[self.still - self.first].copy()
+        return Pictures(self.first, indices, palettes, still)
+
+
+def label_files(
+    files: Sequence[str], bones: Sequence[str], colours: dict[str, str]
+) -> tuple[Shown, ...]:
+    """What a time step shows: each file with its part and how it is drawn.
+
+    Files under a folder of ``bones`` are bones (ivory); ``*_lines_*`` files are
+    action lines (black); ``*_fibres_*`` files are left out (inside the muscle,
+    hidden by it); every other folder is a muscle, coloured in the order the
+    folders first come (``colours``, filled in as they come).
+    """
+    shown = []
+    for f in files:
+        name, folder = Path(f).name, Path(f).parts[0]
+        if "_fibres_" in name:
+            continue
+        if "_lines_" in name:
+            shown.append((folder + "_lines", "line", f))
+            continue
+        if folder in bones:
+            kind = _rgb(_BONE)
+        else:
+            kind = colours.setdefault(folder, _rgb(_PALETTE[len(colours) % len(_PALETTE)]))
+        shown.append((folder, kind, f))
+    return tuple(shown)
+
+
+def _rgb(c: tuple[float, float, float]) -> str:
+    return ",".join(f"{x:g}" for x in c)
+
+
+def split_pictures(n: int, parts: int) -> list[range]:
+    """Contiguous runs of ``n`` pictures, ``parts`` of them at most, none empty."""
+    edges = np.linspace(0, n, max(1, min(parts, n)) + 1).round().astype(int)
+    return [range(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+
+
+def save_gif(pictures: Sequence[Pictures], gif: PathLike, duration_ms: int = 50) -> list[Path]:
+    """Write the GIF of tasks' pictures (in order of ``first``) and its still as a PNG.
+
+    Returns the files written (the GIF, and the PNG beside it when a task kept the
+    still). Nothing is written if a task failed.
+
+    Raises
+    ------
+    RenderingError
+        The first failed task's reason.
+    """
+    from PIL import Image
+
+    for p in pictures:
+        if p.error is not None:
+            raise RenderingError(p.error)
+    parts = sorted(pictures, key=lambda p: p.first)
+    images = []
+    for p in parts:
+        assert p.indices is not None
+        for idx, pal in zip(p.indices, p.palettes, strict=True):
+            im = Image.frombytes("P", (idx.shape[1], idx.shape[0]), idx.tobytes())
+            im.putpalette(pal)
+            images.append(im)
+    if not images:
+        raise RenderingError("no pictures to write")
+    gif = Path(gif)
+    with atomic_path(gif) as tmp:
+        # not optimize: Pillow's palette optimisation took 0.47 s of the 0.64 s that the
+        # LHDL walk's 71 pictures took to write, for a GIF 14 % smaller
+        images[0].save(
+            tmp,
+            format="GIF",
+            save_all=True,
+            append_images=images[1:],
+            duration=duration_ms,
+            loop=0,
+            optimize=False,
+        )
+    out = [gif]
+    still = next((p.still for p in parts if p.still is not None), None)
+    if still is not None:
+        png = gif.with_suffix(".png")
+        with atomic_path(png) as tmp:
+            Image.fromarray(still).save(tmp, format="PNG")
+        out.append(png)
+    return out
+
+
+def render_series(
     pvd: PathLike,
     gif: PathLike,
     *,
@@ -191,16 +375,13 @@ def start_rendering(
     timeout: float = 900.0,
     processes: int | None = None,
     progress: TextIO | None = None,
-) -> Rendering:
-    """Start rendering every ``every``-th time step of a ``.pvd`` collection into a GIF.
+) -> Path:
+    """Render every ``every``-th time step of a ``.pvd`` collection into a GIF.
 
-    Returns at once: the renderers start (imports, an OpenGL context) and draw
-    once told to (`Rendering.go`, or `Rendering.finish`, which writes the GIF).
-
-    The middle picture is also written as a PNG beside it (same name). The frames
-    are shared out, in contiguous runs, among ``processes`` renderers (child
-    processes: see the module's note); each places the camera from the first
-    time step, so the pictures are the same whatever their number.
+    The middle picture is also written as a PNG beside it (same name). The
+    pictures are shared out, in contiguous runs, among ``processes`` renderers;
+    each places the camera from the first time step, so the pictures are the same
+    whatever their number.
 
     Parameters
     ----------
@@ -216,71 +397,65 @@ def start_rendering(
         Folder names drawn as bones (ivory); ``*_lines_*`` files are action
         lines; everything else is a muscle.
     timeout : float, optional
-        Seconds before the renderers are stopped.
+        Seconds before a renderer is stopped.
     processes : int, optional
         Renderers at once; default the CPU count, at most 4.
     progress : text stream, optional
-        Where to show the pictures rendered so far (a line redrawn on a
-        terminal, else one line at the end).
+        Where to say how many pictures were rendered.
 
     Returns
     -------
-    Rendering
+    Path
+        The GIF.
+
+    Raises
+    ------
+    RuntimeError
+        If no off-screen rendering backend works here (with what to install), a
+        renderer failed, or it ran past the time limit.
     """
-    k = processes or min(os.cpu_count() or 1, 4)
-    return Rendering(Path(pvd), Path(gif), every, size, bones, timeout, k, progress)
-
-
-def _follow(procs: list[subprocess.Popen], n: int, timeout: float, progress: TextIO | None) -> None:
-    """Count the pictures the renderers report (a line each) until they end or time out."""
-    import selectors
-    import time
+    from concurrent.futures import ThreadPoolExecutor
 
     t0 = time.perf_counter()
-    sel = selectors.DefaultSelector()
-    for p in procs:
-        if p.stdout is not None:
-            sel.register(p.stdout, selectors.EVENT_READ)
-    done, open_ = 0, len(procs)
-    tty = progress is not None and bool(getattr(progress, "isatty", lambda: False)())
-    while open_:
-        left = timeout - (time.perf_counter() - t0)
-        if left <= 0:
-            for p in procs:
-                p.kill()
-            raise RuntimeError(f"rendering took more than {timeout:.0f} s and was stopped")
-        for key, _ in sel.select(timeout=min(left, 1.0)):
-            line = key.fileobj.readline()  # type: ignore[union-attr]
-            if not line:
-                sel.unregister(key.fileobj)
-                open_ -= 1
-            elif line.startswith("picture"):
-                done += 1
-                if tty:
-                    progress.write(  # type: ignore[union-attr]
-                        f"\rrendering scene pictures: {done}/{n} {time.perf_counter() - t0:5.1f} s"
-                    )
-                    progress.flush()  # type: ignore[union-attr]
+    pvd = Path(pvd).resolve()
+    steps = _timesteps(pvd)
+    if not steps:
+        raise RenderingError(f"{pvd}: the collection has no time steps")
+    colours: dict[str, str] = {}
+    camera = label_files(steps[0][1], bones, colours)
+    shown = [(t, label_files(files, bones, colours)) for t, files in steps[::every]]
+    k = processes or min(os.cpu_count() or 1, 4)
+    runs = split_pictures(len(shown), k)
+    middle = len(shown) // 2
+    tasks = [
+        PictureTask(
+            str(pvd.parent), camera, tuple(shown[r.start : r.stop]), r.start, middle, size, timeout
+        )
+        for r in runs
+    ]
+    renderers: list[Renderer] = []
+    try:
+        # threads: each waits for its own renderer process, which does the work
+        with ThreadPoolExecutor(len(tasks)) as pool:
+            starts = [pool.submit(Renderer) for _ in tasks]
+            for s in starts:
+                try:
+                    renderers.append(s.result())
+                except RenderingError:
+                    for t in starts:
+                        with contextlib.suppress(RenderingError):
+                            renderers.append(t.result())
+                    raise
+            done = list(pool.map(lambda tr: tr[0].run(tr[1]), zip(tasks, renderers)))
+    finally:
+        for r in renderers:
+            r.close()
+    save_gif(done, gif)
     if progress is not None:
-        progress.write(
-            ("\r" if tty else "")
-            + f"rendered {done} pictures in {time.perf_counter() - t0:.1f} s\n"
-        )
+        n = sum(len(p) for p in done)
+        progress.write(f"rendered {n} pictures in {time.perf_counter() - t0:.1f} s\n")
         progress.flush()
-
-
-def _save_gif(frames, gif: Path, png: Path) -> None:  # noqa: ANN001
-    """The GIF (256 colours per frame, fast octree) and its middle picture as a PNG."""
-    from PIL import Image
-
-    images = [Image.fromarray(f) for f in frames]
-    paletted = [im.quantize(colors=256, method=Image.Quantize.FASTOCTREE) for im in images]
-    with atomic_path(gif) as tmp:
-        paletted[0].save(
-            tmp, format="GIF", save_all=True, append_images=paletted[1:], duration=50, loop=0
-        )
-    with atomic_path(png) as tmp:
-        images[len(images) // 2].save(tmp, format="PNG")
+    return Path(gif)
 
 
 def _timesteps(pvd: Path) -> list[tuple[float, list[str]]]:
@@ -288,85 +463,3 @@ def _timesteps(pvd: Path) -> list[tuple[float, list[str]]]:
     for ds in ET.parse(pvd).getroot().iter("DataSet"):
         steps.setdefault(float(ds.get("timestep", "0")), []).append(ds.get("file", ""))
     return sorted(steps.items())
-
-
-def _main(argv: list[str]) -> int:  # pragma: no cover - runs in a child process
-    # renderer `index` of `count`: starts (imports, an OpenGL context), waits for a line on
-    # stdin (the files are written; end of input: nothing to draw), then renders its
-    # contiguous share of the pictures into a .npy stack, printing a line per picture
-    pvd, dest = Path(argv[0]), Path(argv[1])
-    every, w, h = int(argv[2]), int(argv[3]), int(argv[4])
-    bones = set(filter(None, argv[5].split(",")))
-    index, count = int(argv[6]), int(argv[7])
-    import numpy as np
-    import pyvista as pv
-
-    pl = pv.Plotter(off_screen=True, window_size=(w, h))
-    # no multisampling: in a software OpenGL (llvmpipe, what a server without a GPU has) 4x
-    # MSAA tripled the time of a picture (72 against 23 ms for the LHDL walk at 800 x 600;
-    # FXAA cost the same), and a 256-colour GIF keeps little of it
-    pl.ren_win.SetMultiSamples(0)
-    pl.set_background("white")
-    pl.ren_win.Render()  # the OpenGL context now, while waiting
-    if sys.stdin.readline().strip() != "go":
-        return 0  # cancelled
-    steps = _timesteps(pvd)[::every]
-    edges = np.linspace(0, len(steps), count + 1).round().astype(int)
-    first, last = int(edges[index]), int(edges[index + 1])
-    if first >= last:
-        np.save(dest, np.zeros((0, h, w, 3), dtype=np.uint8))
-        return 0
-    colours: dict[str, tuple[float, float, float]] = {}
-    shown: dict[str, tuple[str, pv.PolyData]] = {}  # part -> (file, mesh drawn)
-    frames = []
-    text = None
-    # the first time step places the camera, the same in every renderer
-    for i in [0, *range(max(first, 1), last)] if first > 0 else range(first, last):
-        t, files = steps[i]
-        for f in files:
-            if "_fibres_" in Path(f).name:
-                continue  # inside the muscle, hidden by it
-            part = Path(f).parts[0] + ("_lines" if "_lines_" in Path(f).name else "")
-            if part in shown and shown[part][0] == f:
-                continue  # a static bone: drawn once
-            new = pv.read(pvd.parent / f)
-            if part in shown and shown[part][1].n_points == new.n_points:
-                shown[part][1].points = new.points  # same topology: move the points only
-                shown[part] = (f, shown[part][1])
-                continue
-            folder = Path(f).parts[0]
-            if part.endswith("_lines"):
-                pl.add_mesh(new, color="black", line_width=3, render=False)
-            # back faces culled: muscles and bones are closed and face outward, so the
-            # pictures are the same (1 pixel in 480,000 differed on the walk) at 0.6 of the time
-            elif folder in bones:
-                pl.add_mesh(new, color=(0.93, 0.90, 0.80), culling="back", render=False)
-            else:
-                c = colours.setdefault(folder, _PALETTE[len(colours) % len(_PALETTE)])
-                pl.add_mesh(new, color=c, culling="back", render=False)
-            shown[part] = (f, new)
-        if i == 0:
-            # look along the scene's thinnest extent, its longest one up (a side view of a
-            # limb whatever the frame's convention), fixed for the whole motion
-            ext = np.diff(np.array(pl.bounds).reshape(3, 2), axis=1).ravel()
-            look, vup = np.zeros(3), np.zeros(3)
-            look[int(np.argmin(ext))] = 1.0
-            vup[int(np.argmax(ext))] = 1.0
-            pl.view_vector(tuple(look), viewup=tuple(vup))
-            pl.reset_camera(render=False)
-            pl.camera.zoom(1.05)
-            if first > 0:
-                continue  # placed the camera only
-        if text is not None:
-            pl.remove_actor(text, render=False)
-        text = pl.add_text(f"t = {t:.3f}", font_size=10, color="black", render=False)
-        pl.render()  # one render per picture (the screenshot alone may reuse the last one)
-        frames.append(pl.screenshot(return_img=True))
-        print("picture", flush=True)
-    pl.close()
-    np.save(dest, np.stack(frames))
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(_main(sys.argv[1:]))

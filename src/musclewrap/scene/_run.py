@@ -23,6 +23,14 @@ from typing import Any
 
 import numpy as np
 
+from ..output._render import (
+    Pictures,
+    PictureTask,
+    RenderingError,
+    close_renderer,
+    label_files,
+    save_gif,
+)
 from ._config import Scene
 from ._errors import SceneError
 from ._execute import Executor, LocalExecutor, Node, ProcessExecutor, Runner
@@ -30,7 +38,7 @@ from ._journal import Journal
 from ._plan import ChunkResult, Comparison, MuscleOutcome, chunks, frame_span, muscle_jobs
 from ._read import Inputs, check_outputs_spare_inputs, default_cache_dir, read_inputs
 from ._work import Compare, DeformChunk, Prepare, ProbeBone
-from ._write import GIF, PVD, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
+from ._write import GIF, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
 
 __all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_batch", "run_scene"]
 
@@ -167,7 +175,7 @@ def run_batch(
                 # their jobs (meshes, per-frame lines) until then
                 while i >= _AHEAD and not runs[i - _AHEAD].finished:
                     runner.poll()
-                    _finish_ready(runs, runner, progress)
+                    _finish_ready(runs, runner)
                 cache = cache_for(r.scene)
                 # before any task of the scene: its reading tasks write into the cache
                 problem = ex.check_shared([r.outdir] + ([] if cache is None else [cache]))
@@ -176,32 +184,30 @@ def run_batch(
                 r.plan(frames, cache, ex, say, resume, i, bar, runner)
                 runner.add(r.nodes)
                 r.write_bones()  # while the workers start on its tasks
+                runner.add(r.picture_nodes(bar))  # they show the bones too
                 runner.poll(0)  # take in what finished meanwhile, submit what it unblocked
-                _finish_ready(runs, runner, progress)
+                _finish_ready(runs, runner)
             from ._execute import import_plotting_meanwhile
 
             import_plotting_meanwhile()
-            while any(not r.finished for r in runs):
+            while any(not (r.finished and r.drawn) for r in runs):
                 runner.poll()
-                _finish_ready(runs, runner, progress)
-        except BaseException:
-            for r in runs:
-                r.cancel_render()
-            raise
-    out = []
-    for r in runs:
-        out.append(r.summary_after_render())
-    return out
+                _finish_ready(runs, runner)
+        finally:
+            close_renderer()  # this process's, if its tasks ran here
+    return [r.summary_at_end() for r in runs]
 
 
 #: scenes of a batch planned ahead of the oldest one not written yet
 _AHEAD = 3
 
 
-def _finish_ready(runs: list[_SceneRun], runner: Runner, progress: Any) -> None:
+def _finish_ready(runs: list[_SceneRun], runner: Runner) -> None:
     for r in runs:
         if r.planned and not r.finished and not runner.busy(r.keys):
-            r.finish(runner, progress)
+            r.finish(runner)
+        if r.finished and not r.drawn and not runner.busy(r.picture_keys):
+            r.write_gif(runner)
 
 
 def _executor(executor: Any, workers: int, muscles: int, stack: contextlib.ExitStack) -> Executor:
@@ -231,7 +237,8 @@ class _SceneRun:
     planned: bool = False
     finished: bool = False
     summary: RunSummary | None = None
-    rendering: list[Any] = field(default_factory=list)
+    picture_keys: list[Any] = field(default_factory=list)
+    drawn: bool = False  # finished, and its GIF written (or not asked for)
     t0: float = field(default_factory=time.perf_counter)
     cache: Path | None = None
     # set by plan()
@@ -240,6 +247,7 @@ class _SceneRun:
     journal: Journal = field(init=False)
     prepare_keys: dict[str, Any] = field(init=False)
     chunk_keys: dict[str, list[Any]] = field(init=False)
+    parts: list[range] = field(init=False)
     tag: int = field(init=False)
     bone_entries: list[tuple[int, str]] = field(init=False)
 
@@ -269,7 +277,7 @@ class _SceneRun:
         self.journal = journal
         self.tag = tag
         self.notes += journal.notes
-        parts = [range(a, b) for a, b in journal.chunks]
+        parts = self.parts = [range(a, b) for a, b in journal.chunks]
         if bar is not None:
             bar.grow(n * len(self.jobs))
         nodes: list[Node] = []
@@ -369,8 +377,8 @@ class _SceneRun:
             self.cache,
         )
 
-    def finish(self, runner: Runner, progress: Any) -> None:
-        """Everything of the scene is done: its series, report, plots; the GIF started."""
+    def finish(self, runner: Runner) -> None:
+        """The scene's frames are done: its series, report and plots (the GIF may not be)."""
         scene, drive = self.scene, self.inputs.drive
         results = []
         for j in self.jobs:
@@ -388,7 +396,6 @@ class _SceneRun:
             )
         order = {s.name: i for i, s in enumerate(scene.muscles)}
         results.sort(key=lambda r: order[r.name])
-        draw = self.render if self.render is not None else scene.gif
         rows, files = write_outputs(
             self.outdir,
             scene,
@@ -397,7 +404,6 @@ class _SceneRun:
             self.bone_entries,
             self.inputs.contact is not None,
             self.notes,
-            frames_written=(lambda: self._start_render(progress)) if draw else None,
         )
         worst = max(
             (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
@@ -418,38 +424,98 @@ class _SceneRun:
         )
         self.finished = True
 
-    def _start_render(self, progress: Any) -> None:
-        # the frames are written: the renderers start while this process draws the plots
-        # (started with the run instead, their start-up slowed the run more: 1.45-1.47x
-        # against 1.37x for the walk with its GIF, benchmarks/bench_gif.py)
-        from ..output import start_rendering
+    @property
+    def draws(self) -> bool:
+        """Whether the scene's GIF is drawn."""
+        return self.render if self.render is not None else self.scene.gif
 
-        try:
-            r = start_rendering(
-                self.outdir / PVD,
-                self.outdir / GIF,
-                every=self.scene.gif_every,
-                size=self.scene.image_size,
-                bones=tuple(b.name for b in self.scene.bones),
-                progress=progress,
+    def picture_nodes(self, bar: Progress | None) -> list[Node]:
+        """The GIF's pictures, a task per part of the frames, once those frames are written.
+
+        Each waits for the chunks of its frames and of the first frame (whose
+        meshes place the camera), so pictures are drawn beside the deformation.
+        """
+        scene, drive = self.scene, self.inputs.drive
+        shown = range(0, len(drive.frames), scene.gif_every)
+        if not self.draws or not len(shown):
+            self.drawn = True
+            return []
+        if bar is not None:
+            bar.grow_pictures(len(shown))
+        # the muscles in the scene's order, as in scene.pvd: their colours follow it
+        order = [s.name for s in scene.muscles]
+        first = [self.chunk_keys[m][0] for m in order]
+        nodes = []
+        for p, ks in enumerate(self.parts):
+            pictures = [i for i, k in enumerate(shown) if k in ks]
+            if not pictures:
+                continue
+            after = tuple(dict.fromkeys(first + [self.chunk_keys[m][p] for m in order]))
+            key = (self.tag, "pictures", ks.start)
+            nodes.append(
+                Node(
+                    key,
+                    self._picture_task(pictures, shown, after),
+                    after,
+                    done=self._pictures_done(bar, len(pictures)),
+                    priority=4,
+                )
             )
-        except OSError as exc:
-            self.notes.append(f"scene.gif not written: {exc}")
-            return
-        r.go()
-        self.rendering.append(r)
+            self.picture_keys.append(key)
+        return nodes
 
-    def cancel_render(self) -> None:
-        for r in self.rendering:
-            r.cancel()
+    def _picture_task(
+        self, pictures: list[int], shown: range, after: tuple[Any, ...]
+    ) -> Callable[[dict[Any, Any]], PictureTask]:
+        scene, drive = self.scene, self.inputs.drive
+        bones = tuple(b.name for b in scene.bones)
 
-    def summary_after_render(self) -> RunSummary:
+        def make(results: dict[Any, Any]) -> PictureTask:
+            files: dict[int, list[str]] = {}
+            for k, f in self.bone_entries:
+                files.setdefault(k, []).append(f)
+            for key in after:  # the scene's order: bones, then each muscle's files
+                for k, f in results[key].entries:
+                    files.setdefault(k, []).append(f)
+            colours: dict[str, str] = {}
+            camera = label_files(files[0], bones, colours)
+            steps = tuple(
+                (float(drive.times[shown[i]]), label_files(files[shown[i]], bones, colours))
+                for i in pictures
+            )
+            return PictureTask(
+                str(self.outdir.resolve()),
+                camera,
+                steps,
+                pictures[0],
+                len(shown) // 2,
+                scene.image_size,
+            )
+
+        return make
+
+    @staticmethod
+    def _pictures_done(bar: Progress | None, n: int) -> Callable[[Pictures], Pictures]:
+        def done(p: Pictures) -> Pictures:
+            if bar is not None:
+                bar.add_pictures(n)  # drawn, or not to be (its error is said once, at the end)
+            return p
+
+        return done
+
+    def write_gif(self, runner: Runner) -> None:
+        """The pictures are drawn: the GIF and its still, written."""
         assert self.summary is not None
-        for r in self.rendering:
-            try:
-                self.summary.files.append(r.finish())
-            except (RuntimeError, OSError) as exc:
-                self.summary.notes.append(f"scene.gif not written: {exc}")
+        try:
+            self.summary.files += save_gif(
+                [runner.result(k) for k in self.picture_keys], self.outdir / GIF
+            )
+        except (RenderingError, OSError) as exc:
+            self.summary.notes.append(f"scene.gif not written: {exc}")
+        self.drawn = True
+
+    def summary_at_end(self) -> RunSummary:
+        assert self.summary is not None
         # temporary files of writes whose worker was killed (its task ran again elsewhere)
         stale = [p for p in self.outdir.rglob(".*.part.*") if p.is_file()]
         for p in stale:

@@ -195,18 +195,26 @@ class Progress:
     """One progress display over a run or a batch: muscle-frames done of all, rate, time left.
 
     On a terminal a bar redrawn in place; otherwise a line per tenth. ``total``
-    grows as a batch's scenes are planned (`grow`).
+    grows as a batch's scenes are planned (`grow`), and so do the GIFs' pictures
+    (`grow_pictures`), counted beside the frames.
     """
 
     def __init__(self, total: int, stream: Any) -> None:
         self.total, self.done, self.stream = total, 0, stream
+        self.pictures, self.pictures_done = 0, 0
         self.t0 = time.perf_counter()
         self.tty = bool(getattr(stream, "isatty", lambda: False)())
         self._last = -1
         self._skipped = 0  # kept from an interrupted run: not part of the rate
+        self._ended = False
 
     def grow(self, n: int) -> None:
         self.total += n
+        self._ended = False
+
+    def grow_pictures(self, n: int) -> None:
+        self.pictures += n
+        self._ended = False
 
     def skip(self, n: int) -> None:
         """``n`` muscle-frames kept from an interrupted run (done, not timed)."""
@@ -215,6 +223,16 @@ class Progress:
 
     def add(self, n: int) -> None:
         self.done += n
+        self._show()
+
+    def add_pictures(self, n: int) -> None:
+        self.pictures_done += n
+        self._show()
+        if not self.tty and self.pictures_done >= self.pictures:
+            self.stream.write(f"{self.pictures_done}/{self.pictures} pictures drawn\n")
+            self.stream.flush()
+
+    def _show(self) -> None:
         pct = int(100 * self.done / max(self.total, 1))
         elapsed = time.perf_counter() - self.t0
         rate = (self.done - self._skipped) / elapsed if elapsed > 0 else 0.0
@@ -222,11 +240,14 @@ class Progress:
         tail = f"{rate:.1f}/s, {left:.0f} s left" if np.isfinite(left) else "starting"
         if self.tty:
             bar = "#" * (pct // 4)
+            pictures = f", pictures {self.pictures_done}/{self.pictures}" if self.pictures else ""
             self.stream.write(
-                f"\r[{bar:<25}] {self.done}/{self.total} muscle-frames {elapsed:5.1f} s ({tail})   "
+                f"\r[{bar:<25}] {self.done}/{self.total} muscle-frames {elapsed:5.1f} s "
+                f"({tail}){pictures}   "
             )
-            if self.done >= self.total:
+            if self.done >= self.total and self.pictures_done >= self.pictures and not self._ended:
                 self.stream.write("\n")
+                self._ended = True
         elif pct // 10 != self._last // 10:
             self.stream.write(f"{pct:3d}% ({self.done}/{self.total} muscle-frames; {tail})\n")
         self._last = pct
