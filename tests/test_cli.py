@@ -1,7 +1,10 @@
 """The command line: what it writes, and what it refuses (exit status 2, no output file)."""
 
 import json
+import os
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -189,8 +192,6 @@ def test_deform_keeps_the_muscle_out_of_a_bone(files, capsys):
 
 
 def test_version(capsys):
-    import subprocess
-    import sys
 
     from musclewrap import __version__
 
@@ -249,3 +250,37 @@ def test_pictures_are_the_same_from_one_or_several_renderers(tmp_path):
     for a, b in zip(*frames, strict=True):
         assert ImageChops.difference(a, b).getbbox() is None
     assert (tmp_path / "k2.png").stat().st_size > 0
+
+
+def test_a_first_run_compiles_every_kernel_a_demo_calls(tmp_path):
+    """A first run says so and starts compiling a pose's kernels (`_jit.KERNELS`, group 0) in
+    a second process; with all the listed kernels compiled, a demo in a new process compiles
+    nothing more: every kernel it calls is listed, with the signature it is called with."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    first = (
+        "import sys; from musclewrap._jit import compile_if_first_run, kernels_cached\n"
+        "assert not kernels_cached()\n"
+        "helper = compile_if_first_run(sys.stdout)\n"  # a pose's kernels, meanwhile
+        "assert helper.wait() == 0 and kernels_cached()\n"
+        "assert compile_if_first_run(sys.stdout) is None\n"  # cached: nothing said or done
+        "from musclewrap._jit import compile_kernels; compile_kernels()\n"
+    )
+    r = subprocess.run([sys.executable, "-c", first], env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.count("compiling kernels, once") == 1
+    demo = (
+        "import sys\n"
+        "from numba.core import event\n"
+        "seen = []\n"
+        "class Compiled(event.Listener):\n"
+        "    def on_start(self, e): seen.append(e.data['dispatcher'].py_func.__qualname__)\n"
+        "    def on_end(self, e): pass\n"
+        "event.register('numba:compile', Compiled())\n"
+        "from musclewrap.cli import main\n"
+        f"assert main(['demo', '-o', {str(tmp_path / 'demo')!r}, '--frames', '3', '--no-gif']) == 0\n"
+        "print('compiled:', sorted(set(seen)))\n"
+    )
+    r = subprocess.run([sys.executable, "-c", demo], env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "compiled: []" in r.stdout
+    assert "compiling" not in r.stderr

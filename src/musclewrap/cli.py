@@ -486,10 +486,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .mesh import MeshError
 
     args = _parser().parse_args(argv)
+    helper = None
     if args.command in ("prepare", "deform", "run", "demo"):
-        from ._jit import say_if_compiling
+        from ._jit import compile_if_first_run
 
-        say_if_compiling()
+        helper = compile_if_first_run()  # a first run: a pose's kernels compile meanwhile
     handlers = {
         "prepare": _cmd_prepare,
         "deform": _cmd_deform,
@@ -505,6 +506,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RuntimeError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 4
+    finally:
+        if helper is not None:
+            helper.wait()  # done already, unless the command needed no pose
 
 
 if __name__ == "__main__":  # pragma: no cover
