@@ -15,7 +15,7 @@ import pytest
 import pyvista as pv
 
 from musclewrap.cli import main
-from test_scene import _twin_scene
+from test_scene import _gif_frames, _twin_scene
 
 distributed = pytest.importorskip("distributed") if not os.environ.get("CI") else None
 if distributed is None:
@@ -103,12 +103,23 @@ def _same_outputs(a: Path, b: Path) -> None:
         x.pop("seconds"), y.pop("seconds")
         assert x == y
     assert (a / "scene.pvd").read_text() == (b / "scene.pvd").read_text()
+    # the pictures, where drawn (off-screen OpenGL here): the same, picture by picture
+    assert (a / "scene.gif").is_file() == (b / "scene.gif").is_file()
+    if (a / "scene.gif").is_file():
+        from PIL import ImageChops
+
+        ga, gb = _gif_frames(a / "scene.gif"), _gif_frames(b / "scene.gif")
+        assert len(ga) == len(gb)
+        for x, y in zip(ga, gb, strict=True):
+            assert ImageChops.difference(x, y).getbbox() is None
 
 
 def test_batch_on_a_dask_cluster_gives_the_local_files(tmp_path, cluster):
     address, _ = cluster
     scenes = _batch(tmp_path, n_frames=40)
-    common = ["run", *map(str, scenes), "--no-gif", "--cache-dir", str(tmp_path / "cache")]
+    for toml in scenes:  # the pictures too: tasks on the workers, pictures back to the client
+        toml.write_text(toml.read_text().replace("gif = false\n", "gif = true\ngif_every = 8\n"))
+    common = ["run", *map(str, scenes), "--cache-dir", str(tmp_path / "cache")]
     assert main([*common, "-o", str(tmp_path / "local"), "--workers", "1"]) == 0
     assert main([*common, "-o", str(tmp_path / "dask"), "--scheduler", address]) == 0
     for s in ("subject_a", "subject_b"):
