@@ -302,7 +302,6 @@ def write_outputs(
     entries: list[tuple[int, str]],
     collisions: bool,
     notes: list[str],
-    frames_written: Any = None,
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """The series, the report, the fibres' tables and the plots; returns the rows and files."""
     from ..output import write_csv, write_pvd
@@ -316,8 +315,6 @@ def write_outputs(
         write_pvd(outdir / PVD, [(float(drive.times[k]), f) for k, f in entries]),
         write_csv(outdir / REPORT, rows, REPORT_FIELDS),
     ]
-    if frames_written is not None:
-        frames_written()
     if scene.fibres is not None:
         paths = {s.name: s.paths for s in scene.muscles}
         files += write_fibre_outputs(outdir, drive, results, paths, notes)
