@@ -293,6 +293,18 @@ class Runner:
     def result(self, key: Hashable) -> Any:
         return self.nodes[key].result
 
+    def release(self, keys: Iterable[Hashable]) -> None:
+        """Drop the results of finished nodes once used (they stay done: not run again).
+
+        No node may wait for them afterwards. A batch's main process would otherwise hold
+        every scene's pictures to its end.
+        """
+        for k in keys:
+            n = self.nodes[k]
+            if not n.finished:
+                raise ValueError(f"the task {k!r} is not done")
+            n.result = None
+
     def _count(self, frames: int) -> None:
         if self.progress is not None and frames:
             self.progress(frames)

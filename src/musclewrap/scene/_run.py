@@ -512,6 +512,7 @@ class _SceneRun:
             )
         except (RenderingError, OSError) as exc:
             self.summary.notes.append(f"scene.gif not written: {exc}")
+        runner.release(self.picture_keys)  # about 0.5 MB a picture
         self.drawn = True
 
     def summary_at_end(self) -> RunSummary:
