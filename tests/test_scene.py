@@ -585,7 +585,9 @@ def test_killed_run_resumes_to_identical_outputs(tmp_path, workers):
 
     # 3 chunks of frames per muscle; with 2 workers a second muscle, so that the pool is used
     _, toml = (_twin_scene if workers > 1 else _write_demo)(tmp_path, n_frames=300)
-    args = [str(toml), "--no-gif", "--no-cache", "--workers", str(workers)]
+    # the pictures too: a resumed run draws them from the chunks it kept and those it ran
+    toml.write_text(toml.read_text().replace("gif = false\n", "gif = true\ngif_every = 30\n"))
+    args = [str(toml), "--no-cache", "--workers", str(workers)]
     assert main(["run", *args, "-o", str(tmp_path / "ref")]) == 0
     out = tmp_path / "out"
     proc = subprocess.Popen(
