@@ -1,6 +1,6 @@
 """A new user's first `musclewrap demo` against the second, wall time.
 
-    python benchmarks/bench_first_run.py [--no-gif]
+    python benchmarks/bench_first_run.py [--no-gif | --kernels]
 
 Emulates a fresh install: Numba's cache (``NUMBA_CACHE_DIR``) points at an empty folder, then
 ``musclewrap demo`` runs twice in new processes, the first compiling the kernels, the second
@@ -22,7 +22,26 @@ from pathlib import Path
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--no-gif", action="store_true")
+    p.add_argument(
+        "--kernels",
+        action="store_true",
+        help="instead: seconds to compile each group of musclewrap._jit.KERNELS, and all, "
+        "each in a fresh process with an empty cache (after the imports)",
+    )
     a = p.parse_args()
+    if a.kernels:
+        for group in ("pose", "preparation", None):
+            with tempfile.TemporaryDirectory() as tmp:
+                code = (
+                    "import time; from musclewrap._jit import compile_kernels\n"
+                    f"t = time.perf_counter(); compile_kernels({group!r})\n"
+                    "print(time.perf_counter() - t)"
+                )
+                env = {**os.environ, "NUMBA_CACHE_DIR": tmp}
+                r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                                   text=True, check=True)  # fmt: skip
+            print(f"compile {group or 'all'}: {float(r.stdout.split()[-1]):.1f} s")
+        return
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ)
         env["NUMBA_CACHE_DIR"] = str(Path(tmp) / "numba")

@@ -253,7 +253,7 @@ def test_pictures_are_the_same_from_one_or_several_renderers(tmp_path):
 
 
 def test_a_first_run_compiles_every_kernel_a_demo_calls(tmp_path):
-    """A first run says so and starts compiling a pose's kernels (`_jit.KERNELS`, group 0) in
+    """A first run says so and starts compiling a pose's kernels (`_jit.KERNELS`, "pose") in
     a second process; with all the listed kernels compiled, a demo in a new process compiles
     nothing more: every kernel it calls is listed, with the signature it is called with."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}

@@ -29,44 +29,51 @@ def kernels_cached() -> bool:
         return True
 
 
-#: the kernels of a preparation and of a pose, each with the signature it is called with:
-#: group 0 those of a pose (compiled by a second process on a first run while the run
-#: compiles group 1 as it prepares its muscles), group 1 those of a preparation. Kernels
-#: that only these call are compiled with them. A test checks that the demo compiles
-#: nothing else.
+#: the kernels of a pose and of a preparation, each with the signature it is called with.
+#: On a first run a second process compiles the pose's while the run prepares its muscles
+#: (compiling the preparation's as it goes). Kernels that only these call are compiled
+#: with them. A test checks that the demo compiles nothing else.
 _A2, _A1, _I2, _I1 = "float64[:, ::1]", "float64[::1]", "int64[:, ::1]", "int64[::1]"
 _A3, _F2 = "float64[:, :, ::1]", "float32[:, ::1]"
-KERNELS: tuple[tuple[int, str, str, str], ...] = (
-    (0, "solver._proxy", "_plain_iterations",
-     f"({_A2}, {_F2}, {_F2}, {_I2}, float64, int64, float64, float64, float64)"),
-    (0, "solver._proxy", "_mat3", f"({_F2}, {_A2})"),
-    (0, "solver._muscle", "_point_polyline_distance", f"({_A2}, {_A2})"),
-    (0, "mesh._volume", "_combine_kernel", f"({_A2}, float64, {_A1})"),
-    (0, "coordinates._mvc", "_rows_dot_kernel", f"({_A2}, {_A2}, {_A2})"),
-    (0, "solver._muscle", "_energy_kernel",
-     f"({_I1}, {_I1}, {_A1}, {_A2}, {_A2}, {_A2}, {_A2}, float64)"),
-    (1, "conditions._rotation", "_tangents_kernel", f"({_A2}, {_I1}, {_A2})"),
-    (1, "coordinates._mvc", "_mvc_kernel",
-     f"({_A2}, {_A2}, {_I2}, {_I2}, {_I2}, float64, float64, float64, {_A2})"),
-    (1, "conditions._rotation", "_blend_rotate", f"({_A2}, {_A3}, boolean[::1], {_A2}, {_A3})"),
-    (1, "conditions._rotation", "_frame_rotations", f"({_A2}, {_A2}, {_A2}, {_A2}, {_A3})"),
-    (1, "mesh._volume", "_volume_ser", f"({_A2}, {_I2}, {_A1})"),
-    (1, "mesh._volume", "_cubic_pair_ser", f"({_A2}, {_I2})"),
-    (1, "mesh._volume", "_mean_rows_kernel", f"({_A2},)"),
-    (1, "conditions._lines", "_distinct_consecutive", f"({_A2},)"),
-    (1, "conditions._lines", "_arclength_kernel", f"({_A2},)"),
-    (1, "conditions._lines", "_polyline_at_kernel", f"({_A2}, {_A1}, {_A2})"),
-)  # fmt: skip
+KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
+    "pose": (
+        ("solver._proxy", "_plain_iterations",
+         f"({_A2}, {_F2}, {_F2}, {_I2}, float64, int64, float64, float64, float64)"),
+        ("solver._proxy", "_mat3", f"({_F2}, {_A2})"),
+        ("solver._muscle", "_point_polyline_distance", f"({_A2}, {_A2})"),
+        ("mesh._volume", "_combine_kernel", f"({_A2}, float64, {_A1})"),
+        ("coordinates._mvc", "_rows_dot_kernel", f"({_A2}, {_A2}, {_A2})"),
+        ("solver._muscle", "_energy_kernel",
+         f"({_I1}, {_I1}, {_A1}, {_A2}, {_A2}, {_A2}, {_A2}, float64)"),
+    ),
+    # with the rotations and lines of the first pose, which come before the solve
+    "preparation": (
+        ("conditions._rotation", "_tangents_kernel", f"({_A2}, {_I1}, {_A2})"),
+        ("coordinates._mvc", "_mvc_kernel",
+         f"({_A2}, {_A2}, {_I2}, {_I2}, {_I2}, float64, float64, float64, {_A2})"),
+        ("conditions._rotation", "_blend_rotate",
+         f"({_A2}, {_A3}, boolean[::1], {_A2}, {_A3})"),
+        ("conditions._rotation", "_frame_rotations", f"({_A2}, {_A2}, {_A2}, {_A2}, {_A3})"),
+        ("mesh._volume", "_volume_ser", f"({_A2}, {_I2}, {_A1})"),
+        ("mesh._volume", "_cubic_pair_ser", f"({_A2}, {_I2})"),
+        ("mesh._volume", "_mean_rows_kernel", f"({_A2},)"),
+        ("conditions._lines", "_distinct_consecutive", f"({_A2},)"),
+        ("conditions._lines", "_arclength_kernel", f"({_A2},)"),
+        ("conditions._lines", "_polyline_at_kernel", f"({_A2}, {_A1}, {_A2})"),
+    ),
+}  # fmt: skip
 
 
-def compile_kernels(group: int | None = None) -> None:
+def compile_kernels(group: str | None = None) -> None:
     """Compile (into Numba's cache) the kernels of ``group`` of `KERNELS`, or all."""
     import importlib
 
     from numba.core.sigutils import normalize_signature
 
-    for g, module, name, signature in KERNELS:
-        if group is None or g == group:
+    for g, kernels in KERNELS.items():
+        if group not in (None, g):
+            continue
+        for module, name, signature in kernels:
             kernel = getattr(importlib.import_module(f"musclewrap.{module}"), name)
             if hasattr(kernel, "compile"):  # not with NUMBA_DISABLE_JIT
                 # the argument types as a call passes them: Numba's cache is keyed by the
@@ -74,13 +81,17 @@ def compile_kernels(group: int | None = None) -> None:
                 kernel.compile(tuple(normalize_signature(signature)[0]))
 
 
+_COMPILE_POSE = "from musclewrap._jit import compile_kernels; compile_kernels('pose')"
+
+
 def compile_if_first_run(stream: TextIO | None = None) -> subprocess.Popen[bytes] | None:
     """On a first run, say so once and start compiling the kernels of a pose meanwhile.
 
-    Returns the process that compiles them (group 0 of `KERNELS`) into Numba's cache
+    Returns the process that compiles them (`KERNELS` ``"pose"``) into Numba's cache
     while this one reads, prepares and compiles what that needs; the first pose then
-    finds them in the cache (about 6 s, about what a preparation's own compiling takes
-    on a first run; a pose that comes first compiles what it lacks itself). None if
+    finds them in the cache (6.0 s against 7.4 s for the preparation's own:
+    ``benchmarks/bench_first_run.py --kernels``; a pose that comes first compiles what
+    it lacks itself). None if
     the kernels were in the cache already, or this machine has one CPU.
     """
     if kernels_cached():
@@ -94,7 +105,7 @@ def compile_if_first_run(stream: TextIO | None = None) -> subprocess.Popen[bytes
     if (os.cpu_count() or 1) < 2:
         return None
     return subprocess.Popen(
-        [sys.executable, "-c", "from musclewrap._jit import compile_kernels; compile_kernels(0)"],
+        [sys.executable, "-c", _COMPILE_POSE],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )

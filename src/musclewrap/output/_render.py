@@ -27,6 +27,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from .._runs import contiguous_runs
 from .._typing import PathLike
 from ..mesh import atomic_path
 
@@ -38,6 +39,7 @@ __all__ = [
     "label_files",
     "render_series",
     "save_gif",
+    "to_256_colours",
 ]
 
 _PALETTE = [
@@ -247,37 +249,44 @@ class PictureTask:
     size: tuple[int, int] = (800, 600)
     timeout: float = 600.0
 
+    def request(self, out: Path) -> dict[str, Any]:
+        """What a renderer is sent (`Renderer.draw`): it draws the pictures into ``out``."""
+        return {
+            "folder": self.folder,
+            "camera": [list(s) for s in self.camera],
+            "steps": [[t, [list(s) for s in shown]] for t, shown in self.steps],
+            "size": list(self.size),
+            "out": str(out),
+        }
+
     def run(self, renderer: Renderer | None = None) -> Pictures:
         """Draw (with ``renderer``, default this thread's) and reduce to 256 colours."""
-        from PIL import Image
-
         try:
             r = renderer or start_renderer()
             with tempfile.TemporaryDirectory(prefix="musclewrap-pictures-") as tmp:
                 out = Path(tmp) / "pictures.npy"
-                r.draw(
-                    {
-                        "folder": self.folder,
-                        "camera": [list(s) for s in self.camera],
-                        "steps": [[t, [list(s) for s in shown]] for t, shown in self.steps],
-                        "size": list(self.size),
-                        "out": str(out),
-                    },
-                    self.timeout,
-                )
+                r.draw(self.request(out), self.timeout)
                 rgb = np.load(out)
         except RenderingError as exc:
             return Pictures(self.first, error=str(exc))
-        indices = np.empty(rgb.shape[:3], dtype=np.uint8)
-        palettes = []
-        for i, picture in enumerate(rgb):
-            q = Image.fromarray(picture).quantize(colors=256, method=Image.Quantize.FASTOCTREE)
-            indices[i] = np.asarray(q)
-            palettes.append(bytes(q.getpalette() or []))
+        indices, palettes = to_256_colours(rgb)
         still = None
         if self.still is not None and 0 <= self.still - self.first < len(rgb):
             still = rgb[self.still - self.first].copy()
         return Pictures(self.first, indices, palettes, still)
+
+
+def to_256_colours(rgb: np.ndarray) -> tuple[np.ndarray, list[bytes]]:
+    """Pictures (n, h, w, 3) as palette indices and a palette each (Pillow's fast octree)."""
+    from PIL import Image
+
+    indices = np.empty(rgb.shape[:3], dtype=np.uint8)
+    palettes = []
+    for i, picture in enumerate(rgb):
+        q = Image.fromarray(picture).quantize(colors=256, method=Image.Quantize.FASTOCTREE)
+        indices[i] = np.asarray(q)
+        palettes.append(bytes(q.getpalette() or []))
+    return indices, palettes
 
 
 def label_files(
@@ -310,17 +319,15 @@ def _rgb(c: tuple[float, float, float]) -> str:
     return ",".join(f"{x:g}" for x in c)
 
 
-def split_pictures(n: int, parts: int) -> list[range]:
-    """Contiguous runs of ``n`` pictures, ``parts`` of them at most, none empty."""
-    edges = np.linspace(0, n, max(1, min(parts, n)) + 1).round().astype(int)
-    return [range(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
-
-
-def save_gif(pictures: Sequence[Pictures], gif: PathLike, duration_ms: int = 50) -> list[Path]:
+def save_gif(
+    pictures: Sequence[Pictures], gif: PathLike, duration_ms: int = 50, optimize: bool = False
+) -> list[Path]:
     """Write the GIF of tasks' pictures (in order of ``first``) and its still as a PNG.
 
     Returns the files written (the GIF, and the PNG beside it when a task kept the
-    still). Nothing is written if a task failed.
+    still). Nothing is written if a task failed. ``optimize``: Pillow's palette
+    optimisation (for the LHDL walk's 71 pictures 0.14 s more, for a GIF 14 % smaller:
+    `benchmarks/bench_pictures.py`).
 
     Raises
     ------
@@ -344,8 +351,6 @@ def save_gif(pictures: Sequence[Pictures], gif: PathLike, duration_ms: int = 50)
         raise RenderingError("no pictures to write")
     gif = Path(gif)
     with atomic_path(gif) as tmp:
-        # not optimize: Pillow's palette optimisation took 0.47 s of the 0.64 s that the
-        # LHDL walk's 71 pictures took to write, for a GIF 14 % smaller
         images[0].save(
             tmp,
             format="GIF",
@@ -353,7 +358,7 @@ def save_gif(pictures: Sequence[Pictures], gif: PathLike, duration_ms: int = 50)
             append_images=images[1:],
             duration=duration_ms,
             loop=0,
-            optimize=False,
+            optimize=optimize,
         )
     out = [gif]
     still = next((p.still for p in parts if p.still is not None), None)
@@ -425,7 +430,7 @@ def render_series(
     camera = label_files(steps[0][1], bones, colours)
     shown = [(t, label_files(files, bones, colours)) for t, files in steps[::every]]
     k = processes or min(os.cpu_count() or 1, 4)
-    runs = split_pictures(len(shown), k)
+    runs = contiguous_runs(len(shown), k)
     middle = len(shown) // 2
     tasks = [
         PictureTask(
@@ -434,18 +439,17 @@ def render_series(
         for r in runs
     ]
     renderers: list[Renderer] = []
+    failed: list[RenderingError] = []
     try:
         # threads: each waits for its own renderer process, which does the work
         with ThreadPoolExecutor(len(tasks)) as pool:
-            starts = [pool.submit(Renderer) for _ in tasks]
-            for s in starts:
+            for started in [pool.submit(Renderer) for _ in tasks]:
                 try:
-                    renderers.append(s.result())
-                except RenderingError:
-                    for t in starts:
-                        with contextlib.suppress(RenderingError):
-                            renderers.append(t.result())
-                    raise
+                    renderers.append(started.result())
+                except RenderingError as exc:
+                    failed.append(exc)
+            if failed:
+                raise failed[0]
             done = list(pool.map(lambda tr: tr[0].run(tr[1]), zip(tasks, renderers)))
     finally:
         for r in renderers:

@@ -33,6 +33,7 @@ import numpy as np
 
 from .. import __version__
 from .._cache import digest
+from .._runs import contiguous_runs
 from .._typing import FloatArray, IntArray
 
 __all__ = [
@@ -294,9 +295,7 @@ def chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
     At most 128 frames each: a chunk is also what an interrupted run keeps.
     """
     k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), n_frames // 20))
-    k = max(k, -(-n_frames // 128))
-    edges = np.linspace(0, n_frames, k + 1).round().astype(int)
-    return [range(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+    return contiguous_runs(n_frames, max(k, -(-n_frames // 128)))
 
 
 def muscle_jobs(inputs: Any, outdir: Path, run: str) -> list[MuscleJob]:
