@@ -191,8 +191,8 @@ def test_a_rod_does_not_poke_through_between_vertices(bent):
 
 
 def test_attachment_patches_keep_only_those_near_a_line_end():
+    from musclewrap.contact import attachment_patches
     from musclewrap.mesh import vertex_adjacency
-    from musclewrap.solver import attachment_patches
 
     V, F = capsule(radius=8.0, length=100.0, n_around=24, cap_rings=6, segments=20)
     A = vertex_adjacency(F, len(V))
@@ -218,7 +218,7 @@ def test_no_contact_gives_the_result_without_obstacles(bent):
 
 
 def test_lines_dragging_the_muscle_deep_into_a_bone(bent):
-    from musclewrap.solver import Placed
+    from musclewrap.contact import Placed
 
     d, _ = bent
     # the whole muscle dragged 15 into a slab that it cannot leave sideways within the margin
@@ -235,7 +235,7 @@ def test_lines_dragging_the_muscle_deep_into_a_bone(bent):
 
 
 def test_contact_that_cannot_be_met_is_reported(bent):
-    from musclewrap.solver import Placed
+    from musclewrap.contact import Placed
 
     d, cur = bent
     # two slabs 1 apart across the muscle, with a margin of 2: no place keeps it from both

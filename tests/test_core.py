@@ -116,7 +116,7 @@ def test_cubic_root():
 def test_real_roots_of_a_cubic_with_roots_orders_of_magnitude_apart():
     # closed forms (and a companion matrix) lose the small roots of such a cubic; the
     # bracketed search keeps all three to rounding
-    from musclewrap.solver._cubic import _real_roots
+    from musclewrap.mesh._cubic import _real_roots
 
     roots = np.array([-2e-4, 1e-4, 1e6])
     p = np.poly(roots)[::-1]  # increasing degree

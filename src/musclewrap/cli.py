@@ -183,9 +183,8 @@ def _cmd_prepare(a: argparse.Namespace) -> int:
 
 def _read_obstacle(path: str):  # noqa: ANN202
     """A bone file as an obstacle (`musclewrap.contact.bone_surface`: an open one is refused)."""
-    from .contact import Obstacle, bone_surface
+    from .contact import Obstacle, Placed, bone_surface
     from .mesh import read_mesh
-    from .solver import Placed
 
     V, F, _ = bone_surface(*read_mesh(path), source=path)
     return Placed(Obstacle(V, F), name=Path(path).name)
@@ -416,7 +415,9 @@ def _cmd_run(a: argparse.Namespace) -> int:
         if a.scheduler:
             from .scene._dask import connect
 
-            client = stack.enter_context(connect(a.scheduler, log=lambda m: print(m, file=sys.stderr)))
+            client = stack.enter_context(
+                connect(a.scheduler, log=lambda m: print(m, file=sys.stderr))
+            )
         summaries = run_batch(
             runs,
             folders,

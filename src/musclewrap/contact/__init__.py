@@ -1,5 +1,34 @@
-"""Obstacles: bones as rigid closed surfaces, with signed distance and closest points."""
+"""Contact: bones (and other obstacles), finding where a muscle meets them, the finish.
 
+The one room that knows what an obstacle is: `Obstacle` (a closed surface with a
+signed-distance grid and exact closest points) placed in a pose (`Placed`); which
+vertices can be near it (`Near`); the contacts of a pose stated as linear conditions
+on the fine vertices (`contact_candidates`); the fine finish that takes the last
+vertices out, volume-exact (`push_out`); and the rest pose's overlap, settled once
+(`rest_push_out`, `anchors_at_rest`). The solver solves the conditions it is given.
+"""
+
+from ._find import contact_candidates
+from ._finish import ContactReport, push_out, rings, vertex_faces
+from ._near import Near
 from ._obstacle import Obstacle, bone_surface, pseudo_normals, signed_from_closest
+from ._placed import Placed
+from ._rest import anchors_at_rest, attachment_patches, kept_allowance, rest_push_out
 
-__all__ = ["Obstacle", "bone_surface", "pseudo_normals", "signed_from_closest"]
+__all__ = [
+    "ContactReport",
+    "Near",
+    "Obstacle",
+    "Placed",
+    "anchors_at_rest",
+    "attachment_patches",
+    "bone_surface",
+    "contact_candidates",
+    "kept_allowance",
+    "pseudo_normals",
+    "push_out",
+    "rest_push_out",
+    "rings",
+    "signed_from_closest",
+    "vertex_faces",
+]

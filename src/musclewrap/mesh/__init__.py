@@ -14,6 +14,7 @@ from ._checks import (
     tidy_mesh,
     vertex_origins,
 )
+from ._cubic import cubic_root_near
 from ._geometry import (
     barycentric,
     face_areas,
@@ -45,6 +46,7 @@ __all__ = [
     "available_memory",
     "check_memory",
     "combine_pair",
+    "cubic_root_near",
     "face_areas",
     "half_edges",
     "mean_edge_length",

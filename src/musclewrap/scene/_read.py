@@ -285,16 +285,8 @@ def _closed_bone(
 def _push_out_rest(
     V: FloatArray, F: IntArray, placed: list[Any], margin: float, cache: Path | None
 ) -> tuple[FloatArray | None, Any, str]:
-    """The rest pose's push-out (cached): with the bone vertices, else without, else none.
-
-    Taking the bones' vertices out of the muscle as well (`push_out` with
-    ``bone_vertices``) costs seconds and can fold the surface where a bone's
-    edge is thin: a result whose surface passes through itself is not used.
-    Returns the positions (None: every variant folded), the report and which
-    variant was used.
-    """
-    from ..mesh import self_intersecting_faces, volume
-    from ..solver import ContactReport, push_out
+    """`musclewrap.contact.rest_push_out`, cached by its inputs."""
+    from ..contact import ContactReport, rest_push_out
 
     key = digest(
         V,
@@ -304,21 +296,9 @@ def _push_out_rest(
         f"{margin}|{__version__}|rest-overlap",
     )
     path = None if cache is None else cache / f"rest-{key[:32]}.npz"
-    done: list[Any] = []
 
     def build() -> dict[str, np.ndarray]:
-        rep = None
-        for how in ("bone vertices", "vertices"):
-            P, rep = push_out(
-                V, F, placed, volume_target=volume(V, F), margin=margin,
-                bone_vertices=how == "bone vertices",
-            )  # fmt: skip
-            if rep.rounds == 0 or not rep.ok or self_intersecting_faces(P, F) == 0:
-                done.append((P, rep, how))
-                break
-        else:
-            done.append((None, rep, "none"))
-        P, rep, how = done[0]
+        P, rep, how = rest_push_out(V, F, placed, margin)
         return {
             "P": np.zeros((0, 3)) if P is None else P,
             "report": np.array(json.dumps(dataclasses.asdict(rep))),
@@ -356,7 +336,7 @@ def _rest_overlap(
 
     Every mesh is in its body's frame. With ``rest_overlap = "resolve"`` each
     muscle's vertices inside (or within the margin of) a bone at the rest pose
-    are pushed out, volume-exact (`musclewrap.solver.push_out`), and the pushed
+    are pushed out, volume-exact (`musclewrap.contact.push_out`), and the pushed
     mesh is the one prepared; with ``"keep"`` each vertex may stay as deep as it
     was. A muscle with most of its vertices inside one bone is refused: its
     mesh, frame or units do not match the bone's.
@@ -367,7 +347,7 @@ def _rest_overlap(
     own body carries, in patches near an end of its action lines (an origin,
     which moves with that bone: `Muscle.bind`'s anchors keep them in place, so
     the deformation does not drive the muscle into the bone it starts from;
-    `musclewrap.solver.attachment_patches`). Each muscle's outcome is a task
+    `musclewrap.contact.attachment_patches`). Each muscle's outcome is a task
     (`RestOutcome`, after its bones' probes), run by ``runner``'s executor where
     it is not cached yet, else here.
     """
@@ -479,9 +459,7 @@ class RestOutcome:
         return cached_arrays(self.path, self._build)
 
     def _build(self) -> dict[str, np.ndarray]:
-        from ..constants import defaults
-        from ..mesh import mean_edge_length, vertex_adjacency
-        from ..solver import Placed, attachment_patches
+        from ..contact import Placed, anchors_at_rest, kept_allowance
 
         scene, spec, V, F = self.scene, self.spec, self.V, self.F
         cache = None if self.cache is None else Path(self.cache)
@@ -503,36 +481,16 @@ class RestOutcome:
             _, V, keep = _resolve_rest(spec, V, F, placed, scene, cache, _silent, said)
         out: dict[str, np.ndarray] = {"V": V, "notes": np.array(said, dtype=str)}
         for pl in placed:
-            a = _kept_allowance(pl, V, scene.margin) if keep else None
+            a = kept_allowance(pl, V, scene.margin) if keep else None
             if a is not None:
                 out[f"allowance {pl.name}"] = a
-        reach = scene.margin + defaults.anchor_reach * mean_edge_length(V, F)
-        found = [
-            pl.obstacle.query(pl.to_obstacle(V), reach)[0]
-            for pl in placed
-            if self.body_of[pl.name] == spec.body
-        ]
-        out["anchors"] = attachment_patches(
-            vertex_adjacency(F, len(V)),
-            V,
-            np.concatenate(found) if found else np.zeros(0, np.int64),
-            self.lines,
-        )
+        own = [pl for pl in placed if self.body_of[pl.name] == spec.body]
+        out["anchors"] = anchors_at_rest(V, F, own, self.lines, scene.margin)
         return out
 
 
 def _silent(_: str) -> None:
     """Says nothing (what is said is kept, and said on every run)."""
-
-
-def _kept_allowance(pl: Any, V: FloatArray, margin: float) -> FloatArray | None:
-    """A kept rest overlap: each vertex nearer the bone than the margin may stay as near."""
-    idx, phi, _, _ = pl.obstacle.query(pl.to_obstacle(V), margin)
-    if not len(idx):
-        return None
-    a = np.full(len(V), np.inf)
-    a[idx] = phi
-    return a
 
 
 def _resolve_rest(

@@ -214,7 +214,8 @@ class Compare:
 
 def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
     from ..conditions import LineError
-    from ..solver import DeformationResult, Placed
+    from ..contact import Placed
+    from ..solver import DeformationResult
 
     muscle, d, hit, note, seconds_prepare = _deformer(job)
     probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]

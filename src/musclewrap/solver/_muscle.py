@@ -30,7 +30,7 @@ from ..conditions import (
     sample_lines,
 )
 from ..constants import defaults, tol
-from ..contact import Obstacle
+from ..contact import Near, Obstacle, Placed, contact_candidates, push_out, vertex_faces
 from ..coordinates import mean_value_coordinates, rows_dot
 from ..mesh import (
     atomic_path,
@@ -38,6 +38,7 @@ from ..mesh import (
     check_mesh,
     clean_mesh,
     combine_pair,
+    cubic_root_near,
     mean_edge_length,
     mean_rows,
     umbrella_laplacian,
@@ -49,10 +50,9 @@ from ..mesh import (
     volume_gradient,
     volume_hessian_reduced,
 )
-from ._contact import Near, Placed, cage_push, contact_candidates, push_out, vertex_faces
-from ._cubic import cubic_root_near
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
 from ._result import DeformationResult
+from ._step import cage_push
 
 __all__ = ["METHODS", "Deformer", "Muscle", "deform"]
 
@@ -711,7 +711,7 @@ class Deformer:
             muscle's frame; a `Placed` carries the transform from the muscle's
             frame into the bone's). After the solve, every fine vertex closer
             than ``margin`` to one of them is moved out onto it and the fine
-            volume is restored exactly (`musclewrap.solver.push_out`); a pose
+            volume is restored exactly (`musclewrap.contact.push_out`); a pose
             where that fails is unconverged, with the reason.
         margin : float, optional
             Distance every fine vertex keeps from every obstacle (mesh units).

@@ -16,8 +16,8 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..mesh._cubic import root_near
 from ..mesh._volume import _cubic_pair_ser, _gradient_kernel, _mean_rows_kernel
-from ._cubic import root_near
 
 __all__ = [
     "PLAIN_CONVERGED",

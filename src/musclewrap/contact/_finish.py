@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numba
@@ -11,9 +11,9 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..contact import Obstacle
 from ..mesh import (
     barycentric,
+    cubic_root_near,
     mean_edge_length,
     mean_rows,
     vertex_adjacency,
@@ -21,62 +21,10 @@ from ..mesh import (
     volume,
     volume_cubic,
 )
-from ._cubic import cubic_root_near
+from ._near import Near
+from ._placed import Placed
 
-__all__ = [
-    "ContactReport",
-    "Near",
-    "Placed",
-    "attachment_patches",
-    "cage_push",
-    "contact_candidates",
-    "push_out",
-]
-
-
-@dataclass(frozen=True)
-class Placed:
-    """An obstacle in a pose: ``T`` maps the muscle's frame into the obstacle's frame.
-
-    Attributes
-    ----------
-    obstacle : Obstacle
-        The bone, in its own frame (built once, `Obstacle.cached`).
-    T : (4, 4) float64 array or None
-        Rigid transform from the frame of the muscle's vertices to the
-        obstacle's frame (None: the same frame).
-    allowance : (n,) float64 array or None
-        Per muscle vertex, the smallest signed distance to this obstacle that is
-        accepted in place of the margin where it is smaller (a rest overlap kept
-        with ``rest_overlap = "keep"``: no vertex goes deeper than it was).
-    name : str
-        Quoted in reasons.
-    """
-
-    obstacle: Obstacle
-    T: FloatArray | None = None
-    allowance: FloatArray | None = None
-    name: str = "obstacle"
-
-    def allowed(self, margin: float, n: int) -> FloatArray:
-        """Smallest accepted signed distance per muscle vertex."""
-        a = np.full(n, float(margin))
-        if self.allowance is not None:
-            a = np.minimum(a, self.allowance)
-        return a
-
-    def to_obstacle(self, P: FloatArray) -> FloatArray:
-        """Points of the muscle's frame in the obstacle's frame."""
-        if self.T is None:
-            return P
-        return P @ self.T[:3, :3].T + self.T[:3, 3]
-
-    def to_muscle(self, P: FloatArray, *, direction: bool = False) -> FloatArray:
-        """Points (or, with ``direction``, vectors) of the obstacle's frame in the muscle's."""
-        if self.T is None:
-            return P
-        R = self.T[:3, :3]
-        return P @ R if direction else (P - self.T[:3, 3]) @ R
+__all__ = ["ContactReport", "push_out", "rings", "vertex_faces"]
 
 
 @dataclass(frozen=True)
@@ -115,7 +63,7 @@ class ContactReport:
     inside: int = 0
 
 
-def _rings(A: sp.csr_matrix, seeds: np.ndarray, k: int) -> np.ndarray:
+def rings(A: sp.csr_matrix, seeds: np.ndarray, k: int) -> np.ndarray:
     """Ring distance (in edges) from the ``seeds`` of every vertex up to ``k``; k + 1 beyond."""
     level = np.full(A.shape[0], k + 1, dtype=np.int64)
     _rings_kernel(A.indptr, A.indices, np.asarray(seeds, dtype=np.int64), k, level)
@@ -277,76 +225,6 @@ def vertex_faces(F: IntArray, n: int) -> tuple[IntArray, IntArray]:
     return indptr, np.ascontiguousarray(order // 3)
 
 
-@numba.njit(cache=True)
-def _within_kernel(P, R, lower, reach, out):  # noqa: ANN001, ANN202 # pragma: no cover
-    # the rows i with lower_i - |P_i - R_i| < reach_i, in order; returns how many
-    k = 0
-    for i in range(P.shape[0]):
-        d0, d1, d2 = P[i, 0] - R[i, 0], P[i, 1] - R[i, 1], P[i, 2] - R[i, 2]
-        if lower[i] - np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) < reach[i]:
-            out[k] = i
-            k += 1
-    return k
-
-
-class Near:
-    """Which vertices can be within reach of each obstacle, by the 1-Lipschitz bound.
-
-    Per obstacle and vertex, a lower bound of the signed distance at a
-    reference position: first the grid's (`Obstacle.bounds`) at ``V``, then the
-    exact distance wherever a query took it (`learn`). After a vertex moved to
-    ``P`` it can be nearer the obstacle than its allowed distance only if its
-    bound less its distance from the reference is, so only those are queried
-    again: once the first round has found the contact, later rounds query
-    little more than the vertices in contact.
-    """
-
-    def __init__(self, V: FloatArray, placed: Sequence[Placed], margin: float) -> None:
-        self.V = V
-        n = len(V)
-        self.lower = [pl.obstacle.bounds(pl.to_obstacle(V))[0] for pl in placed]
-        self.ref = [V] * len(placed)  # shared until an obstacle learns
-        self.allowed = [pl.allowed(margin, n) for pl in placed]
-
-    def deepest(self) -> float:
-        """An upper bound of how far a vertex lies within its allowed distance."""
-        return max(
-            (
-                float((a - lo).max(initial=-np.inf))
-                for lo, a in zip(self.lower, self.allowed, strict=True)
-            ),
-            default=-np.inf,
-        )
-
-    def within(self, b: int, P: FloatArray, reach: float | FloatArray) -> IntArray:
-        """Vertices whose bound for obstacle ``b`` less their move is below allowed + reach."""
-        out = np.empty(len(P), dtype=np.int64)
-        k = _within_kernel(
-            np.ascontiguousarray(P, dtype=np.float64),
-            self.ref[b],
-            self.lower[b],
-            self.allowed[b] + reach,
-            out,
-        )
-        return out[:k]
-
-    def moved(self, b: int, P: FloatArray, rows: IntArray | None = None) -> FloatArray:
-        """Distance of ``P`` (all vertices, or ``rows``) from obstacle ``b``'s references."""
-        R = self.ref[b] if rows is None else self.ref[b][rows]
-        return np.sqrt(np.einsum("ij,ij->i", P - R, P - R))
-
-    def rows(self, P: FloatArray, reach: float) -> list[IntArray]:
-        """Per obstacle, the vertices whose distance may be below the allowed one + reach."""
-        return [self.within(b, P, reach) for b in range(len(self.lower))]
-
-    def learn(self, b: int, rows: IntArray, P: FloatArray, lower: FloatArray) -> None:
-        """Obstacle ``b``'s new bounds ``lower`` at positions ``P`` of vertices ``rows``."""
-        if self.ref[b] is self.V:
-            self.ref[b] = self.V.copy()
-        self.ref[b][rows] = P
-        self.lower[b][rows] = lower
-
-
 def _violations(
     P: FloatArray,
     placed: Sequence[Placed],
@@ -478,7 +356,7 @@ def _ridges_in_muscle(
     inside = around.near.within(b, P, 0.0)
     if not len(inside):
         return _NONE_INSIDE
-    r = np.flatnonzero(_rings(A, inside, 1) <= 1)
+    r = np.flatnonzero(rings(A, inside, 1) <= 1)
     # After the finish projects the muscle's vertices onto the bone, a bone vertex
     # stands out between them by about the sag e^2 / (8 R) of its curvature radius R
     # under a muscle edge e: only where that can exceed ``depth`` (edges up to 1.5
@@ -684,7 +562,7 @@ def push_out(
         depth = float(np.linalg.norm(D, axis=1).max())
         # harmonic spread of the push over the rings around the contact (zero beyond)
         radius = int(min(np.ceil(defaults.contact_spread * depth / edge) + 1, 12))
-        level = _rings(A, hit, radius)
+        level = rings(A, hit, radius)
         region = np.flatnonzero((level > 0) & (level <= radius) & ~held)
         Dall = np.zeros((n, 3))
         Dall[hit] = D
@@ -704,7 +582,7 @@ def push_out(
         held[hit] = True
         # exact volume along the correction direction, away from the held vertices
         ramp = min(radius + 2, 12)
-        level = _rings(A, np.flatnonzero(held), ramp)
+        level = rings(A, np.flatnonzero(held), ramp)
         mask = np.clip(level / (ramp + 1.0), 0.0, 1.0)
         Zm = Z * mask[:, None]
         c = mean_rows(P)
@@ -784,174 +662,3 @@ def _final(
         inside[idx[phi < 0]] = True
         depth = max(depth, float(-phi.min(initial=0.0)))
     return int(touching.sum()), int(inside.sum()), depth
-
-
-def attachment_patches(
-    A: sp.csr_matrix,
-    V: FloatArray,
-    candidates: IntArray,
-    lines: Mapping[str, FloatArray],
-    reach: float = defaults.anchor_end_reach,
-) -> IntArray:
-    """The candidates that form an attachment: patches near the end of an action line.
-
-    ``candidates`` (vertices lying on a bone of the muscle's own body at rest)
-    split into patches connected on the mesh (adjacency ``A``). A patch is kept
-    when its nearest vertex is within ``reach`` times a path's length of that
-    path's first or last point: where the muscle starts on the bone (its
-    origin). A patch far from every end is a bone the muscle lies on and slides
-    over through a motion (the psoas on the pelvic brim); holding it in place
-    would crease the muscle there.
-
-    Parameters
-    ----------
-    A : scipy.sparse.csr_matrix
-        Vertex adjacency of the muscle's mesh.
-    V : (n, 3) float64 array
-        Rest positions, in the frame of ``lines``.
-    candidates : (k,) int array
-    lines : mapping of str to (p, 3) arrays
-        The rest action lines.
-    reach : float, optional
-        Fraction of a path's length.
-
-    Returns
-    -------
-    (j,) int64 array
-        The kept candidates, sorted.
-    """
-    from scipy.sparse.csgraph import connected_components
-
-    c = np.unique(np.asarray(candidates, dtype=np.int64))
-    if not len(c):
-        return c
-    _, label = connected_components(A[c][:, c], directed=False)
-    near = np.zeros(len(c), dtype=bool)
-    for pts in lines.values():
-        pts = np.asarray(pts, dtype=np.float64)
-        length = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-        for end in (pts[0], pts[-1]):
-            near |= np.linalg.norm(V[c] - end, axis=1) <= reach * length
-    return np.sort(c[np.isin(label, np.unique(label[near]))])
-
-
-def contact_candidates(
-    P: FloatArray,
-    placed: Sequence[Placed],
-    margin: float,
-    band: float,
-    near: Near,
-) -> tuple[IntArray, FloatArray, FloatArray]:
-    """Vertices within ``band`` of the margin of an obstacle: index, gap, outward direction.
-
-    ``gap`` is the signed distance less the allowed one (negative: too near),
-    from the obstacle's grid (`Obstacle.interpolate`, approximate); the
-    directions are unit vectors in the muscle's frame. A vertex near two
-    obstacles appears twice.
-    """
-    out_i, out_g, out_n = [], [], []
-    for pl, r, allowed in zip(placed, near.rows(P, band), near.allowed, strict=True):
-        if not len(r):
-            continue
-        # the grid's interpolated distance: linearised conditions need no exact one
-        idx, phi, N = pl.obstacle.interpolate(pl.to_obstacle(P[r]), margin + band)
-        idx = r[idx]
-        gap = phi - allowed[idx]
-        close = gap < band
-        out_i.append(idx[close])
-        out_g.append(gap[close])
-        out_n.append(pl.to_muscle(N[close], direction=True))
-    if not out_i:
-        return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 3))
-    return np.concatenate(out_i), np.concatenate(out_g), np.concatenate(out_n)
-
-
-def cage_push(
-    W: FloatArray,
-    Hinv: FloatArray,
-    g: FloatArray,
-    Hg: FloatArray,
-    idx: IntArray,
-    gap: FloatArray,
-    N: FloatArray,
-    group: IntArray,
-    *,
-    slack: float,
-    max_sets: int = 4,
-) -> FloatArray:
-    """The cage displacement of least energy that takes fine vertices off the obstacles.
-
-    Linearised non-penetration conditions ``n_i . (W_i dx) >= slack - gap_i``
-    on the fine vertices ``idx`` (one per ``group``, the deepest: a cage of a
-    few hundred vertices cannot follow more), with the linearised volume
-    ``g . dx = 0``, minimising ``dx^T H dx`` (the growth of the shape and
-    skeleton energy): a small active-set QP in the constraints' dual space,
-    where ``H^-1`` is at hand. Vertices too near start active; a constraint
-    that pulls (negative multiplier) leaves, a near vertex the step would push
-    in joins, for at most ``max_sets`` active sets.
-
-    Parameters
-    ----------
-    W : (n, m) float64 array
-        Fine coordinates.
-    Hinv : (m, m) float64 array
-        Inverse of ``A^T A``.
-    g, Hg : (m, 3) float64 arrays
-        The volume gradient in cage space and ``H^-1 g``.
-    idx, gap, N : arrays
-        From `contact_candidates`.
-    group : (n,) int array
-        A group per fine vertex (its dominant cage vertex).
-    slack : float
-        How far beyond the margin the active vertices are taken.
-
-    Returns
-    -------
-    (m, 3) float64 array
-        ``dx`` (zeros when no vertex is too near).
-    """
-    m = Hinv.shape[0]
-    if not len(idx) or gap.min() >= 0:
-        return np.zeros((m, 3))
-    # one candidate per group: the nearest (most negative gap)
-    order = np.lexsort((gap, group[idx]))
-    first = np.ones(len(order), dtype=bool)
-    first[1:] = group[idx[order[1:]]] != group[idx[order[:-1]]]
-    pool = order[first]
-    rows, r, Nn = idx[pool], slack - gap[pool], N[pool]
-    Wr = W[rows]
-    Y = Wr @ Hinv  # (k, m): W_i H^-1
-    G = (Y @ Wr.T) * (Nn @ Nn.T)
-    c = np.einsum("ij,ij->i", Nn, Wr @ Hg)
-    # soft conditions: a cage of a few hundred vertices cannot meet many close ones exactly,
-    # and the exact least-energy step of nearly dependent ones is huge; the fine finish
-    # takes what the cage leaves
-    soft = defaults.contact_softness * float(np.mean(np.diag(G)))
-    gg = float(np.sum(g * Hg))  # g . H^-1 g
-    active = r > 0
-    dx = np.zeros((m, 3))
-    for _ in range(max_sets):
-        a = np.flatnonzero(active)
-        if not len(a):
-            break
-        k = len(a)
-        M = np.empty((k + 1, k + 1))
-        M[:k, :k] = G[np.ix_(a, a)]
-        M[:k, k] = M[k, :k] = c[a]
-        M[k, k] = gg
-        M[np.arange(k), np.arange(k)] += soft
-        rhs = np.append(r[a], 0.0)
-        try:
-            sol = np.linalg.solve(M, rhs)
-        except np.linalg.LinAlgError:
-            sol = np.linalg.lstsq(M, rhs, rcond=1e-12)[0]
-        mu, mu_v = sol[:k], sol[k]
-        dx = Y[a].T @ (mu[:, None] * Nn[a]) + mu_v * Hg
-        lin = np.einsum("ij,ij->i", Nn, Wr @ dx)
-        join = ~active & (lin < r - slack)
-        leave = np.zeros_like(active)
-        leave[a] = mu < 0
-        if not join.any() and not leave.any():
-            break
-        active = (active | join) & ~leave
-    return dx

@@ -1,0 +1,44 @@
+"""Finding contacts and stating them as linear conditions on the fine vertices."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+from ._near import Near
+from ._placed import Placed
+
+__all__ = ["contact_candidates"]
+
+
+def contact_candidates(
+    P: FloatArray,
+    placed: Sequence[Placed],
+    margin: float,
+    band: float,
+    near: Near,
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """Vertices within ``band`` of the margin of an obstacle: index, gap, outward direction.
+
+    ``gap`` is the signed distance less the allowed one (negative: too near),
+    from the obstacle's grid (`Obstacle.interpolate`, approximate); the
+    directions are unit vectors in the muscle's frame. A vertex near two
+    obstacles appears twice.
+    """
+    out_i, out_g, out_n = [], [], []
+    for pl, r, allowed in zip(placed, near.rows(P, band), near.allowed, strict=True):
+        if not len(r):
+            continue
+        # the grid's interpolated distance: linearised conditions need no exact one
+        idx, phi, N = pl.obstacle.interpolate(pl.to_obstacle(P[r]), margin + band)
+        idx = r[idx]
+        gap = phi - allowed[idx]
+        close = gap < band
+        out_i.append(idx[close])
+        out_g.append(gap[close])
+        out_n.append(pl.to_muscle(N[close], direction=True))
+    if not out_i:
+        return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 3))
+    return np.concatenate(out_i), np.concatenate(out_g), np.concatenate(out_n)
