@@ -136,6 +136,14 @@ class Defaults:
     contact_cage_steps : int
         Most linearised contact steps of the cage (before the fine finish),
         taken while a vertex is more than a mean fine edge too near a bone.
+    contact_cage_depth : float
+        The cage's contact steps stop once no vertex is more than this many
+        mean edge lengths too near an obstacle (the fine finish takes the rest).
+    contact_bone_depth : float
+        An obstacle vertex inside the muscle deeper than the margin plus this
+        many mean edge lengths pushes the muscle's nearest triangle past it;
+        shallower ones are left (chords of the muscle's triangles over a curved
+        bone).
     contact_band : float
         Vertices within this many mean fine edge lengths of an obstacle's
         margin enter the cage's contact step as inequality conditions.
@@ -167,7 +175,9 @@ class Defaults:
     contact_spread: float = 1.0
     contact_relax: int = 4
     contact_relax_rounds: int = 3
-    contact_cage_steps: int = 3
+    contact_cage_steps: int = 6
+    contact_cage_depth: float = 0.5
+    contact_bone_depth: float = 0.1
     contact_band: float = 2.0
     contact_softness: float = 0.1
     contact_cage_reach: float = 1.25

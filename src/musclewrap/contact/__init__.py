@@ -14,17 +14,20 @@ from ._near import Near
 from ._obstacle import Obstacle, bone_surface, pseudo_normals, signed_from_closest
 from ._placed import Placed
 from ._rest import anchors_at_rest, attachment_patches, kept_allowance, rest_push_out
+from ._sides import SideReference, on_their_side
 
 __all__ = [
     "ContactReport",
     "Near",
     "Obstacle",
     "Placed",
+    "SideReference",
     "anchors_at_rest",
     "attachment_patches",
     "bone_surface",
     "contact_candidates",
     "kept_allowance",
+    "on_their_side",
     "pseudo_normals",
     "push_out",
     "rest_push_out",

@@ -9,6 +9,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ._near import Near
 from ._placed import Placed
+from ._sides import SideReference, on_their_side
 
 __all__ = ["contact_candidates"]
 
@@ -19,20 +20,28 @@ def contact_candidates(
     margin: float,
     band: float,
     near: Near,
+    sides: SideReference | None = None,
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """Vertices within ``band`` of the margin of an obstacle: index, gap, outward direction.
 
     ``gap`` is the signed distance less the allowed one (negative: too near),
     from the obstacle's grid (`Obstacle.interpolate`, approximate); the
     directions are unit vectors in the muscle's frame. A vertex near two
-    obstacles appears twice.
+    obstacles appears twice. With ``sides``, a vertex that has come through the
+    obstacle from where it was there is linearised at the point where it
+    entered (`on_their_side`), its gap measured from the tangent plane there.
     """
     out_i, out_g, out_n = [], [], []
-    for pl, r, allowed in zip(placed, near.rows(P, band), near.allowed, strict=True):
+    for b, (pl, r, allowed) in enumerate(
+        zip(placed, near.rows(P, band), near.allowed, strict=True)
+    ):
         if not len(r):
             continue
         # the grid's interpolated distance: linearised conditions need no exact one
-        idx, phi, N = pl.obstacle.interpolate(pl.to_obstacle(P[r]), margin + band)
+        Q = pl.to_obstacle(P[r])
+        idx, phi, N = pl.obstacle.interpolate(Q, margin + band)
+        if sides is not None and len(idx):
+            phi, _, N, _ = on_their_side(pl, sides, b, r[idx], Q[idx], phi, None, N)
         idx = r[idx]
         gap = phi - allowed[idx]
         close = gap < band

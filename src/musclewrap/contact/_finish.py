@@ -21,8 +21,10 @@ from ..mesh import (
     volume,
     volume_cubic,
 )
+from ._inside import Inside, bone_vertices_inside
 from ._near import Near
 from ._placed import Placed
+from ._sides import SideReference, on_their_side
 
 __all__ = ["ContactReport", "push_out", "rings", "vertex_faces"]
 
@@ -51,6 +53,11 @@ class ContactReport:
     inside : int
         Vertices inside an obstacle after the finish (exact; a kept rest
         overlap may leave some).
+    bone_inside : int
+        Obstacle vertices inside the muscle after the finish (exact, among those
+        near it: `bone_vertices_inside`); 0 where they were not looked for.
+    bone_inside_depth : float
+        The deepest of them (0 if none).
     """
 
     contact_vertices: int = 0
@@ -61,6 +68,8 @@ class ContactReport:
     ok: bool = True
     reason: str = ""
     inside: int = 0
+    bone_inside: int = 0
+    bone_inside_depth: float = 0.0
 
 
 def rings(A: sp.csr_matrix, seeds: np.ndarray, k: int) -> np.ndarray:
@@ -230,6 +239,7 @@ def _violations(
     placed: Sequence[Placed],
     slack: float,
     near: Near,
+    sides: SideReference | None = None,
 ) -> tuple[np.ndarray, FloatArray, FloatArray, list[float]]:
     """Vertices closer than the margin (less ``slack``) to an obstacle, and where they go.
 
@@ -238,26 +248,41 @@ def _violations(
     their signed distance less the allowed one (negative), and per obstacle the
     deepest vertex inside it (0 if none). A vertex too close to two obstacles
     takes the larger violation. ``near`` (`Near`) limits the queries to the
-    vertices that can be that close.
+    vertices that can be that close. With ``sides``, a vertex that came through
+    the obstacle goes back to the tangent plane where it entered (`on_their_side`).
     """
     n = len(P)
     worst = np.full(n, np.inf)
     target = np.zeros((n, 3))
     depths = []
-    for b, (pl, r) in enumerate(zip(placed, near.rows(P, slack), strict=True)):
+    band = slack if sides is None else 0.5 * slack / tol.contact
+    for b, (pl, r) in enumerate(zip(placed, near.rows(P, band), strict=True)):
         if not len(r):
             depths.append(0.0)
             continue
         allowed = near.allowed[b]
         lower = np.empty(len(r))
-        idx, phi, C, N = pl.obstacle.query(pl.to_obstacle(P[r]), allowed[r] - slack, lower)
+        Q = pl.to_obstacle(P[r])
+        reach = allowed[r] - slack
+        if sides is not None:
+            # a vertex that passed through a thin part of the bone lies outside it on
+            # the other side: looked at within half a mean edge of it
+            reach = allowed[r] + 0.5 * slack / tol.contact
+        idx, phi, C, N = pl.obstacle.query(Q, reach, lower)
         near.learn(b, r, P[r], lower)
+        if sides is not None and len(idx):
+            phi, C, N, _ = on_their_side(pl, sides, b, r[idx], Q[idx], phi, C, N)
+            keep = phi < allowed[r[idx]] - slack
+            idx, phi, C, N = idx[keep], phi[keep], C[keep], N[keep]
+        Qi = Q[idx]
         idx = r[idx]
         depths.append(float(max(0.0, -phi.min(initial=0.0))))
         if not len(idx):
             continue
         gap = phi - allowed[idx]
-        t = pl.to_muscle(C + N * (allowed[idx] + slack)[:, None])
+        # onto the margin along the (outward) direction: the closest point's, or the
+        # tangent plane's where the vertex entered
+        t = pl.to_muscle(Qi - (gap - slack)[:, None] * N)
         take = gap < worst[idx]
         worst[idx[take]] = gap[take]
         target[idx[take]] = t[take]
@@ -286,17 +311,6 @@ def _violations(
             if not moved:
                 break
     return hit, target, worst[hit], depths
-
-
-@dataclass(frozen=True)
-class _Around:
-    """What the per-pose bone-ridge test needs of the muscle at its current positions."""
-
-    near: Near
-    A: sp.csr_matrix  # vertex adjacency
-    faces: tuple[IntArray, IntArray]  # `vertex_faces`
-    Z: FloatArray  # vertex normals
-    edge: float  # mean edge length
 
 
 _NONE_INSIDE = (
@@ -336,56 +350,6 @@ def _bone_vertices_in_muscle(
     return B[bad], C[bad], fi[bad], dist[bad], rows[bad]
 
 
-def _ridges_in_muscle(
-    P: FloatArray, F: IntArray, pl: Placed, b: int, depth: float, around: _Around
-) -> tuple[FloatArray, FloatArray, IntArray, FloatArray, IntArray]:
-    """The obstacle's ridge vertices more than ``depth`` inside the muscle (a pose).
-
-    ``pl`` is obstacle ``b`` of ``around.near``. Only the obstacle's sharp
-    vertices (`Obstacle.convexity`) within 1.5 ``edge`` of a muscle vertex inside
-    obstacle ``b`` (a bone ridge between the muscle vertices the finish will
-    project), behind the tangent plane of their nearest muscle vertex, and their
-    side by the pseudo-normal of their closest point on the faces around that
-    vertex and its neighbours (compiled). Returns as `_bone_vertices_in_muscle`.
-    """
-    from scipy.spatial import cKDTree
-
-    A, edge, Z = around.A, around.edge, around.Z
-    # the muscle vertices inside the margin (exact: `_violations` queried them) and
-    # their neighbours
-    inside = around.near.within(b, P, 0.0)
-    if not len(inside):
-        return _NONE_INSIDE
-    r = np.flatnonzero(rings(A, inside, 1) <= 1)
-    # After the finish projects the muscle's vertices onto the bone, a bone vertex
-    # stands out between them by about the sag e^2 / (8 R) of its curvature radius R
-    # under a muscle edge e: only where that can exceed ``depth`` (edges up to 1.5
-    # mean edges) are the bone's vertices looked at.
-    sharp = 8.0 * depth / (1.5 * edge) ** 2
-    # near the vertices inside (a mean edge and a half: as near as one of their neighbours)
-    rows = pl.obstacle.ridge_vertices_near(pl.to_obstacle(P[inside]), 1.5 * edge, sharp)
-    if not len(rows):
-        return _NONE_INSIDE
-    B = pl.to_muscle(pl.obstacle.V[rows])
-    # only a bone vertex behind the tangent plane of its nearest muscle vertex can be
-    # inside the muscle (most near a contact lie in front: the bone the muscle rests on)
-    _, j = cKDTree(P[r]).query(B)
-    v = r[j]
-    behind = np.einsum("ij,ij->i", B - P[v], Z[v]) < 0.0
-    if not behind.any():
-        return _NONE_INSIDE
-    rows, B = rows[behind], np.ascontiguousarray(B[behind])
-    phi = np.empty(len(B))
-    C = np.empty((len(B), 3))
-    fi = np.empty(len(B), dtype=np.int64)
-    _local_side_kernel(
-        B, v[behind], np.ascontiguousarray(P, dtype=np.float64),
-        np.ascontiguousarray(F, dtype=np.int64), A.indptr, A.indices, *around.faces, phi, C, fi,
-    )  # fmt: skip
-    bad = phi < -depth
-    return B[bad], C[bad], fi[bad], -phi[bad], rows[bad]
-
-
 def _with_bone_vertices(
     P: FloatArray,
     F: IntArray,
@@ -395,29 +359,30 @@ def _with_bone_vertices(
     hit: IntArray,
     target: FloatArray,
     gap: FloatArray,
-    around: _Around | None = None,
+    found: list[Inside] | None = None,
 ) -> tuple[IntArray, FloatArray, FloatArray]:
     """`_violations` plus the pushes that take obstacle vertices out of the muscle.
 
-    An obstacle vertex inside the muscle (with ``around`` None all of them,
-    `_bone_vertices_in_muscle`; else the ridges near vertices in a bone,
-    `_ridges_in_muscle`) or within the
-    margin of its surface moves the nearest muscle triangle past it: its
+    An obstacle vertex inside the muscle (``found``, per obstacle; None: every
+    obstacle vertex, by `_bone_vertices_in_muscle`) more than the margin plus a
+    tenth of a mean edge deep moves the nearest muscle triangle past it: its
     vertices by the least displacement (barycentric weights) that carries the
     nearest point to the margin beyond the obstacle vertex.
     """
     n = len(P)
     push = np.zeros((n, 3))
     size = np.zeros(n)
-    # bone vertices deeper than the margin plus a tenth of a mean edge: the shallow ones
+    # bone vertices deeper than the margin plus a part of a mean edge: the shallow ones
     # sit between the muscle's vertices on the bone (chords of its curved surface)
-    depth = margin + 10.0 * slack
+    depth = margin + defaults.contact_bone_depth * slack / tol.contact
     for b, pl in enumerate(placed):
-        B, C, fi, dist, _ = (
-            _bone_vertices_in_muscle(P, F, pl, depth)
-            if around is None
-            else _ridges_in_muscle(P, F, pl, b, depth, around)
-        )
+        if found is None:
+            B, C, fi, dist, _ = _bone_vertices_in_muscle(P, F, pl, depth)
+        else:
+            deep = found[b].depth > depth
+            B, C, fi, dist = (
+                found[b].B[deep], found[b].C[deep], found[b].face[deep], found[b].depth[deep]
+            )  # fmt: skip
         if not len(B):
             continue
         # into the muscle from the bone vertex: the nearest surface point goes past it
@@ -461,6 +426,7 @@ def push_out(
     edge: float | None = None,
     near: Near | None = None,
     faces: tuple[IntArray, IntArray] | None = None,
+    sides: SideReference | None = None,
 ) -> tuple[FloatArray, ContactReport]:
     """Move a muscle's vertices out of obstacles, keeping its volume exact.
 
@@ -506,6 +472,10 @@ def push_out(
     faces : (indptr, indices), optional
         The mesh's `vertex_faces` (``bone_vertices="near"``; built here when not
         given).
+    sides : SideReference, optional
+        An earlier state of the muscle on its path: a vertex that has come
+        through an obstacle since goes back out on the side where it entered,
+        not the nearest (`musclewrap.contact.on_their_side`).
 
     Returns
     -------
@@ -527,31 +497,38 @@ def push_out(
     def violations(
         P: FloatArray, bones: bool
     ) -> tuple[IntArray, FloatArray, FloatArray, list[float]]:
-        hit, target, gap, depths = _violations(P, placed, slack, near)
+        hit, target, gap, depths = _violations(P, placed, slack, near, sides)
         if bones:
             hit, target, gap = _with_bone_vertices(P, F, placed, margin, slack, hit, target, gap)
         return hit, target, gap, depths
 
     hit, target, gap, depths = violations(V, bone_vertices is True)
     depth_before = max(depths, default=0.0)
-    if bone_vertices == "near" and len(hit):
-        # Per pose, bone vertices are taken out of the surface the solve left where it
-        # went into a bone: a bone's ridge there can cut the surface between the
-        # vertices the finish projects. Once: the local side test is not to be
-        # trusted on a surface the pushes may have folded.
-        around = _Around(near, A, vertex_faces(F, len(V)) if faces is None else faces, Z, edge)
-        hit, target, gap = _with_bone_vertices(
-            V, F, placed, margin, slack, hit, target, gap, around
-        )
+    if bone_vertices == "near":
+        # Per pose, the bone's vertices inside the surface the solve left (a ridge
+        # between the muscle's vertices), exact; again on the result, below.
+        VF = vertex_faces(F, len(V)) if faces is None else faces
+        AA = (A.indptr.astype(np.int64), A.indices.astype(np.int64))
+
+        def bones_inside(P: FloatArray) -> list[Inside]:
+            return bone_vertices_inside(P, F, placed, near, edge=edge, adjacency=AA, faces=VF)
+
+        found = bones_inside(V)
+        hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap, found)
     if not len(hit):
         touching, inside, depth = _final(V, placed, slack, near)
         return V, ContactReport(
-            contact_vertices=touching, depth_before=depth_before, depth_after=depth, inside=inside
+            contact_vertices=touching,
+            depth_before=depth_before,
+            depth_after=depth,
+            inside=inside,
+            **({} if bone_vertices != "near" else _bone_fields(found)),
         )
     n = len(V)
     P = V.copy()
     held = np.zeros(n, dtype=bool)
     rounds = 0
+    passes = 0
     ok = True
     # the first rounds relax every push with its neighbours; the last ones project exactly
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
@@ -592,6 +569,13 @@ def push_out(
             break
         P += t * Zm
         hit, target, gap, depths = violations(P, bone_vertices is True)
+        if not len(hit) and bone_vertices == "near" and passes < 2:
+            # the result, looked at again: the pushes may have brought a ridge in
+            passes += 1
+            found = bones_inside(P)
+            hit, target, gap = _with_bone_vertices(
+                P, F, placed, margin, slack, hit, target, gap, found
+            )
         if not len(hit):
             break
     else:
@@ -631,8 +615,17 @@ def push_out(
         rounds=rounds,
         ok=ok,
         reason=reason,
+        **({} if bone_vertices != "near" else _bone_fields(bones_inside(P))),
     )
     return P, report
+
+
+def _bone_fields(found: list[Inside]) -> dict[str, float]:
+    """The report's count and depth of obstacle vertices inside the muscle."""
+    return {
+        "bone_inside": sum(len(f.rows) for f in found),
+        "bone_inside_depth": max((f.deepest for f in found), default=0.0),
+    }
 
 
 def _final(

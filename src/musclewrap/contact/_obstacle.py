@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
 from ..mesh import MeshError, check_mesh, repair_mesh, tidy_mesh
@@ -283,16 +284,123 @@ class Obstacle:
         return built[0] if built else cls(V, F, _grid=grid)
 
     # ------------------------------------------------------------------ exact
-    def _signed(self, P: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def signed(self, P: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Exact signed distance (< 0 inside), closest point and outward direction.
 
         The side is the angle-weighted pseudo-normal's at the closest point (on a
         face, an edge or a vertex: Baerentzen & Aanaes 2005).
+
+        Parameters
+        ----------
+        P : (k, 3) float64 array
+            Points in the obstacle's frame.
+
+        Returns
+        -------
+        phi : (k,) float64 array
+        C : (k, 3) float64 array
+            Closest points on the surface.
+        N : (k, 3) float64 array
+            Unit outward directions (see `query`).
         """
-        P = np.ascontiguousarray(P, dtype=np.float64)
+        P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
+        if not len(P):
+            return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
         sq, face, C = self._tree.squared_distance(self.V, self.F, P)
         phi, N = signed_from_closest(P, C, face, sq, self.V, self.F, self._normals)
         return phi, C, N
+
+    _signed = signed
+
+    def first_entry(
+        self, A: FloatArray, B: FloatArray, *, tol: float = 1e-6
+    ) -> tuple[npt.NDArray[np.bool_], FloatArray, FloatArray]:
+        """Where each straight way ``A -> B`` first enters the obstacle (continuous test).
+
+        Sphere tracing on the grid's lower bounds of the signed distance (which
+        cannot step over the surface: the distance is 1-Lipschitz), the exact
+        signed distance wherever a bound allows the inside, then bisection on the
+        exact side down to ``tol`` of the bone's grid spacing. A way that starts
+        inside enters at its start's closest point. Steps are at least a quarter
+        of the grid's spacing: a way that only grazes the surface, in by less
+        than that along it (a chord across a ridge that a sliding vertex went
+        round), may be taken as not entering.
+
+        Parameters
+        ----------
+        A, B : (k, 3) float64 arrays
+            Starts and ends, in the obstacle's frame.
+        tol : float, optional
+            Precision of the entry along the way, in grid spacings.
+
+        Returns
+        -------
+        found : (k,) bool array
+            Whether the way enters the obstacle.
+        E : (k, 3) float64 array
+            Entry points on the surface (where found).
+        N : (k, 3) float64 array
+            Unit outward directions there (where found).
+        """
+        A = np.ascontiguousarray(A, dtype=np.float64).reshape(-1, 3)
+        B = np.ascontiguousarray(B, dtype=np.float64).reshape(-1, 3)
+        k = len(A)
+        found = np.zeros(k, dtype=bool)
+        E = np.zeros((k, 3))
+        N = np.zeros((k, 3))
+        if not k:
+            return found, E, N
+        phi, C, D = self.signed(A)
+        start = phi < 0
+        found[start], E[start], N[start] = True, C[start], D[start]
+        D_ab = B - A
+        length = np.maximum(np.linalg.norm(D_ab, axis=1), 1e-300)
+        step = 0.25 * self.h  # the smallest step along a way near the surface
+        t = np.zeros(k)
+        lo_t = np.zeros(k)
+        hi_t = np.full(k, np.inf)
+        todo = np.flatnonzero(~start)
+        samples = np.arange(32)
+        for _ in range(400):
+            if not len(todo):
+                break
+            t_in = np.empty(len(todo))
+            t_out = np.empty(len(todo))
+            _march_kernel(
+                A[todo], B[todo], t[todo], self.lo, self.h, self._shape, self._lo_sd,
+                self._hi_sd, step, t_in, t_out,
+            )  # fmt: skip
+            maybe = t_in <= 1.0
+            todo, t_in, t_out = todo[maybe], t_in[maybe], t_out[maybe]
+            if not len(todo):
+                break
+            # near the surface the bounds are loose: the exact side at 32 steps at once
+            T = np.minimum(t_in[:, None] + samples[None, :] * (step / length[todo])[:, None], 1.0)
+            P = A[todo, None, :] + T[:, :, None] * D_ab[todo, None, :]
+            phi = self.signed(P.reshape(-1, 3))[0].reshape(T.shape)
+            inside = phi < 0
+            got = inside.any(axis=1)
+            j = np.argmax(inside, axis=1)
+            rows = np.flatnonzero(got)
+            prev = np.where(j[rows] > 0, T[rows, np.maximum(j[rows] - 1, 0)], t_out[rows])
+            lo_t[todo[rows]], hi_t[todo[rows]] = prev, T[rows, j[rows]]
+            on = np.flatnonzero(~got & (T[:, -1] < 1.0))
+            t[todo[on]] = T[on, -1] + np.maximum(phi[on, -1], step) / length[todo[on]]
+            todo = todo[on]
+        hit = np.flatnonzero(np.isfinite(hi_t))
+        if len(hit):
+            a, b = lo_t[hit], hi_t[hit]
+            rounds = int(
+                np.ceil(np.log2(max(float(((b - a) * length[hit]).max()), 1e-300) / (tol * self.h)))
+            )
+            for _ in range(max(rounds, 0)):
+                mid = 0.5 * (a + b)
+                inside = self.signed(A[hit] + mid[:, None] * D_ab[hit])[0] < 0
+                b = np.where(inside, mid, b)
+                a = np.where(inside, a, mid)
+            _, C, D = self.signed(A[hit] + a[:, None] * D_ab[hit])
+            found[hit], E[hit], N[hit] = True, C, D
+        return found, E, N
 
     @property
     def convexity(self) -> FloatArray:
@@ -346,6 +454,52 @@ class Obstacle:
         mark = np.zeros(len(idx), dtype=np.bool_)
         _cells_near_kernel(Q, R, lo, float(radius), dims, indptr, mark)
         return np.sort(idx[mark])
+
+    @property
+    def adjacency(self) -> tuple[IntArray, IntArray]:
+        """The vertices' neighbours on the surface, CSR ``(indptr, indices)`` (built once)."""
+        if getattr(self, "_adjacency", None) is None:
+            from ..mesh import vertex_adjacency
+
+            A = vertex_adjacency(self.F, len(self.V))
+            self._adjacency = (A.indptr.astype(np.int64), A.indices.astype(np.int64))
+        return self._adjacency
+
+    def vertices_near(self, Q: FloatArray, radius: float) -> tuple[IntArray, IntArray]:
+        """The obstacle's vertices within ``radius`` of a point of ``Q``, and the nearest one.
+
+        Parameters
+        ----------
+        Q : (k, 3) float64 array
+            Points in the obstacle's frame.
+        radius : float
+
+        Returns
+        -------
+        rows : (j,) int64 array
+            Vertices (rows of `V`), sorted.
+        nearest : (j,) int64 array
+            For each, the nearest point of ``Q`` (an index into it).
+
+        Notes
+        -----
+        The vertices are binned once per ``radius`` in cells of that side; a
+        point looks in its cell and the 26 around it (compiled).
+        """
+        bins = self.__dict__.setdefault("_vertex_cells", {})
+        key = float(radius)
+        if key not in bins:
+            bins[key] = _bin_points(self.V, radius)
+        idx, R, lo, dims, indptr = bins[key]
+        Q = np.ascontiguousarray(Q, dtype=np.float64)
+        if not len(Q):
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        best = np.full(len(idx), np.inf)
+        which = np.full(len(idx), -1, dtype=np.int64)
+        _nearest_within_kernel(Q, R, lo, float(radius), dims, indptr, best, which)
+        found = np.flatnonzero(which >= 0)
+        order = np.argsort(idx[found])
+        return idx[found][order], which[found][order]
 
     # ------------------------------------------------------------------ query
     def bounds(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -518,39 +672,67 @@ class Obstacle:
 
 
 @numba.njit(cache=True)
-def _bounds_kernel(P, lo, h, shape, lo_sd, hi_sd, lower, upper):  # noqa: ANN001, ANN202 # pragma: no cover
-    # per point: its cell's eight corner intervals, each widened by the distance to the corner
+def _bound_at(x, y, z, lo, h, shape, lo_sd, hi_sd):  # noqa: ANN001, ANN202 # pragma: no cover
+    # a point's cell's eight corner intervals, each widened by the distance to the corner;
+    # outside the grid's box: the distance to the box, no upper bound
+    out = 0.0
+    for a, p in ((0, x), (1, y), (2, z)):
+        top = lo[a] + h * (shape[a] - 1)
+        e = max(lo[a] - p, p - top, 0.0)
+        out += e * e
+    if out > 0.0:
+        return np.sqrt(out), np.inf
     s0, s1 = shape[1] * shape[2], shape[2]
     hh = h * h
+    u0, u1, u2 = (x - lo[0]) / h, (y - lo[1]) / h, (z - lo[2]) / h
+    b0 = min(max(int(u0), 0), shape[0] - 2)
+    b1 = min(max(int(u1), 0), shape[1] - 2)
+    b2 = min(max(int(u2), 0), shape[2] - 2)
+    f0, f1, f2 = u0 - b0, u1 - b1, u2 - b2
+    best_lo, best_hi = -np.inf, np.inf
+    for c0 in range(2):
+        a0 = (f0 * f0 if c0 == 0 else (1 - f0) ** 2) * hh
+        for c1 in range(2):
+            a1 = (f1 * f1 if c1 == 0 else (1 - f1) ** 2) * hh
+            for c2 in range(2):
+                a2 = (f2 * f2 if c2 == 0 else (1 - f2) ** 2) * hh
+                d = np.sqrt(a0 + a1 + a2)
+                k = (b0 + c0) * s0 + (b1 + c1) * s1 + b2 + c2
+                best_lo = max(best_lo, np.float64(lo_sd[k]) - d)
+                best_hi = min(best_hi, np.float64(hi_sd[k]) + d)
+    return best_lo, best_hi
+
+
+@numba.njit(cache=True)
+def _bounds_kernel(P, lo, h, shape, lo_sd, hi_sd, lower, upper):  # noqa: ANN001, ANN202 # pragma: no cover
     for i in range(P.shape[0]):
-        # outside the grid's box: the distance to the box, no upper bound
-        out = 0.0
-        for a in range(3):
-            top = lo[a] + h * (shape[a] - 1)
-            e = max(lo[a] - P[i, a], P[i, a] - top, 0.0)
-            out += e * e
-        if out > 0.0:
-            lower[i] = np.sqrt(out)
-            upper[i] = np.inf
-            continue
-        u0, u1, u2 = (P[i, 0] - lo[0]) / h, (P[i, 1] - lo[1]) / h, (P[i, 2] - lo[2]) / h
-        b0 = min(max(int(u0), 0), shape[0] - 2)
-        b1 = min(max(int(u1), 0), shape[1] - 2)
-        b2 = min(max(int(u2), 0), shape[2] - 2)
-        f0, f1, f2 = u0 - b0, u1 - b1, u2 - b2
-        best_lo, best_hi = -np.inf, np.inf
-        for c0 in range(2):
-            a0 = (f0 * f0 if c0 == 0 else (1 - f0) ** 2) * hh
-            for c1 in range(2):
-                a1 = (f1 * f1 if c1 == 0 else (1 - f1) ** 2) * hh
-                for c2 in range(2):
-                    a2 = (f2 * f2 if c2 == 0 else (1 - f2) ** 2) * hh
-                    d = np.sqrt(a0 + a1 + a2)
-                    k = (b0 + c0) * s0 + (b1 + c1) * s1 + b2 + c2
-                    best_lo = max(best_lo, np.float64(lo_sd[k]) - d)
-                    best_hi = min(best_hi, np.float64(hi_sd[k]) + d)
-        lower[i] = best_lo
-        upper[i] = best_hi
+        lower[i], upper[i] = _bound_at(P[i, 0], P[i, 1], P[i, 2], lo, h, shape, lo_sd, hi_sd)
+
+
+@numba.njit(cache=True)
+def _march_kernel(A, B, t0, lo, h, shape, lo_sd, hi_sd, step, t_in, t_out):  # noqa: ANN001, ANN202 # pragma: no cover
+    # per way A -> B from t0 (a fraction): sphere tracing on the lower bounds until one
+    # allows the inside (t_in, with t_out the last point surely outside) or the end is
+    # passed (t_in = 2)
+    for i in range(A.shape[0]):
+        d0, d1, d2 = B[i, 0] - A[i, 0], B[i, 1] - A[i, 1], B[i, 2] - A[i, 2]
+        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        t = t0[i]
+        last = t
+        t_in[i] = 2.0
+        while True:
+            tt = min(t, 1.0)
+            lb, _ = _bound_at(
+                A[i, 0] + tt * d0, A[i, 1] + tt * d1, A[i, 2] + tt * d2, lo, h, shape, lo_sd, hi_sd
+            )
+            if lb <= 0.0:
+                t_in[i] = tt
+                break
+            if tt >= 1.0 or length == 0.0:
+                break
+            last = tt
+            t = tt + max(lb, step) / length
+        t_out[i] = last
 
 
 @numba.njit(cache=True)
@@ -571,6 +753,40 @@ def _cells_near_kernel(Q, R, lo, h, dims, indptr, mark):  # noqa: ANN001, ANN202
                         d0, d1, d2 = R[j, 0] - Q[q, 0], R[j, 1] - Q[q, 1], R[j, 2] - Q[q, 2]
                         if d0 * d0 + d1 * d1 + d2 * d2 <= hh:
                             mark[j] = True
+
+
+def _bin_points(
+    R: FloatArray, radius: float
+) -> tuple[IntArray, FloatArray, FloatArray, IntArray, IntArray]:
+    """Points binned in cubic cells of side ``radius``: (order, points in it, corner, dims, CSR)."""
+    idx = np.arange(len(R))
+    lo = R.min(axis=0) if len(R) else np.zeros(3)
+    ijk = np.floor((R - lo) / radius).astype(np.int64)
+    dims = ijk.max(axis=0) + 1 if len(R) else np.ones(3, np.int64)
+    flat = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+    order = np.argsort(flat, kind="stable")
+    indptr = np.searchsorted(flat[order], np.arange(int(np.prod(dims)) + 1))
+    return idx[order], np.ascontiguousarray(R[order]), lo, dims, indptr
+
+
+@numba.njit(cache=True)
+def _nearest_within_kernel(Q, R, lo, h, dims, indptr, best, which):  # noqa: ANN001, ANN202 # pragma: no cover
+    # every binned point within h of a query point: the nearest such query point
+    hh = h * h
+    for q in range(Q.shape[0]):
+        c0 = int(np.floor((Q[q, 0] - lo[0]) / h))
+        c1 = int(np.floor((Q[q, 1] - lo[1]) / h))
+        c2 = int(np.floor((Q[q, 2] - lo[2]) / h))
+        for a in range(max(c0 - 1, 0), min(c0 + 2, dims[0])):
+            for b in range(max(c1 - 1, 0), min(c1 + 2, dims[1])):
+                for c in range(max(c2 - 1, 0), min(c2 + 2, dims[2])):
+                    cell = (a * dims[1] + b) * dims[2] + c
+                    for j in range(indptr[cell], indptr[cell + 1]):
+                        d0, d1, d2 = R[j, 0] - Q[q, 0], R[j, 1] - Q[q, 1], R[j, 2] - Q[q, 2]
+                        d = d0 * d0 + d1 * d1 + d2 * d2
+                        if d <= hh and d < best[j]:
+                            best[j] = d
+                            which[j] = q
 
 
 @numba.njit(cache=True)

@@ -30,7 +30,15 @@ from ..conditions import (
     sample_lines,
 )
 from ..constants import defaults, tol
-from ..contact import Near, Obstacle, Placed, contact_candidates, push_out, vertex_faces
+from ..contact import (
+    Near,
+    Obstacle,
+    Placed,
+    SideReference,
+    contact_candidates,
+    push_out,
+    vertex_faces,
+)
 from ..coordinates import mean_value_coordinates, rows_dot
 from ..mesh import (
     atomic_path,
@@ -681,6 +689,7 @@ class Deformer:
         obstacles: Sequence[Placed | Obstacle] | None = None,
         margin: float = 0.0,
         finish: bool = True,
+        sides: SideReference | None = None,
     ) -> DeformationResult:
         """Deform the muscle so that it follows the current action lines.
 
@@ -720,6 +729,14 @@ class Deformer:
             result's cage, and whatever it carries (fibres), is the same at half
             the cost, while its fine positions keep what the cage's own contact
             steps left (a vertex may stay up to about a mean edge inside a bone).
+        sides : SideReference, optional
+            With ``obstacles``: an earlier state of the muscle on a path from the
+            rest pose to this one (placed against the same obstacles). A vertex
+            whose way from there has come through an obstacle is taken back out on
+            the side where it entered, not the nearest
+            (`musclewrap.contact.on_their_side`); without it every vertex leaves
+            an obstacle the nearest way, which is wrong past half a bone's
+            thickness.
 
         Returns
         -------
@@ -783,7 +800,7 @@ class Deformer:
             if obstacles and np.isfinite(V).all():
                 placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
                 near = Near(V, placed, margin)
-                x, V, before = self._cage_contact(x, V, placed, margin, near)
+                x, V, before = self._cage_contact(x, V, placed, margin, near, sides)
             if obstacles and np.isfinite(V).all() and finish:
                 V, contact = push_out(
                     V,
@@ -796,6 +813,7 @@ class Deformer:
                     near=near,
                     bone_vertices="near",
                     faces=self.muscle.vertex_faces,
+                    sides=sides,
                 )
                 contact = dataclasses.replace(
                     contact, depth_before=max(before, contact.depth_before)
@@ -806,7 +824,13 @@ class Deformer:
             return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact)
 
     def _cage_contact(
-        self, x: FloatArray, V: FloatArray, placed: Sequence[Placed], margin: float, near: Near
+        self,
+        x: FloatArray,
+        V: FloatArray,
+        placed: Sequence[Placed],
+        margin: float,
+        near: Near,
+        sides: SideReference | None = None,
     ) -> tuple[FloatArray, FloatArray, float]:
         """Move the cage so that the fine vertices leave the obstacles (`cage_push`).
 
@@ -825,10 +849,10 @@ class Deformer:
             # no vertex can be a mean edge too near (the grid's bounds): nothing for the cage
             return x, V, before
         for step in range(defaults.contact_cage_steps):
-            idx, gap, N = contact_candidates(V, placed, margin, band, near)
+            idx, gap, N = contact_candidates(V, placed, margin, band, near, sides)
             if step == 0:
                 before = float(max(0.0, -(gap + margin).min(initial=0.0)))
-            if not len(idx) or gap.min() >= -edge:
+            if not len(idx) or gap.min() >= -defaults.contact_cage_depth * edge:
                 break
             c = mean_rows(x)
             g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
@@ -898,6 +922,8 @@ class Deformer:
                     "penetration_vertices": contact.inside,
                     "penetration_depth_before": contact.depth_before,
                     "contact_moved": contact.moved_max,
+                    "bone_inside_depth": contact.bone_inside_depth,
+                    "bone_inside_vertices": contact.bone_inside,
                 }
             ),
         )

@@ -57,6 +57,11 @@ class DeformationResult:
         obstacles).
     penetration_depth_before : float
         The same before the finish: what the solve without contact gave.
+    bone_inside_depth : float
+        Deepest obstacle vertex inside the result (exact, among those near it;
+        with obstacles and the fine finish), mesh units.
+    bone_inside_vertices : int
+        How many obstacle vertices lie inside it.
     contact_moved : float
         Largest displacement of a vertex by the contact finish.
     """
@@ -80,6 +85,8 @@ class DeformationResult:
     penetration_vertices: int = 0
     penetration_depth_before: float = 0.0
     contact_moved: float = 0.0
+    bone_inside_depth: float = 0.0
+    bone_inside_vertices: int = 0
 
     @classmethod
     def failed(

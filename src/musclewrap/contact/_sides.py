@@ -1,0 +1,130 @@
+"""Which side of an obstacle a muscle's vertices belong on: from an earlier state of its path.
+
+The nearest way out of a bone is the wrong one for a vertex that went in deeper than
+half the bone's thickness, or passed through a thin part of it: the iliac wing, the
+ischial tuberosity at deep hip flexion. Which side is right is a matter of history
+(the muscle came from somewhere): IPC (Li et al. 2020) keeps it by continuous
+collision detection along the way from an intersection-free start. Here each pose is
+solved from an earlier state of a path from the rest pose (`SideReference`: the rest
+pose itself, or a waypoint of the path, see `musclewrap.scene`), and a vertex whose
+outward direction now points against the one it had then has crossed the surface on
+the way: it is taken back to where its straight way from then to now first entered
+the obstacle (the continuous collision test of that segment, `Obstacle.first_entry`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+from ._placed import Placed
+
+__all__ = ["SideReference", "on_their_side"]
+
+
+class SideReference:
+    """A muscle's earlier state on the same path, placed against the same obstacles.
+
+    Parameters
+    ----------
+    positions : (n, 3) float64 array, or callable
+        The fine vertices' positions in that state, in the muscle's frame then;
+        or a function of vertex indices ``rows`` that gives ``(k, 3)`` of them
+        (computed only where needed: ``W[rows] @ x`` for a cage state ``x``).
+    placed : sequence of Placed
+        The obstacles as they were placed in that state, in the order of the
+        pose solved now.
+    n : int, optional
+        Number of vertices (needed with a callable ``positions``).
+
+    Notes
+    -----
+    Per obstacle and vertex, the position in the obstacle's frame and the
+    outward direction of its closest point on the obstacle are computed once,
+    when first asked for (`at`), and kept: every pose that takes its sides from
+    this state asks for much the same vertices.
+    """
+
+    def __init__(
+        self,
+        positions: FloatArray | Callable[[IntArray], FloatArray],
+        placed: Sequence[Placed],
+        n: int | None = None,
+    ) -> None:
+        if callable(positions):
+            if n is None:
+                raise ValueError("SideReference: give n with a callable positions")
+            self._rows = positions
+        else:
+            P = np.asarray(positions, dtype=np.float64)
+            n = len(P)
+            self._rows = lambda rows: P[rows]
+        self.n = int(n)
+        self.placed = tuple(placed)
+        self._known = [np.zeros(self.n, dtype=bool) for _ in self.placed]
+        self._p = [np.empty((self.n, 3)) for _ in self.placed]
+        self._d = [np.empty((self.n, 3)) for _ in self.placed]
+
+    def at(self, b: int, rows: IntArray) -> tuple[FloatArray, FloatArray]:
+        """Positions and outward directions of vertices ``rows`` against obstacle ``b`` then.
+
+        Both in the obstacle's own frame: the position of each vertex in that
+        state and the unit direction from its closest point on the obstacle to
+        it (the pseudo-normal where it lies on the surface).
+        """
+        rows = np.asarray(rows, dtype=np.int64)
+        known = self._known[b]
+        todo = np.unique(rows[~known[rows]])
+        if len(todo):
+            pl = self.placed[b]
+            Q = np.ascontiguousarray(pl.to_obstacle(self._rows(todo)))
+            _, _, N = pl.obstacle.signed(Q)
+            self._p[b][todo] = Q
+            self._d[b][todo] = N
+            known[todo] = True
+        return self._p[b][rows], self._d[b][rows]
+
+
+def on_their_side(
+    pl: Placed,
+    reference: SideReference,
+    b: int,
+    rows: IntArray,
+    Q: FloatArray,
+    phi: FloatArray,
+    C: FloatArray | None,
+    N: FloatArray,
+) -> tuple[FloatArray, FloatArray | None, FloatArray, IntArray]:
+    """Linearise each vertex against the obstacle on the side it came from.
+
+    ``Q`` are the vertices ``rows`` now, in obstacle ``b``'s frame, with their
+    signed distance ``phi``, closest points ``C`` (or None) and outward
+    directions ``N`` (from a query: exact or the grid's). A vertex whose direction points against
+    the one it had in ``reference`` (negative dot product) lies beyond the
+    obstacle from where it was: its straight way from then to now (in the
+    obstacle's frame) is tested for where it first enters the obstacle, and that
+    point and its outward direction replace ``C`` and ``N``, with ``phi`` its
+    signed distance from the tangent plane there (negative: behind it). A
+    vertex whose way does not enter (it went round the obstacle's edge) keeps its
+    nearest point.
+
+    Returns the new ``phi, C, N`` (copies) and the positions (into ``rows``)
+    that were turned.
+    """
+    ref_q, ref_d = reference.at(b, rows)
+    flip = np.flatnonzero(np.einsum("ij,ij->i", N, ref_d) < 0.0)
+    if not len(flip):
+        return phi, C, N, flip
+    found, E, NE = pl.obstacle.first_entry(ref_q[flip], Q[flip])
+    turned = flip[found]
+    if not len(turned):
+        return phi, C, N, turned
+    phi, N = phi.copy(), N.copy()
+    if C is not None:
+        C = C.copy()
+        C[turned] = E[found]
+    N[turned] = NE[found]
+    phi[turned] = np.einsum("ij,ij->i", Q[turned] - E[found], NE[found])
+    return phi, C, N, turned
