@@ -848,10 +848,10 @@ class Deformer:
         if near.deepest() < edge:
             # no vertex can be a mean edge too near (the grid's bounds): nothing for the cage
             return x, V, before
-        for step in range(defaults.contact_cage_steps):
+        # the deepest vertex inside an obstacle as the solve left it (exact)
+        before = max(pl.obstacle.measure(pl.to_obstacle(V))[1] for pl in placed)
+        for _ in range(defaults.contact_cage_steps):
             idx, gap, N = contact_candidates(V, placed, margin, band, near, sides)
-            if step == 0:
-                before = float(max(0.0, -(gap + margin).min(initial=0.0)))
             if not len(idx) or gap.min() >= -defaults.contact_cage_depth * edge:
                 break
             c = mean_rows(x)
