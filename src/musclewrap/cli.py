@@ -259,6 +259,7 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         "contact_vertices": res.contact_vertices,
         "penetration_depth": res.penetration_depth,
         "penetration_depth_before": res.penetration_depth_before,
+        "bone_inside_depth": res.bone_inside_depth,
         "shape_change_max": float(muscle.shape_change(res.V).max())
         if np.isfinite(res.V).all()
         else None,

@@ -133,6 +133,12 @@ class Defaults:
     contact_relax_rounds : int
         The first rounds, which relax; the later ones project the vertices
         still too near exactly.
+    path_step : float
+        Spacing of the waypoints between the rest pose and each frame along a
+        rotational coordinate, in degrees (`musclewrap.scene.Waypoints`): contact
+        takes its sides from the waypoint before a frame.
+    path_step_translation : float
+        The same along a translational coordinate, in millimetres.
     contact_cage_steps : int
         Most linearised contact steps of the cage (before the fine finish),
         taken while a vertex is more than a mean fine edge too near a bone.
@@ -176,6 +182,8 @@ class Defaults:
     contact_relax: int = 4
     contact_relax_rounds: int = 3
     contact_cage_steps: int = 6
+    path_step: float = 10.0
+    path_step_translation: float = 20.0
     contact_cage_depth: float = 0.5
     contact_bone_depth: float = 0.1
     contact_band: float = 2.0

@@ -22,7 +22,7 @@ from ..mesh import winding_numbers
 from ._near import Near
 from ._placed import Placed
 
-__all__ = ["Inside", "bone_vertices_inside"]
+__all__ = ["Inside", "bone_inside_depth", "bone_vertices_inside", "line_inside_depth"]
 
 
 @dataclass(frozen=True)
@@ -183,3 +183,46 @@ def _none() -> Inside:
         np.zeros(0, np.int64),
         np.zeros(0),
     )
+
+
+def bone_inside_depth(
+    P: FloatArray,
+    F: IntArray,
+    placed: Sequence[Placed],
+    *,
+    edge: float,
+    adjacency: tuple[IntArray, IntArray],
+    faces: tuple[IntArray, IntArray],
+) -> tuple[int, float]:
+    """How many obstacle vertices lie inside the muscle, and the deepest one's depth.
+
+    `bone_vertices_inside` on a pose deformed without contact (the run measures
+    what the bones it does not keep the muscle out of do).
+    """
+    if not placed:
+        return 0, 0.0
+    found = bone_vertices_inside(
+        P, F, placed, Near(P, placed, 0.0), edge=edge, adjacency=adjacency, faces=faces
+    )
+    return sum(len(f.rows) for f in found), max(f.deepest for f in found)
+
+
+def line_inside_depth(
+    lines: Sequence[FloatArray], placed: Sequence[Placed], spacing: float
+) -> float:
+    """How deep the poly-lines ``lines`` (muscle frame) run inside the obstacles (0: not).
+
+    Each segment is sampled every ``spacing`` or less and the samples measured
+    exactly (`Obstacle.measure`): where a model's action line itself runs
+    through a bone, the muscle cannot follow it there.
+    """
+    pts = []
+    for L in lines:
+        L = np.asarray(L, dtype=np.float64)
+        for a, b in zip(L[:-1], L[1:], strict=True):
+            k = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing)))
+            pts.append(a + np.linspace(0.0, 1.0, k + 1)[:, None] * (b - a))
+    if not pts or not placed:
+        return 0.0
+    Q = np.vstack(pts)
+    return max(pl.obstacle.measure(pl.to_obstacle(Q))[1] for pl in placed)

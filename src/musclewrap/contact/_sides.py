@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
 from ._placed import Placed
@@ -63,9 +64,10 @@ class SideReference:
             self._rows = lambda rows: P[rows]
         self.n = int(n)
         self.placed = tuple(placed)
-        self._known = [np.zeros(self.n, dtype=bool) for _ in self.placed]
-        self._p = [np.empty((self.n, 3)) for _ in self.placed]
-        self._d = [np.empty((self.n, 3)) for _ in self.placed]
+        # per obstacle, made when first asked for: known, positions, directions
+        self._kept: list[tuple[npt.NDArray[np.bool_], FloatArray, FloatArray] | None] = [
+            None for _ in self.placed
+        ]
 
     def at(self, b: int, rows: IntArray) -> tuple[FloatArray, FloatArray]:
         """Positions and outward directions of vertices ``rows`` against obstacle ``b`` then.
@@ -75,16 +77,21 @@ class SideReference:
         it (the pseudo-normal where it lies on the surface).
         """
         rows = np.asarray(rows, dtype=np.int64)
-        known = self._known[b]
+        kept = self._kept[b]
+        if kept is None:
+            kept = self._kept[b] = (
+                np.zeros(self.n, dtype=bool), np.empty((self.n, 3)), np.empty((self.n, 3))
+            )  # fmt: skip
+        known, pos, direction = kept
         todo = np.unique(rows[~known[rows]])
         if len(todo):
             pl = self.placed[b]
             Q = np.ascontiguousarray(pl.to_obstacle(self._rows(todo)))
             _, _, N = pl.obstacle.signed(Q)
-            self._p[b][todo] = Q
-            self._d[b][todo] = N
+            pos[todo] = Q
+            direction[todo] = N
             known[todo] = True
-        return self._p[b][rows], self._d[b][rows]
+        return pos[rows], direction[rows]
 
 
 def on_their_side(

@@ -189,22 +189,33 @@ def plot_penetration(
     *,
     title: str,
     before: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
+    bone_inside: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
+    line_inside: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
     limit: float | None = None,
     unit: str = "mm",
 ) -> Path:
-    """Plot the deepest muscle vertex inside a bone per frame, one colour per muscle.
+    """Plot per frame how deep muscles and bones lie in each other, one colour per muscle.
+
+    Above, the deepest muscle vertex inside a bone; below (with ``bone_inside``),
+    the deepest bone vertex inside the muscle.
 
     Parameters
     ----------
     path : str or os.PathLike
         Destination PNG.
     after : mapping of str to (frames, depths)
-        Depth per frame in the written meshes (after the contact finish).
+        Deepest muscle vertex inside a bone per frame in the written meshes (after
+        the contact finish).
     title : str
         Plot title.
     before : mapping of str to (frames, depths), optional
         The same before the contact finish (what the solve alone gave), drawn
         thin and dashed in the muscle's colour.
+    bone_inside : mapping of str to (frames, depths), optional
+        Deepest bone vertex inside the muscle per frame (a second panel).
+    line_inside : mapping of str to (frames, depths), optional
+        How deep the muscle's action line runs inside a bone, drawn dotted in the
+        first panel where it is not zero (there the muscle cannot follow it).
     limit : float, optional
         A horizontal line: the depth a target allows.
     unit : str, optional
@@ -219,23 +230,42 @@ def plot_penetration(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
+    panels = 2 if bone_inside else 1
+    fig, axes = plt.subplots(
+        panels, 1, figsize=(7, 3.2 * panels + 0.8), dpi=110, sharex=True, squeeze=False
+    )
+    ax = axes[0, 0]
+    lines_shown = False
     for i, (label, (x, y)) in enumerate(after.items()):
         colour = f"C{i % 10}"
         ax.plot(list(x), list(y), marker=".", ms=3, color=colour, label=label)
         if before and label in before:
             bx, by = before[label]
             ax.plot(list(bx), list(by), ls="--", lw=0.8, color=colour, alpha=0.7)
+        if line_inside and label in line_inside:
+            lx, ly = line_inside[label]
+            if any(v > 0 for v in ly):
+                ax.plot(list(lx), list(ly), ls=":", lw=1.0, color=colour, alpha=0.9)
+                lines_shown = True
     if before:
         ax.plot([], [], ls="--", lw=0.8, color="0.4", label="before contact (dashed)")
+    if lines_shown:
+        ax.plot([], [], ls=":", lw=1.0, color="0.4", label="action line in a bone (dotted)")
     if limit is not None:
         ax.axhline(limit, color="k", ls=":", lw=0.8, label=f"target {limit:g} {unit}")
-    ax.set_xlabel("frame")
-    ax.set_ylabel(f"deepest muscle vertex inside a bone ({unit})")
+    ax.set_ylabel(f"muscle vertex in bone ({unit})")
     ax.set_ylim(bottom=0.0)
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small", ncol=2 if len(after) > 4 else 1)
+    if bone_inside:
+        ax2 = axes[1, 0]
+        for i, (label, (x, y)) in enumerate(bone_inside.items()):
+            ax2.plot(list(x), list(y), marker=".", ms=3, color=f"C{i % 10}", label=label)
+        ax2.set_ylabel(f"bone vertex in muscle ({unit})")
+        ax2.set_ylim(bottom=0.0)
+        ax2.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("frame")
     return _save_png(fig, path)
 
 

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from .._typing import FloatArray
+from .._typing import FloatArray, IntArray
 from ..conditions import csv_rows
 from ._config import UNITS, Scene
 from ._errors import SceneError, suggest
@@ -17,6 +18,7 @@ from ._opensim import OpenSimModel
 __all__ = [
     "Drive",
     "MomentArmPoses",
+    "Waypoints",
     "apply",
     "drive_scene",
     "invert_rigid",
@@ -124,6 +126,83 @@ class Drive:
     to_output: dict[str, FloatArray]
     notes: list[str] = field(default_factory=list)
     moment_arms: MomentArmPoses | None = None
+    waypoints: Waypoints | None = None
+
+
+@dataclass
+class Waypoints:
+    """Poses on a path from the rest pose to every frame: where contact takes its sides.
+
+    Which side of a bone a muscle belongs on is a matter of the way it came (see
+    `musclewrap.contact.SideReference`). Each frame is solved from the rest pose on
+    its own, so the way is made up: a lattice over the driven coordinates, ``steps``
+    apart from the rest pose, and from each pose the lattice point one step nearer
+    the rest pose along the straight line to it (``parent``): the waypoints are
+    shared by all frames near each other, and a frame's result depends on its pose
+    alone (not on the frames around it, the chunks or the workers).
+
+    ``nodes`` (K, d) are the lattice points (in steps from the rest pose), in an
+    order where each one's ``parent`` (an index, -1: the rest pose) comes before
+    it; ``frame`` (n,) is each frame's waypoint (-1: the rest pose); ``lines``,
+    ``references`` per muscle and ``to_output`` per body as in `Drive`, at each
+    waypoint.
+    """
+
+    coordinates: tuple[str, ...]
+    steps: FloatArray
+    nodes: npt.NDArray[np.int64]
+    parent: npt.NDArray[np.int64]
+    frame: npt.NDArray[np.int64]
+    lines: dict[str, list[dict[str, FloatArray]]]
+    references: dict[str, list[FloatArray | None]]
+    to_output: dict[str, FloatArray]
+
+
+def lattice_parent(u: FloatArray) -> FloatArray:
+    """The lattice point one step nearer the origin than ``u`` on the way to it.
+
+    ``u`` is a pose in steps from the rest pose; with ``N`` the number of steps of
+    its largest coordinate (rounded up), the parent is ``u (N - 1) / N`` rounded
+    to the lattice (half away from zero): the straight line to the rest pose,
+    followed on the lattice. Within one step of the rest pose: the rest pose.
+    """
+    u = np.asarray(u, dtype=np.float64)
+    n = int(np.ceil(float(np.abs(u).max(initial=0.0)) - 1e-9))
+    if n <= 1:
+        return np.zeros_like(u)
+    v = u * (n - 1) / n
+    return np.sign(v) * np.floor(np.abs(v) + 0.5)
+
+
+def lattice_paths(
+    U: FloatArray,
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """The waypoints of the poses ``U`` (n, d): ``nodes``, ``parent`` and each pose's waypoint.
+
+    As in `Waypoints`: ``nodes`` (K, d) ordered by their largest coordinate, then
+    lexicographically (so that a parent comes first), ``parent`` (K,) and the
+    poses' waypoints (n,), -1 for the rest pose.
+    """
+    U = np.atleast_2d(np.asarray(U, dtype=np.float64))
+    first = [lattice_parent(u) for u in U]
+    seen: dict[tuple[int, ...], None] = {}
+    for p in first:
+        while np.any(p != 0):
+            key = tuple(int(x) for x in p)
+            if key in seen:
+                break
+            seen[key] = None
+            p = lattice_parent(p)
+    keys = sorted(seen, key=lambda k: (max(abs(x) for x in k), k))
+    index = {k: i for i, k in enumerate(keys)}
+
+    def at(p: FloatArray) -> int:
+        return -1 if not np.any(p != 0) else index[tuple(int(x) for x in p)]
+
+    d = U.shape[1]
+    nodes = np.array(keys, dtype=np.int64).reshape(-1, d)
+    parent = np.array([at(lattice_parent(n)) for n in nodes], dtype=np.int64)
+    return nodes, parent, np.array([at(p) for p in first], dtype=np.int64)
 
 
 @dataclass
@@ -191,7 +270,13 @@ def _angle_in_degrees(scene: Scene, motion, model: OpenSimModel, coords) -> tupl
     return deg, how
 
 
-def drive_scene(scene: Scene, frames: str | None, bone_centroids: dict[str, FloatArray]) -> Drive:
+def drive_scene(
+    scene: Scene,
+    frames: str | None,
+    bone_centroids: dict[str, FloatArray],
+    *,
+    waypoints: bool = False,
+) -> Drive:
     """Compute every muscle's action lines (and reference point) for the selected frames.
 
     Parameters
@@ -202,16 +287,19 @@ def drive_scene(scene: Scene, frames: str | None, bone_centroids: dict[str, Floa
         ``start:stop:step`` over the motion's rows (or the CSV's frames).
     bone_centroids : dict of str to (3,) array
         Centroid of each bone mesh in mesh coordinates.
+    waypoints : bool, optional
+        Also the poses on the paths from the rest pose to the frames (`Waypoints`;
+        a model's scene only: a line CSV has no poses in between).
     """
     if scene.osim is not None and scene.motion is not None:
-        return _drive_opensim(scene, frames, bone_centroids)
+        return _drive_opensim(scene, frames, bone_centroids, waypoints)
     if scene.lines_csv is not None:
         return _drive_csv(scene, frames, bone_centroids)
     raise SceneError(f"{scene.path}: nothing drives the scene (no motion, no line CSV)")
 
 
 def _drive_opensim(
-    scene: Scene, frames_text: str | None, centroids: dict[str, FloatArray]
+    scene: Scene, frames_text: str | None, centroids: dict[str, FloatArray], waypoints: bool
 ) -> Drive:
     model = OpenSimModel(scene.osim)
     motion = read_motion(scene.motion)
@@ -331,11 +419,13 @@ def _drive_opensim(
         )
         return {b: out_inv @ to_g[b] for b in bodies}
 
+    driven = np.empty((len(pos), len(coords)))
     for k, i in enumerate(pos):
         pose = dict(rest)
         for c in coords:
             v = values[c][i]
             pose[c] = np.radians(v) if (deg and model.is_rotational(c)) else v
+        driven[k] = [pose[c] for c in coords]
         model.set_pose(pose)
         L, R, to_g = lines_now()
         if ma is not None:
@@ -369,6 +459,11 @@ def _drive_opensim(
                     counts = {len(Lm[m.name][p]), len(L[m.name][p]), len(Lp[m.name][p])}
                     ma.switch[p][k, j] = len(counts) > 1
         model.set_pose(pose)
+    notes += _outside_ranges(model, coords, driven, pos, motion.time)
+    path = None
+    if waypoints:
+        path = _waypoints(scene, model, coords, rest, driven, bodies, lines_now, output_transforms)
+        model.set_pose(rest)
     return Drive(
         frames=pos,
         times=motion.time[pos],
@@ -380,7 +475,85 @@ def _drive_opensim(
         to_output=out_T,
         notes=notes,
         moment_arms=ma,
+        waypoints=path,
     )
+
+
+def _outside_ranges(
+    model: OpenSimModel, coords: list[str], driven: FloatArray, frames: list[int], times: FloatArray
+) -> list[str]:
+    """A note per coordinate that leaves the model's range: on which frames, how far."""
+    out = []
+    for j, c in enumerate(coords):
+        lo, hi = model.coordinate_range(c)
+        v = driven[:, j]
+        bad = np.flatnonzero((v < lo) | (v > hi))
+        if not len(bad):
+            continue
+        rot = model.is_rotational(c)
+        unit = "deg" if rot else "model units"
+        conv = np.degrees if rot else (lambda x: x)
+        worst = int(bad[np.argmax(np.maximum(lo - v[bad], v[bad] - hi))])
+        runs = _frame_runs(frames, bad)
+        out.append(
+            f"{c} leaves the model's range [{conv(lo):.4g}, {conv(hi):.4g}] {unit} on "
+            f"{len(bad)} frame(s) ({runs}): up to {float(conv(v[worst])):.4g} {unit} at frame "
+            f"{frames[worst]} (t = {float(times[frames[worst]]):.4g} s); the model's paths and "
+            "the muscles are extrapolated there"
+        )
+    return out
+
+
+def _frame_runs(frames: list[int], picked: IntArray) -> str:
+    """``3-7, 12, 20-24``: the frames at positions ``picked`` as runs of the frames run.
+
+    At most six runs are named.
+    """
+    runs: list[list[int]] = []
+    for k in picked.tolist():
+        if runs and k == runs[-1][1] + 1:
+            runs[-1][1] = k
+        else:
+            runs.append([k, k])
+    text = [f"{frames[a]}" if a == b else f"{frames[a]}-{frames[b]}" for a, b in runs]
+    return ", ".join(text[:6]) + (f" and {len(text) - 6} more runs" if len(text) > 6 else "")
+
+
+def _waypoints(
+    scene: Scene,
+    model: OpenSimModel,
+    coords: list[str],
+    rest: dict[str, float],
+    driven: FloatArray,
+    bodies: list[str],
+    lines_now: Any,
+    output_transforms: Any,
+) -> Waypoints:
+    """The lattice of poses between the rest pose and the frames (`Waypoints`)."""
+    from ..constants import defaults
+
+    steps = np.array(
+        [
+            np.radians(defaults.path_step)
+            if model.is_rotational(c)
+            else defaults.path_step_translation * 1e-3 / UNITS[scene.model_unit]
+            for c in coords
+        ]
+    )
+    r = np.array([rest[c] for c in coords])
+    nodes, parent, frame = lattice_paths((driven - r) / steps)
+    lines: dict[str, list[dict[str, FloatArray]]] = {m.name: [] for m in scene.muscles}
+    refs: dict[str, list[FloatArray | None]] = {m.name: [] for m in scene.muscles}
+    out_T = {b: np.empty((len(nodes), 4, 4)) for b in bodies}
+    for k, u in enumerate(nodes):
+        model.set_pose({**rest, **dict(zip(coords, (r + u * steps).tolist(), strict=True))})
+        L, R, to_g = lines_now()
+        for m in scene.muscles:
+            lines[m.name].append(L[m.name])
+            refs[m.name].append(R[m.name])
+        for b, T in output_transforms(to_g).items():
+            out_T[b][k] = T
+    return Waypoints(tuple(coords), steps, nodes, parent, frame, lines, refs, out_T)
 
 
 def _moment_arm_poses(

@@ -91,6 +91,11 @@ class OpenSimModel:
         """Whether coordinate ``name`` is an angle (radians in the model)."""
         return int(self._coords[name].getMotionType()) == 1
 
+    def coordinate_range(self, name: str) -> tuple[float, float]:
+        """A coordinate's range in the model (model units: radians or metres)."""
+        c = self._coords[name]
+        return float(c.getRangeMin()), float(c.getRangeMax())
+
     def default_pose(self) -> dict[str, float]:
         """Each coordinate's default value (model units: radians or metres)."""
         return {n: float(c.getDefaultValue()) for n, c in self._coords.items()}

@@ -7,6 +7,8 @@ The tasks are:
 
 - `Prepare`: a muscle's preparation (and its fibres) into the cache;
 - `ProbeBone`: a bone's signed-distance probe into the cache;
+- `FollowPath`: one muscle at the waypoints between the rest pose and the frames, against
+  its bones (where contact takes its sides, see `._drive.Waypoints`);
 - `DeformChunk`: one muscle on one chunk of frames, its files written;
 - `Compare`: one muscle's comparison with the paper's iteration on a few frames.
 
@@ -45,6 +47,8 @@ __all__ = [
     "FrameSpan",
     "MomentArmSettings",
     "MuscleJob",
+    "PathSpan",
+    "PathStates",
     "Prepared",
     "SidePoses",
 ]
@@ -154,7 +158,11 @@ class SidePoses:
 
 @dataclass(frozen=True)
 class FrameSpan:
-    """One muscle's per-frame data on consecutive frames of a run (from its ``start``)."""
+    """One muscle's per-frame data on consecutive frames of a run (from its ``start``).
+
+    ``waypoint`` (k,) is each frame's waypoint (`PathSpan`; -1: the rest pose), None
+    without contact.
+    """
 
     start: int
     frames: IntArray
@@ -164,6 +172,7 @@ class FrameSpan:
     to_output: FloatArray  # (k, 4, 4): the muscle's body frame -> output frame
     bone_T: dict[str, FloatArray]  # bone -> (k, 4, 4)
     side: SidePoses | None = None
+    waypoint: IntArray | None = None
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -179,7 +188,51 @@ class FrameSpan:
             self.to_output[a:b],
             {n: T[a:b] for n, T in self.bone_T.items()},
             None if self.side is None else self.side.slice(a, b),
+            None if self.waypoint is None else self.waypoint[a:b],
         )
+
+
+@dataclass(frozen=True)
+class PathSpan:
+    """One muscle's waypoints (`._drive.Waypoints`): what `FollowPath` deforms it to.
+
+    ``parent`` (K,) is each waypoint's earlier one (-1: the rest pose); ``lines``,
+    ``references``, ``to_output`` (K, 4, 4: the muscle's body frame to the output
+    frame) and ``bone_T`` (bone -> (K, 4, 4)) as in `FrameSpan`, per waypoint;
+    ``rest_T`` (bone -> (4, 4)) takes the muscle's body frame to each bone's at the
+    rest pose.
+    """
+
+    parent: IntArray
+    lines: list[dict[str, FloatArray]]
+    references: list[FloatArray | None]
+    to_output: FloatArray
+    bone_T: dict[str, FloatArray]
+    rest_T: dict[str, FloatArray]
+
+    def __len__(self) -> int:
+        return len(self.parent)
+
+    def placement(self, k: int) -> dict[str, FloatArray]:
+        """Per bone, the transform from the muscle's body frame into the bone's at waypoint ``k``."""
+        from ._drive import invert_rigid
+
+        return {b: invert_rigid(T[k]) @ self.to_output[k] for b, T in self.bone_T.items()}
+
+
+@dataclass
+class PathStates:
+    """A muscle's cage at each waypoint, deformed against its bones (from `FollowPath`).
+
+    ``cages`` (K, m, 3); ``T`` (bone -> (K, 4, 4)) and ``rest_T`` (bone -> (4, 4)) the
+    bones' placements there and at the rest pose (the muscle's body frame into the
+    bone's); ``reasons`` the waypoints where the contact was not met (index, why).
+    """
+
+    cages: FloatArray
+    T: dict[str, FloatArray]
+    rest_T: dict[str, FloatArray]
+    reasons: list[tuple[int, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -374,6 +427,7 @@ def frame_span(inputs: Any, name: str) -> FrameSpan:
             ma.to_output[spec.body],
             {b.name: ma.to_output[b.body] for b in scene.bones},
         )
+    wp = drive.waypoints
     return FrameSpan(
         0,
         np.asarray(drive.frames),
@@ -383,4 +437,33 @@ def frame_span(inputs: Any, name: str) -> FrameSpan:
         drive.to_output[spec.body],
         {b.name: drive.to_output[b.body] for b in scene.bones},
         side,
+        None if inputs.contact is None else _frame_waypoints(wp, len(drive.frames)),
+    )
+
+
+def _frame_waypoints(wp: Any, n: int) -> IntArray:
+    """Each frame's waypoint, -1 (the rest pose) for all where there are none."""
+    return np.full(n, -1, dtype=np.int64) if wp is None else np.asarray(wp.frame, dtype=np.int64)
+
+
+def path_span(inputs: Any, name: str) -> PathSpan:
+    """A muscle's waypoints and its bones' placements there and at rest."""
+    scene, drive = inputs.scene, inputs.drive
+    spec = next(s for s in scene.muscles if s.name == name)
+    wp = drive.waypoints
+    rest_T = {
+        b.name: drive.to_body[b.name] @ np.linalg.inv(drive.to_body[name]) for b in scene.bones
+    }
+    if wp is None:
+        empty = np.zeros((0, 4, 4))
+        return PathSpan(
+            np.zeros(0, np.int64), [], [], empty, {b.name: empty for b in scene.bones}, rest_T
+        )
+    return PathSpan(
+        np.asarray(wp.parent, dtype=np.int64),
+        wp.lines[name],
+        wp.references[name],
+        wp.to_output[spec.body],
+        {b.name: wp.to_output[b.body] for b in scene.bones},
+        rest_T,
     )

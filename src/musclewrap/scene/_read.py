@@ -95,7 +95,7 @@ def read_inputs(
             say(n)
         bones[b.name] = (V, F)
     centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
-    drive = drive_scene(scene, frames, centroids)
+    drive = drive_scene(scene, frames, centroids, waypoints=collisions)
     notes += drive.notes
     # every mesh in the frame of the body that carries it
     muscles = {m: (apply(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}

@@ -35,9 +35,17 @@ from ._config import Scene
 from ._errors import SceneError
 from ._execute import Executor, LocalExecutor, Node, ProcessExecutor, Runner
 from ._journal import Journal
-from ._plan import ChunkResult, Comparison, MuscleOutcome, chunks, frame_span, muscle_jobs
+from ._plan import (
+    ChunkResult,
+    Comparison,
+    MuscleOutcome,
+    chunks,
+    frame_span,
+    muscle_jobs,
+    path_span,
+)
 from ._read import Inputs, check_outputs_spare_inputs, default_cache_dir, read_inputs
-from ._work import Compare, DeformChunk, Prepare, ProbeBone
+from ._work import Compare, DeformChunk, FollowPath, Prepare, ProbeBone
 from ._write import GIF, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
 
 __all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_batch", "run_scene"]
@@ -303,14 +311,29 @@ class _SceneRun:
                 key = ("fibres", str(fp))
                 nodes.append(Node(key, Prepare(j, fibres_only=True), priority=1))
                 after.append(key)
+            kept_all = [journal.chunk(j.name, ks.start, ks.stop) for ks in parts]
+            path_key = None
+            if j.contact is not None and any(k is None for k in kept_all):
+                # the muscle at its waypoints, once: where every frame takes its sides
+                path_key = (tag, "path", j.name)
+                nodes.append(
+                    Node(
+                        path_key,
+                        FollowPath(j, path_span(self.inputs, j.name)),
+                        tuple(after),
+                        priority=1,
+                    )
+                )
             chunk_keys = []
-            for ks in parts:
+            for ks, kept in zip(parts, kept_all, strict=True):
                 key = (tag, "chunk", j.name, ks.start)
-                kept = journal.chunk(j.name, ks.start, ks.stop)
+                part = spans[j.name].slice(ks.start, ks.stop)
                 node = Node(
                     key,
-                    DeformChunk(j, spans[j.name].slice(ks.start, ks.stop)),
-                    tuple(after),
+                    DeformChunk(j, part)
+                    if path_key is None
+                    else self._chunk_task(j, part, path_key),
+                    tuple(after) if path_key is None else (*after, path_key),
                     done=self._chunk_done(j.name, ks),
                     frames=len(ks),
                 )
@@ -347,6 +370,13 @@ class _SceneRun:
             return part
 
         return done
+
+    @staticmethod
+    def _chunk_task(job: Any, span: Any, path_key: Any) -> Callable[[dict[Any, Any]], Any]:
+        def make(results: dict[Any, Any]) -> DeformChunk:
+            return DeformChunk(job, span, results[path_key])
+
+        return make
 
     def _compare_done(self, name: str) -> Callable[[Comparison], Comparison]:
         def done(c: Comparison) -> Comparison:

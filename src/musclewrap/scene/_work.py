@@ -27,10 +27,20 @@ from ._plan import (
     FibreFrame,
     FrameSpan,
     MuscleJob,
+    PathSpan,
+    PathStates,
     Prepared,
 )
 
-__all__ = ["Compare", "DeformChunk", "Prepare", "ProbeBone", "bone_probe", "set_tick"]
+__all__ = [
+    "Compare",
+    "DeformChunk",
+    "FollowPath",
+    "Prepare",
+    "ProbeBone",
+    "bone_probe",
+    "set_tick",
+]
 
 # ---------------------------------------------------------------------------- per process
 _tick_sink: Any = None
@@ -158,14 +168,91 @@ class ProbeBone:
 
 
 @dataclass(frozen=True)
+class FollowPath:
+    """One muscle at its waypoints, in order, each against its bones from the one before.
+
+    The cage at each waypoint (`PathStates`) is where the frames after it take their
+    sides of the bones (`musclewrap.contact.SideReference`): computed once per muscle,
+    whichever chunk or worker a frame goes to.
+    """
+
+    job: MuscleJob
+    span: PathSpan
+
+    def run(self) -> PathStates:
+        from ..contact import Placed, SideReference
+
+        job, span = self.job, self.span
+        muscle, d, *_ = _deformer(job)
+        probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]
+        contact = job.contact or {}
+        K, n = len(span), len(muscle.V)
+        cages = np.empty((K, len(muscle.cage.C), 3))
+        T = {b: np.empty((K, 4, 4)) for _, b in probes}
+        reasons = []
+
+        def placed(place: dict[str, FloatArray], allow: bool) -> list[Any]:
+            return [
+                Placed(probe, place[b], contact[b] if allow else None, b)
+                for probe, b in probes
+                if b in contact
+            ]
+
+        rest = SideReference(muscle.V, placed(span.rest_T, False))
+        refs: dict[int, Any] = {-1: rest}
+        for k in range(K):
+            place = span.placement(k)
+            for b in T:
+                T[b][k] = place[b]
+            parent = int(span.parent[k])
+            res = d.deform(
+                span.lines[k],
+                reference_point=span.references[k],
+                obstacles=placed(place, True),
+                margin=job.margin,
+                sides=refs[parent],
+                finish=False,
+                method=job.method,
+                max_iterations=job.max_iterations,
+            )
+            x = res.cage
+            if not np.isfinite(x).all():
+                x = muscle.cage.C if parent < 0 else cages[parent]
+            if not res.converged:
+                reasons.append((k, res.reason))
+            cages[k] = x
+            refs[k] = SideReference(lambda rows, x=x: muscle.W[rows] @ x, placed(place, False), n)
+        return PathStates(cages, T, dict(span.rest_T), reasons)
+
+
+def side_reference(muscle: Any, probes: list[tuple[Any, str]], path: PathStates, w: int) -> Any:
+    """The muscle at waypoint ``w`` of its path (-1: at rest) against its bones."""
+    from ..contact import Placed, SideReference
+
+    if w < 0:
+        return SideReference(muscle.V, [Placed(p, path.rest_T[b], None, b) for p, b in probes])
+    x = path.cages[w]
+    return SideReference(
+        lambda rows: muscle.W[rows] @ x,
+        [Placed(p, path.T[b][w], None, b) for p, b in probes],
+        len(muscle.V),
+    )
+
+
+@dataclass(frozen=True)
 class DeformChunk:
-    """One muscle on a chunk of frames: deformed, measured, its files written."""
+    """One muscle on a chunk of frames: deformed, measured, its files written.
+
+    ``path`` (with contact): the muscle at its waypoints, where each frame takes its
+    sides of the bones.
+    """
 
     job: MuscleJob
     span: FrameSpan
+    path: PathStates | None = None
 
     def run(self) -> ChunkResult:
-        return _deform_chunk(self.job, self.span)
+        return _deform_chunk(self.job, self.span, self.path)
 
 
 @dataclass(frozen=True)
@@ -212,9 +299,9 @@ class Compare:
         return worst, tuple(solved)
 
 
-def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
+def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = None) -> ChunkResult:
     from ..conditions import LineError
-    from ..contact import Placed
+    from ..contact import Placed, bone_inside_depth, line_inside_depth
     from ..solver import DeformationResult
 
     muscle, d, hit, note, seconds_prepare = _deformer(job)
@@ -229,6 +316,18 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
     if contact is not None:
         kw["margin"] = job.margin
 
+    # the sides of the bones, per waypoint (kept: the frames of a chunk share a few)
+    in_contact = [(p, b) for p, b in probes if contact is not None and b in contact]
+    refs: dict[int, Any] = {}
+
+    def sides_of(k: int) -> Any:
+        if contact is None or path is None:
+            return None
+        w = -1 if span.waypoint is None else int(span.waypoint[k])
+        if w not in refs:
+            refs[w] = side_reference(muscle, in_contact, path, w)
+        return refs[w]
+
     def solve(
         lines: dict[str, FloatArray],
         reference: FloatArray | None,
@@ -236,6 +335,7 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
         bone_T: dict[str, FloatArray],
         finish: bool = True,
         bones: bool = True,
+        sides: Any = None,
     ) -> Any:
         # the scene's bones where contact is on (and ``bones``), else none
         obstacles = (
@@ -250,7 +350,12 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
         )
         try:
             return d.deform(
-                lines, reference_point=reference, finish=finish, obstacles=obstacles, **kw
+                lines,
+                reference_point=reference,
+                finish=finish,
+                obstacles=obstacles,
+                sides=sides if obstacles else None,
+                **kw,
             )
         except LineError as exc:
             # this pose's lines cannot drive the muscle (e.g. a path collapsed to a point):
@@ -265,23 +370,47 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
     for k in range(len(span)):
         frame = span.frames[k]
         T = span.to_output[k]
+        sides = sides_of(k)
         res = solve(
-            span.lines[k], span.references[k], T, {b: TB[k] for b, TB in span.bone_T.items()}
+            span.lines[k],
+            span.references[k],
+            T,
+            {b: TB[k] for b, TB in span.bone_T.items()},
+            sides=sides,
         )
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
-        n_in, depth = (0, 0.0) if ok_values else (float("nan"), float("nan"))
+        nan = float("nan")
+        n_in, depth, bone_depth = (0, 0.0, 0.0) if ok_values else (nan, nan, nan)
+        # the bones as placed in this frame; those the contact did not keep the muscle out of
+        here = {
+            bname: Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
+            for probe, bname in probes
+        }
+        measured = [pl for b, pl in here.items() if contact is None or b not in contact]
+        line_depth = line_inside_depth(
+            list(span.lines[k].values()), list(here.values()), 0.25 * d._fine_edge
+        )
         if ok_values:
             Vo = apply(T, res.V)
             if contact is not None:
                 # the contact finish counted its bones exactly
                 n_in, depth = res.penetration_vertices, res.penetration_depth
-            for probe, bname in probes:
-                if contact is not None and bname in contact:
-                    continue
-                n, dep = probe.measure(apply(invert_rigid(span.bone_T[bname][k]) @ T, res.V))
+                bone_depth = res.bone_inside_depth
+            for pl in measured:
+                n, dep = pl.obstacle.measure(pl.to_obstacle(res.V))
                 n_in += n
                 depth = max(depth, dep)
+            if measured:
+                A = muscle.adjacency
+                bone_depth = max(
+                    bone_depth,
+                    bone_inside_depth(
+                        res.V, muscle.F, measured, edge=d._fine_edge,
+                        adjacency=(A.indptr.astype(np.int64), A.indices.astype(np.int64)),
+                        faces=muscle.vertex_faces,
+                    )[1],
+                )  # fmt: skip
             fname = f"{name}/{name}_{frame:04d}.vtp"
             write_mesh(out / fname, Vo, muscle.F, point_data={"input_id": muscle.input_id})
             result.entries.append((span.start + k, fname))
@@ -295,7 +424,15 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
         write_mesh(out / lname, np.vstack(P), np.zeros((0, 3), int), lines=np.array(segs))
         result.entries.append((span.start + k, lname))
         if fb is not None:
-            got = frame_fibres(fb, muscle.F, res, k, job.moment_arms, span.side, solve)
+            got = frame_fibres(
+                fb,
+                muscle.F,
+                res,
+                k,
+                job.moment_arms,
+                span.side,
+                lambda *a, sides=sides, **kw: solve(*a, sides=sides, **kw),
+            )
             if got["points"] is not None:
                 fname = f"{name}/{name}_fibres_{frame:04d}.vtp"
                 write_frame_fibres(out / fname, fb, got["points"], T)
@@ -325,10 +462,12 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan) -> ChunkResult:
                 "shape_change_max": shape,
                 "penetration_share": n_in / len(muscle.V),
                 "penetration_depth_max": depth,
+                "bone_inside_depth_max": bone_depth,
                 "contact_vertices": res.contact_vertices,
                 "penetration_depth_before": (
                     res.penetration_depth_before if contact is not None else depth
                 ),
+                "line_inside_depth_max": line_depth,
                 "reason": res.reason,
             }
         )

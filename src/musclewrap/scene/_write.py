@@ -38,8 +38,10 @@ REPORT_FIELDS = [
     "shape_change_max",
     "penetration_share",
     "penetration_depth_max",
+    "bone_inside_depth_max",
     "contact_vertices",
     "penetration_depth_before",
+    "line_inside_depth_max",
     "reason",
 ]
 
@@ -183,7 +185,9 @@ def _plots(
                 outdir / PLOT_PENETRATION,
                 depth("penetration_depth_max"),
                 before=depth("penetration_depth_before") if collisions else None,
-                title=f"{scene.name}: muscles in bones"
+                bone_inside=depth("bone_inside_depth_max"),
+                line_inside=depth("line_inside_depth_max"),
+                title=f"{scene.name}: muscles and bones in each other"
                 + ("" if collisions else " (collisions off)"),
                 unit=scene.mesh_unit,
             )
