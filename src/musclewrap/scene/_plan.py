@@ -226,13 +226,16 @@ class PathStates:
 
     ``cages`` (K, m, 3); ``T`` (bone -> (K, 4, 4)) and ``rest_T`` (bone -> (4, 4)) the
     bones' placements there and at the rest pose (the muscle's body frame into the
-    bone's); ``reasons`` the waypoints where the contact was not met (index, why).
+    bone's); ``reasons`` the waypoints where the contact was not met (index, why);
+    ``prepared`` how the muscle's preparation was had (the first task of a muscle
+    prepares it, or reads it from the cache).
     """
 
     cages: FloatArray
     T: dict[str, FloatArray]
     rest_T: dict[str, FloatArray]
     reasons: list[tuple[int, str]] = field(default_factory=list)
+    prepared: Prepared | None = None
 
 
 @dataclass

@@ -254,6 +254,7 @@ class _SceneRun:
     jobs: list[Any] = field(init=False)
     journal: Journal = field(init=False)
     prepare_keys: dict[str, Any] = field(init=False)
+    path_keys: dict[str, Any] = field(init=False)
     chunk_keys: dict[str, list[Any]] = field(init=False)
     parts: list[range] = field(init=False)
     tag: int = field(init=False)
@@ -299,6 +300,7 @@ class _SceneRun:
                     )
                     shared.append(nodes[-1].key)
         self.prepare_keys = {}
+        self.path_keys = {}
         for j in self.jobs:
             after = list(shared)
             p = j.prepare_path()
@@ -315,7 +317,7 @@ class _SceneRun:
             path_key = None
             if j.contact is not None and any(k is None for k in kept_all):
                 # the muscle at its waypoints, once: where every frame takes its sides
-                path_key = (tag, "path", j.name)
+                path_key = self.path_keys[j.name] = (tag, "path", j.name)
                 nodes.append(
                     Node(
                         path_key,
@@ -414,15 +416,17 @@ class _SceneRun:
         for j in self.jobs:
             parts = [runner.result(k) for k in self.chunk_keys[j.name]]
             pk = self.prepare_keys.get(j.name)
+            # without a preparation task, the path's (the muscle's first task) says how it
+            # was had
+            path = runner.result(self.path_keys[j.name]) if j.name in self.path_keys else None
+            prepared = runner.result(pk) if pk is not None else path and path.prepared
             comparison = (
                 runner.result((self.tag, "compare", j.name))
                 if scene.paper_frames > 0
                 else Comparison()
             )
             results.append(
-                MuscleOutcome.merge(
-                    j.name, parts, None if pk is None else runner.result(pk), comparison
-                )
+                MuscleOutcome.merge(j.name, parts, prepared, comparison)
             )
         order = {s.name: i for i, s in enumerate(scene.muscles)}
         results.sort(key=lambda r: order[r.name])

@@ -183,7 +183,7 @@ class FollowPath:
         from ..contact import Placed, SideReference
 
         job, span = self.job, self.span
-        muscle, d, *_ = _deformer(job)
+        muscle, d, hit, note, seconds = _deformer(job)
         probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]
         contact = job.contact or {}
         K, n = len(span), len(muscle.V)
@@ -222,7 +222,9 @@ class FollowPath:
                 reasons.append((k, res.reason))
             cages[k] = x
             refs[k] = SideReference(lambda rows, x=x: muscle.W[rows] @ x, placed(place, False), n)
-        return PathStates(cages, T, dict(span.rest_T), reasons)
+        return PathStates(
+            cages, T, dict(span.rest_T), reasons, Prepared(job.name, seconds, hit, note)
+        )
 
 
 def side_reference(muscle: Any, probes: list[tuple[Any, str]], path: PathStates, w: int) -> Any:
