@@ -10,7 +10,7 @@ vertices out, volume-exact (`push_out`); and the rest pose's overlap, settled on
 
 from ._find import contact_candidates
 from ._finish import ContactReport, push_out, rings, vertex_faces
-from ._inside import Inside, bone_inside_depth, bone_vertices_inside, line_inside_depth
+from ._inside import Inside, bone_vertices_inside, line_inside_depth
 from ._near import Near
 from ._obstacle import Obstacle, bone_surface, pseudo_normals, signed_from_closest
 from ._placed import Placed
@@ -26,7 +26,6 @@ __all__ = [
     "SideReference",
     "anchors_at_rest",
     "attachment_patches",
-    "bone_inside_depth",
     "bone_surface",
     "bone_vertices_inside",
     "contact_candidates",

@@ -128,103 +128,6 @@ def _smooth(indptr, indices, D, rows, sweeps, keep):  # noqa: ANN001, ANN202 # p
             D[v, 0], D[v, 1], D[v, 2] = new[q, 0], new[q, 1], new[q, 2]
 
 
-@numba.njit(cache=True)
-def _closest_on_triangle(p, a, b, c):  # noqa: ANN001, ANN202 # pragma: no cover
-    # Ericson, Real-Time Collision Detection 5.1.5: the closest point and its barycentrics
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = ab @ ap, ac @ ap
-    if d1 <= 0.0 and d2 <= 0.0:
-        return a, 1.0, 0.0, 0.0
-    bp = p - b
-    d3, d4 = ab @ bp, ac @ bp
-    if d3 >= 0.0 and d4 <= d3:
-        return b, 0.0, 1.0, 0.0
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        t = d1 / (d1 - d3)
-        return a + t * ab, 1.0 - t, t, 0.0
-    cp = p - c
-    d5, d6 = ab @ cp, ac @ cp
-    if d6 >= 0.0 and d5 <= d6:
-        return c, 0.0, 0.0, 1.0
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        t = d2 / (d2 - d6)
-        return a + t * ac, 1.0 - t, 0.0, t
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return b + t * (c - b), 0.0, 1.0 - t, t
-    den = 1.0 / (va + vb + vc)
-    v, w = vb * den, vc * den
-    return a + v * ab + w * ac, 1.0 - v - w, v, w
-
-
-@numba.njit(cache=True)
-def _unit_normal(P, F, f):  # noqa: ANN001, ANN202 # pragma: no cover
-    n = np.cross(P[F[f, 1]] - P[F[f, 0]], P[F[f, 2]] - P[F[f, 0]])
-    r = np.sqrt(n @ n)
-    return n / r if r > 0.0 else n
-
-
-@numba.njit(cache=True)
-def _local_side_kernel(B, start, P, F, Ap, Ai, VFp, VFi, phi, C, face):  # noqa: ANN001, ANN202 # pragma: no cover
-    # Per point: the closest point on the faces around muscle vertex start[i] and its
-    # neighbours, and the side by the angle-weighted pseudo-normal there (Baerentzen &
-    # Aanaes 2005): a face's normal, an edge's two faces', a vertex's angle-weighted fan.
-    for i in range(B.shape[0]):
-        p = B[i]
-        best = np.inf
-        bf = -1
-        bq = np.zeros(3)
-        bw = np.zeros(3)
-        v0 = start[i]
-        for k in range(Ap[v0], Ap[v0 + 1] + 1):
-            u = v0 if k == Ap[v0 + 1] else Ai[k]
-            for m in range(VFp[u], VFp[u + 1]):
-                f = VFi[m]
-                q, w0, w1, w2 = _closest_on_triangle(p, P[F[f, 0]], P[F[f, 1]], P[F[f, 2]])
-                d = p - q
-                d2 = d @ d
-                if d2 < best:
-                    best, bf = d2, f
-                    bq[:] = q
-                    bw[0], bw[1], bw[2] = w0, w1, w2
-        nz = 0
-        for k in range(3):
-            if bw[k] <= 1e-9:
-                nz += 1
-        if nz == 2:  # a vertex: the angle-weighted normals of its faces
-            k = 0 if bw[0] > 1e-9 else (1 if bw[1] > 1e-9 else 2)
-            x = F[bf, k]
-            n = np.zeros(3)
-            for m in range(VFp[x], VFp[x + 1]):
-                f = VFi[m]
-                for c in range(3):
-                    if F[f, c] == x:
-                        e1 = P[F[f, (c + 1) % 3]] - P[x]
-                        e2 = P[F[f, (c + 2) % 3]] - P[x]
-                        r = np.sqrt((e1 @ e1) * (e2 @ e2))
-                        if r > 0.0:
-                            ang = np.arccos(min(1.0, max(-1.0, (e1 @ e2) / r)))
-                            n += ang * _unit_normal(P, F, f)
-        elif nz == 1:  # an edge: its two faces
-            opp = 0 if bw[0] <= 1e-9 else (1 if bw[1] <= 1e-9 else 2)
-            a, b = F[bf, (opp + 1) % 3], F[bf, (opp + 2) % 3]
-            n = _unit_normal(P, F, bf)
-            for m in range(VFp[a], VFp[a + 1]):
-                f = VFi[m]
-                if f != bf and (F[f, 0] == b or F[f, 1] == b or F[f, 2] == b):
-                    n = n + _unit_normal(P, F, f)
-                    break
-        else:
-            n = _unit_normal(P, F, bf)
-        dist = np.sqrt(best)
-        phi[i] = -dist if (p - bq) @ n < 0.0 else dist
-        C[i, 0], C[i, 1], C[i, 2] = bq[0], bq[1], bq[2]
-        face[i] = bf
-
-
 def vertex_faces(F: IntArray, n: int) -> tuple[IntArray, IntArray]:
     """The faces of each vertex as CSR arrays ``(indptr, indices)``."""
     flat = np.asarray(F, dtype=np.int64).ravel()
@@ -248,27 +151,23 @@ def _violations(
     their signed distance less the allowed one (negative), and per obstacle the
     deepest vertex inside it (0 if none). A vertex too close to two obstacles
     takes the larger violation. ``near`` (`Near`) limits the queries to the
-    vertices that can be that close. With ``sides``, a vertex that came through
-    the obstacle goes back to the tangent plane where it entered (`on_their_side`).
+    vertices that can be that close. With ``sides``, a vertex inside that came
+    through the obstacle goes back to the tangent plane where it entered
+    (`on_their_side`), not out the nearest way (the cage's steps have taken the
+    ones that passed through a thin part of it out of it on their side).
     """
     n = len(P)
     worst = np.full(n, np.inf)
     target = np.zeros((n, 3))
     depths = []
-    band = slack if sides is None else 0.5 * slack / tol.contact
-    for b, (pl, r) in enumerate(zip(placed, near.rows(P, band), strict=True)):
+    for b, (pl, r) in enumerate(zip(placed, near.rows(P, slack), strict=True)):
         if not len(r):
             depths.append(0.0)
             continue
         allowed = near.allowed[b]
         lower = np.empty(len(r))
         Q = pl.to_obstacle(P[r])
-        reach = allowed[r] - slack
-        if sides is not None:
-            # a vertex that passed through a thin part of the bone lies outside it on
-            # the other side: looked at within half a mean edge of it
-            reach = allowed[r] + 0.5 * slack / tol.contact
-        idx, phi, C, N = pl.obstacle.query(Q, reach, lower)
+        idx, phi, C, N = pl.obstacle.query(Q, allowed[r] - slack, lower)
         near.learn(b, r, P[r], lower)
         if sides is not None and len(idx):
             phi, C, N, _ = on_their_side(pl, sides, b, r[idx], Q[idx], phi, C, N)
@@ -504,17 +403,24 @@ def push_out(
 
     hit, target, gap, depths = violations(V, bone_vertices is True)
     depth_before = max(depths, default=0.0)
+    found: list[Inside] | None = None  # the bone vertices inside, on the positions of now
     if bone_vertices == "near":
-        # Per pose, the bone's vertices inside the surface the solve left (a ridge
-        # between the muscle's vertices), exact; again on the result, below.
+        # Per pose, the bone's vertices inside the surface (a ridge between the muscle's
+        # vertices), exact: once the muscle's vertices are out, then on the result
         VF = vertex_faces(F, len(V)) if faces is None else faces
         AA = (A.indptr.astype(np.int64), A.indices.astype(np.int64))
+        deep = margin + defaults.contact_bone_depth * edge
 
         def bones_inside(P: FloatArray) -> list[Inside]:
-            return bone_vertices_inside(P, F, placed, near, edge=edge, adjacency=AA, faces=VF)
+            return bone_vertices_inside(
+                P, F, placed, near, edge=edge, adjacency=AA, faces=VF, deep=deep
+            )
 
-        found = bones_inside(V)
-        hit, target, gap = _with_bone_vertices(V, F, placed, margin, slack, hit, target, gap, found)
+        if not len(hit):
+            found = bones_inside(V)
+            hit, target, gap = _with_bone_vertices(
+                V, F, placed, margin, slack, hit, target, gap, found
+            )
     if not len(hit):
         touching, inside, depth = _final(V, placed, slack, near)
         return V, ContactReport(
@@ -569,13 +475,16 @@ def push_out(
             break
         P += t * Zm
         hit, target, gap, depths = violations(P, bone_vertices is True)
-        if not len(hit) and bone_vertices == "near" and passes < 2:
-            # the result, looked at again: the pushes may have brought a ridge in
+        found = None
+        if not len(hit) and bone_vertices == "near" and passes < 3:
+            # the muscle's vertices are out: the bone's, looked at on this surface
             passes += 1
             found = bones_inside(P)
             hit, target, gap = _with_bone_vertices(
                 P, F, placed, margin, slack, hit, target, gap, found
             )
+            if len(hit):
+                found = None  # pushed again: looked at again
         if not len(hit):
             break
     else:
@@ -615,7 +524,7 @@ def push_out(
         rounds=rounds,
         ok=ok,
         reason=reason,
-        **({} if bone_vertices != "near" else _bone_fields(bones_inside(P))),
+        **({} if bone_vertices != "near" else _bone_fields(found or bones_inside(P))),
     )
     return P, report
 

@@ -465,7 +465,9 @@ class Obstacle:
             self._adjacency = (A.indptr.astype(np.int64), A.indices.astype(np.int64))
         return self._adjacency
 
-    def vertices_near(self, Q: FloatArray, radius: float) -> tuple[IntArray, IntArray]:
+    def vertices_near(
+        self, Q: FloatArray, radius: float, convexity: float = -np.inf
+    ) -> tuple[IntArray, IntArray]:
         """The obstacle's vertices within ``radius`` of a point of ``Q``, and the nearest one.
 
         Parameters
@@ -473,6 +475,8 @@ class Obstacle:
         Q : (k, 3) float64 array
             Points in the obstacle's frame.
         radius : float
+        convexity : float, optional
+            Only vertices whose `convexity` exceeds this.
 
         Returns
         -------
@@ -487,9 +491,11 @@ class Obstacle:
         point looks in its cell and the 26 around it (compiled).
         """
         bins = self.__dict__.setdefault("_vertex_cells", {})
-        key = float(radius)
+        key = (float(radius), float(convexity))
         if key not in bins:
-            bins[key] = _bin_points(self.V, radius)
+            keep = np.flatnonzero(self.convexity > convexity)
+            idx, R, lo, dims, indptr = _bin_points(self.V[keep], radius)
+            bins[key] = (keep[idx], R, lo, dims, indptr)
         idx, R, lo, dims, indptr = bins[key]
         Q = np.ascontiguousarray(Q, dtype=np.float64)
         if not len(Q):

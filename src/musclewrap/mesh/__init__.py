@@ -35,12 +35,13 @@ from ._volume import (
     volume_gradient,
     volume_hessian_reduced,
 )
-from ._winding import winding_numbers
+from ._winding import WindingGrid, winding_numbers
 
 __all__ = [
     "FORMATS",
     "MeshCheck",
     "MeshError",
+    "WindingGrid",
     "atomic_path",
     "barycentric",
     "available_memory",

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["winding_numbers"]
+__all__ = ["WindingGrid", "winding_numbers"]
 
 
 def winding_numbers(P: npt.ArrayLike, V: npt.ArrayLike, F: npt.ArrayLike) -> npt.NDArray[np.int64]:
@@ -47,12 +47,38 @@ def winding_numbers(P: npt.ArrayLike, V: npt.ArrayLike, F: npt.ArrayLike) -> npt
     (k,) int64 array
     """
     P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
-    V = np.ascontiguousarray(V, dtype=np.float64)
-    F = np.ascontiguousarray(F, dtype=np.int64)
-    out = np.zeros(len(P), dtype=np.int64)
-    if len(P) and len(F):
-        _winding_kernel(P, V, F, max(1, int(np.sqrt(len(F) / 2.0))), out)
-    return out
+    if not len(P):
+        return np.zeros(0, dtype=np.int64)
+    return WindingGrid(V, F)(P)
+
+
+class WindingGrid:
+    """`winding_numbers` about one surface, for several batches of points.
+
+    The surface's faces are binned over the yz plane once (one pass over the
+    faces); each call then tests a few faces per point.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+        The surface (closed, consistently oriented).
+    """
+
+    def __init__(self, V: npt.ArrayLike, F: npt.ArrayLike) -> None:
+        self.V = np.ascontiguousarray(V, dtype=np.float64)
+        self.F = np.ascontiguousarray(F, dtype=np.int64)
+        g = max(1, int(np.sqrt(len(self.F) / 2.0)))
+        self._grid = _grid_kernel(self.V, self.F, g) if len(self.F) else None
+        self._g = g
+
+    def __call__(self, P: npt.ArrayLike) -> npt.NDArray[np.int64]:
+        """Winding numbers of the points ``P`` (k, 3)."""
+        P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
+        out = np.zeros(len(P), dtype=np.int64)
+        if len(P) and self._grid is not None:
+            _query_kernel(P, self.V, self.F, self._g, *self._grid, out)
+        return out
 
 
 @numba.njit(cache=True)
@@ -80,7 +106,8 @@ def _edge_sign(V, u, v, py, pz):  # noqa: ANN001, ANN202 # pragma: no cover
 
 
 @numba.njit(cache=True)
-def _winding_kernel(P, V, F, g, out):  # noqa: ANN001, ANN202 # pragma: no cover
+def _grid_kernel(V, F, g):  # noqa: ANN001, ANN202 # pragma: no cover
+    # the faces binned by their yz boxes over a g x g grid: (y0, z0, hy, hz, CSR of cells)
     y0 = V[:, 1].min()
     z0 = V[:, 2].min()
     hy = (V[:, 1].max() - y0) / g
@@ -115,6 +142,11 @@ def _winding_kernel(P, V, F, g, out):  # noqa: ANN001, ANN202 # pragma: no cover
             for j in range(lo[t, 2], lo[t, 3] + 1):
                 cells[fill[i * g + j]] = t
                 fill[i * g + j] += 1
+    return y0, z0, hy, hz, count, cells
+
+
+@numba.njit(cache=True)
+def _query_kernel(P, V, F, g, y0, z0, hy, hz, count, cells, out):  # noqa: ANN001, ANN202 # pragma: no cover
     y1 = y0 + g * hy
     z1 = z0 + g * hz
     for q in range(P.shape[0]):
@@ -142,4 +174,3 @@ def _winding_kernel(P, V, F, g, out):  # noqa: ANN001, ANN202 # pragma: no cover
             if ahead > 0.0:
                 w += s
         out[q] = w
-

@@ -303,7 +303,7 @@ class Compare:
 
 def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = None) -> ChunkResult:
     from ..conditions import LineError
-    from ..contact import Placed, bone_inside_depth, line_inside_depth
+    from ..contact import Placed, line_inside_depth
     from ..solver import DeformationResult
 
     muscle, d, hit, note, seconds_prepare = _deformer(job)
@@ -383,7 +383,10 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
         nan = float("nan")
-        n_in, depth, bone_depth = (0, 0.0, 0.0) if ok_values else (nan, nan, nan)
+        n_in, depth = (0, 0.0) if ok_values else (nan, nan)
+        # the bone vertices inside the muscle: found by the contact (without it, not
+        # looked for: the whole overlap of every bone, flooded, costs more than the pose)
+        bone_depth = nan
         # the bones as placed in this frame; those the contact did not keep the muscle out of
         here = {
             bname: Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
@@ -403,16 +406,6 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
                 n, dep = pl.obstacle.measure(pl.to_obstacle(res.V))
                 n_in += n
                 depth = max(depth, dep)
-            if measured:
-                A = muscle.adjacency
-                bone_depth = max(
-                    bone_depth,
-                    bone_inside_depth(
-                        res.V, muscle.F, measured, edge=d._fine_edge,
-                        adjacency=(A.indptr.astype(np.int64), A.indices.astype(np.int64)),
-                        faces=muscle.vertex_faces,
-                    )[1],
-                )  # fmt: skip
             fname = f"{name}/{name}_{frame:04d}.vtp"
             write_mesh(out / fname, Vo, muscle.F, point_data={"input_id": muscle.input_id})
             result.entries.append((span.start + k, fname))

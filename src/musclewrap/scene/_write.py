@@ -185,7 +185,7 @@ def _plots(
                 outdir / PLOT_PENETRATION,
                 depth("penetration_depth_max"),
                 before=depth("penetration_depth_before") if collisions else None,
-                bone_inside=depth("bone_inside_depth_max"),
+                bone_inside=depth("bone_inside_depth_max") if collisions else None,
                 line_inside=depth("line_inside_depth_max"),
                 title=f"{scene.name}: muscles and bones in each other"
                 + ("" if collisions else " (collisions off)"),
