@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .._typing import FloatArray, IntArray
 from ..mesh import WindingGrid
@@ -83,10 +84,11 @@ def bone_vertices_inside(
     one); from every vertex found inside, its neighbours on the obstacle are
     tested in turn, until none is inside (a bone enclosed whole is found from
     its rim). The depth is the distance to the triangles around the nearest
-    muscle vertex (compiled, `_nearest_face_kernel`): an upper bound; where it
-    reaches ``deep``, and for the deepest of all, the distance to the triangles
+    muscle vertex (compiled, `_nearest_face_kernel`): an upper bound, exact
+    for nearly all; where it reaches ``deep``, the distance to the triangles
     around the six nearest muscle vertices and their neighbours (where the
-    muscle is thin its nearest vertex can lie on its other side).
+    muscle is thin its nearest vertex can lie on its other side). So a depth
+    is exact from ``deep`` on, and below it at most the bound.
 
     Parameters
     ----------
@@ -124,10 +126,16 @@ def bone_vertices_inside(
     for b, pl in enumerate(placed):
         m = near.within(b, P, reach)
         ob = pl.obstacle
-        rows = ob.vertices_near(pl.to_obstacle(P[m]), 1.5 * edge, sharp)[0] if len(m) else m
+        if not len(m):
+            out.append(_none())
+            continue
+        rows, which = ob.vertices_near(pl.to_obstacle(P[m]), 1.5 * edge, sharp)
         if not len(rows):
             out.append(_none())
             continue
+        # each candidate's nearest muscle vertex (among m): where its depth is looked for
+        nearest = np.full(len(ob.V), -1, dtype=np.int64)
+        nearest[rows] = m[which]
         tested = np.zeros(len(ob.V), dtype=bool)
         tested[rows] = True
         inside_rows = []
@@ -150,13 +158,14 @@ def bone_vertices_inside(
             continue
         rows = np.concatenate(inside_rows)
         B = np.ascontiguousarray(pl.to_muscle(ob.V[rows]))
-        dist, C, fi = _depths(B, m, P, F, adjacency, faces, deep)
+        dist, C, fi = _depths(B, nearest[rows], m, P, F, adjacency, faces, deep)
         out.append(Inside(rows, B, C, fi, dist))
     return out
 
 
 def _depths(
     B: FloatArray,
+    start: IntArray,
     m: IntArray,
     P: FloatArray,
     F: IntArray,
@@ -166,37 +175,26 @@ def _depths(
 ) -> tuple[FloatArray, FloatArray, IntArray]:
     """Distances of the points ``B`` inside the muscle to its surface, closest points, faces.
 
-    First to the triangles around each point's nearest muscle vertex among ``m`` (an
-    upper bound: most are chords of a triangle over the bone, a tenth of an edge
-    deep), then around its six nearest and their neighbours where the bound reaches
-    ``deep``, and for the deepest of all (in order of the bound, until none left can
-    beat the best found).
+    First to the triangles around each point's nearest muscle vertex ``start``
+    (-1: unknown, then the nearest among ``m``): an upper bound, and most are chords
+    of a triangle over the bone, under a tenth of an edge deep; where the bound
+    reaches ``deep``, the distance to the triangles around the six nearest
+    vertices among ``m`` and their neighbours.
     """
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(P[m])
-    start = m[tree.query(B, k=1)[1]].reshape(-1, 1)
+    if (start < 0).any() or deep <= 0:
+        tree = cKDTree(P[m])
+        lost = start < 0
+        start = start.copy()
+        start[lost] = m[tree.query(B[lost], k=1)[1]]
     dist = np.empty(len(B))
     C = np.empty((len(B), 3))
     fi = np.empty(len(B), dtype=np.int64)
-    _nearest_face_kernel(B, start, P, F, *adjacency, *faces, 0, dist, C, fi)
-    k = min(6, len(m))
-
-    def refine(j: IntArray) -> None:
-        starts = m[tree.query(B[j], k=k)[1].reshape(len(j), k)]
+    _nearest_face_kernel(B, start.reshape(-1, 1), P, F, *adjacency, *faces, 0, dist, C, fi)
+    j = np.flatnonzero(dist >= deep)
+    if len(j):
+        k = min(6, len(m))
+        starts = m[cKDTree(P[m]).query(B[j], k=k)[1].reshape(len(j), k)]
         _refine(B, j, np.ascontiguousarray(starts), P, F, adjacency, faces, dist, C, fi)
-
-    todo = np.flatnonzero(dist >= deep) if deep > 0 else np.zeros(0, np.int64)
-    order = np.argsort(-dist)
-    best, i, batch = 0.0, 0, 4
-    while i < len(order) and dist[order[i]] > best:
-        j = order[i : i + batch]
-        refine(j)
-        best = max(best, float(dist[j].max()))
-        i, batch = i + batch, 2 * batch
-    todo = np.setdiff1d(todo, order[:i])
-    if len(todo):
-        refine(todo)
     return dist, C, fi
 
 
@@ -235,7 +233,7 @@ def _nearest_face_kernel(B, starts, P, F, Ap, Ai, VFp, VFi, ring, dist, C, face)
     # per point: the closest point on the faces around each of its start vertices (and,
     # with ring 1, their neighbours'): unsigned, the side is the winding number's
     for i in range(B.shape[0]):
-        p = B[i]
+        p0, p1, p2 = B[i, 0], B[i, 1], B[i, 2]
         best = np.inf
         bf = -1
         b0 = b1 = b2 = 0.0
@@ -245,12 +243,18 @@ def _nearest_face_kernel(B, starts, P, F, Ap, Ai, VFp, VFi, ring, dist, C, face)
                 u = v0 if k == Ap[v0 + 1] else Ai[k]
                 for m in range(VFp[u], VFp[u + 1]):
                     f = VFi[m]
-                    q, _, _, _ = _closest_on_triangle(p, P[F[f, 0]], P[F[f, 1]], P[F[f, 2]])
-                    d0, d1, d2 = p[0] - q[0], p[1] - q[1], p[2] - q[2]
-                    d = d0 * d0 + d1 * d1 + d2 * d2
+                    x, y, z = F[f, 0], F[f, 1], F[f, 2]
+                    wu, wv, ww = _triangle_weights(
+                        p0, p1, p2, P[x, 0], P[x, 1], P[x, 2], P[y, 0], P[y, 1], P[y, 2],
+                        P[z, 0], P[z, 1], P[z, 2],
+                    )  # fmt: skip
+                    q0 = wu * P[x, 0] + wv * P[y, 0] + ww * P[z, 0]
+                    q1 = wu * P[x, 1] + wv * P[y, 1] + ww * P[z, 1]
+                    q2 = wu * P[x, 2] + wv * P[y, 2] + ww * P[z, 2]
+                    d = (p0 - q0) ** 2 + (p1 - q1) ** 2 + (p2 - q2) ** 2
                     if d < best:
                         best, bf = d, f
-                        b0, b1, b2 = q[0], q[1], q[2]
+                        b0, b1, b2 = q0, q1, q2
         dist[i] = np.sqrt(best)
         C[i, 0], C[i, 1], C[i, 2] = b0, b1, b2
         face[i] = bf
@@ -288,32 +292,38 @@ def line_inside_depth(
 
 
 @numba.njit(cache=True)
-def _closest_on_triangle(p, a, b, c):  # noqa: ANN001, ANN202 # pragma: no cover
-    # Ericson, Real-Time Collision Detection 5.1.5: the closest point and its barycentrics
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = ab @ ap, ac @ ap
+def _triangle_weights(p0, p1, p2, a0, a1, a2, b0, b1, b2, c0, c1, c2):  # noqa: ANN001, ANN202 # pragma: no cover
+    # Ericson, Real-Time Collision Detection 5.1.5, in scalars (no array per call): the
+    # barycentric weights (u, v, w) of the point of triangle abc closest to p
+    ab0, ab1, ab2 = b0 - a0, b1 - a1, b2 - a2
+    ac0, ac1, ac2 = c0 - a0, c1 - a1, c2 - a2
+    ap0, ap1, ap2 = p0 - a0, p1 - a1, p2 - a2
+    d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
+    d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
     if d1 <= 0.0 and d2 <= 0.0:
-        return a, 1.0, 0.0, 0.0
-    bp = p - b
-    d3, d4 = ab @ bp, ac @ bp
+        return 1.0, 0.0, 0.0
+    bp0, bp1, bp2 = p0 - b0, p1 - b1, p2 - b2
+    d3 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2
+    d4 = ac0 * bp0 + ac1 * bp1 + ac2 * bp2
     if d3 >= 0.0 and d4 <= d3:
-        return b, 0.0, 1.0, 0.0
+        return 0.0, 1.0, 0.0
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         t = d1 / (d1 - d3)
-        return a + t * ab, 1.0 - t, t, 0.0
-    cp = p - c
-    d5, d6 = ab @ cp, ac @ cp
+        return 1.0 - t, t, 0.0
+    cp0, cp1, cp2 = p0 - c0, p1 - c1, p2 - c2
+    d5 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2
+    d6 = ac0 * cp0 + ac1 * cp1 + ac2 * cp2
     if d6 >= 0.0 and d5 <= d6:
-        return c, 0.0, 0.0, 1.0
+        return 0.0, 0.0, 1.0
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         t = d2 / (d2 - d6)
-        return a + t * ac, 1.0 - t, 0.0, t
+        return 1.0 - t, 0.0, t
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return b + t * (c - b), 0.0, 1.0 - t, t
+        return 0.0, 1.0 - t, t
     den = 1.0 / (va + vb + vc)
     v, w = vb * den, vc * den
-    return a + v * ab + w * ac, 1.0 - v - w, v, w
+    return 1.0 - v - w, v, w
