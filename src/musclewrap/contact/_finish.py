@@ -440,6 +440,7 @@ def push_out(
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
     if bone_vertices is True:  # once per muscle: relax longer, fewer folds
         relax_rounds = max(relax_rounds, max_rounds // 2)
+    relax_until = relax_rounds
     for rounds in range(1, max_rounds + 1):
         D = target - P[hit]
         depth = float(np.linalg.norm(D, axis=1).max())
@@ -452,7 +453,7 @@ def push_out(
         if len(region):
             # Jacobi sweeps of the 1-ring mean on the free vertices (the pushed ones hold)
             _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
-        if rounds <= relax_rounds:
+        if rounds <= relax_until:
             # Relax the pushed vertices too: neighbours projected onto different sheets of a
             # concave bone (or along converging normals) would cross; what the relaxation
             # leaves inside is pushed again in the next round.
@@ -485,6 +486,8 @@ def push_out(
             )
             if len(hit):
                 found = None  # pushed again: looked at again
+                # the bone's pushes relaxed with their neighbours as the first ones were
+                relax_until = min(rounds + relax_rounds, max_rounds - 1)
         if not len(hit):
             break
     else:
