@@ -92,6 +92,10 @@ class Defaults:
         iliacus's largest shape change in flexion is 0.49 / 0.48 / 0.48 / 0.51 /
         0.52 mean edges at 0.5 / 0.6 / 0.7 / 0.8 / 1, every other muscle and sweep
         <= 0.42 at all of them; 0.6 is the middle of the range that keeps 0.5.
+    anchor_feather : int
+        The anchors' weight grows from the rim of their patch inward, to its full
+        value this many rings (of the fine mesh) in (0: every anchor at full
+        weight).
     anchor_reach : float
         A muscle vertex within this many mean edge lengths of the margin of a bone
         of its own body at the rest pose is an anchor (scenes with contact).
@@ -169,6 +173,7 @@ class Defaults:
     proxy_size: int = 1000
     skeleton_weight: float = 1.0
     anchor_weight: float = 0.6
+    anchor_feather: int = 4
     anchor_reach: float = 0.5
     anchor_end_reach: float = 0.15
     samples_per_line: int = 33

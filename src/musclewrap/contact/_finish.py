@@ -433,15 +433,18 @@ def push_out(
     n = len(V)
     P = V.copy()
     held = np.zeros(n, dtype=bool)
-    rounds = 0
     passes = 0
+    bones_left: list[Inside] | None = None
     ok = True
     # the first rounds relax every push with its neighbours; the last ones project exactly
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
     if bone_vertices is True:  # once per muscle: relax longer, fewer folds
         relax_rounds = max(relax_rounds, max_rounds // 2)
     relax_until = relax_rounds
-    for rounds in range(1, max_rounds + 1):
+    budget = max_rounds
+    rounds = 0
+    while rounds < budget:
+        rounds += 1
         D = target - P[hit]
         depth = float(np.linalg.norm(D, axis=1).max())
         # harmonic spread of the push over the rings around the contact (zero beyond)
@@ -485,13 +488,14 @@ def push_out(
                 P, F, placed, margin, slack, hit, target, gap, found
             )
             if len(hit):
-                found = None  # pushed again: looked at again
-                # the bone's pushes relaxed with their neighbours as the first ones were
-                relax_until = min(rounds + relax_rounds, max_rounds - 1)
+                # the bone's pushes relaxed with their neighbours as the first ones were,
+                # with rounds of their own; and looked at again after them
+                bones_left = found
+                found = None
+                relax_until = rounds + relax_rounds
+                budget = max(budget, rounds + relax_rounds + 3)
         if not len(hit):
             break
-    else:
-        ok = False
     reason = ""
     if len(hit):
         ok = False
@@ -500,9 +504,16 @@ def push_out(
         for pl, d in zip(placed, depths, strict=True):
             if d > 0:
                 names[pl.name] = d
+        if not names and bones_left is not None:
+            for pl, f in zip(placed, bones_left, strict=True):
+                if f.deepest > 0:
+                    names[pl.name] = -f.deepest
         reason = (
             f"contact not met after {rounds} rounds: {len(hit)} vertices within the margin, "
-            + ", ".join(f"{k} {v:.3g} deep" for k, v in names.items())
+            + ", ".join(
+                f"{k} {v:.3g} deep" if v > 0 else f"{k} {-v:.3g} deep inside the muscle"
+                for k, v in names.items()
+            )
         ).rstrip(", ")
     rel = abs(volume(P, F) - volume_target) / abs(volume_target)
     if rel > tol.volume:

@@ -37,6 +37,7 @@ from ..contact import (
     SideReference,
     contact_candidates,
     push_out,
+    rings,
     vertex_faces,
 )
 from ..coordinates import mean_value_coordinates, rows_dot
@@ -479,7 +480,8 @@ class Deformer:
     anchors : (k,) int array_like, optional
         Fine vertices held at their rest positions by a soft condition
         ``w_a W_a x = w_a V_a`` (rows of ``A`` like the skeleton's; weight
-        ``defaults.anchor_weight * sqrt(m / k)``).
+        ``defaults.anchor_weight * sqrt(m / k)``, feathered toward the rim of the
+        anchors' patch over ``defaults.anchor_feather`` rings).
     """
 
     def __init__(
@@ -513,16 +515,22 @@ class Deformer:
         self.anchors = np.zeros(0, dtype=np.int64)
         self._anchor_rhs = np.zeros((m, 3))
         self._anchor_W = np.zeros((0, m))
+        self._anchor_V = np.zeros((0, 3))
         if anchors is not None and len(np.atleast_1d(anchors)):
             a = np.unique(np.asarray(anchors, dtype=np.int64).ravel())
             if a.min() < 0 or a.max() >= len(muscle.V):
                 raise ValueError(f"anchors must index the {len(muscle.V)} fine vertices")
             self.anchors = a
-            self._anchor_W = muscle.W[a]
+            # feathered: full weight from defaults.anchor_feather rings into the patch on,
+            # less toward its rim (a patch held at full weight to its rim creases the
+            # muscle there where the rest of it bends far: the iliacus past 90 deg)
+            feather = _feather(muscle, a, defaults.anchor_feather)
+            self._anchor_W = feather[:, None] * muscle.W[a]
+            self._anchor_V = feather[:, None] * muscle.V[a]
             self.anchor_weight = defaults.anchor_weight * np.sqrt(m / len(a))
             w2 = self.anchor_weight**2
             self.H = self.H + w2 * (self._anchor_W.T @ self._anchor_W)
-            self._anchor_rhs = w2 * (self._anchor_W.T @ muscle.V[a])
+            self._anchor_rhs = w2 * (self._anchor_W.T @ self._anchor_V)
         # explicit inverse for the 3-column solves of the per-pose loop (cond(H) ~ 1e5)
         chol = cho_factor(self.H, lower=False, check_finite=False)
         self._Hinv = cho_solve(chol, np.eye(m), check_finite=False)
@@ -635,7 +643,7 @@ class Deformer:
             self.weight**2,
         )
         if len(self.anchors):
-            r = self._anchor_W @ x - self.muscle.V[self.anchors]
+            r = self._anchor_W @ x - self._anchor_V
             e += self.anchor_weight**2 * float(np.sum(r * r))
         return float(e), Sx
 
@@ -1096,6 +1104,17 @@ class Deformer:
                 return x, lam, its, True
             damp = damp / 4.0 if damp > 1e-3 else 0.0
         return x, lam, budget, False
+
+
+def _feather(muscle: Muscle, anchors: IntArray, depth: int) -> FloatArray:
+    """Per anchor, ``min(1, k / depth)`` for an anchor ``k`` rings from the nearest other vertex."""
+    if depth <= 0:
+        return np.ones(len(anchors))
+    others = np.setdiff1d(np.arange(len(muscle.V)), anchors)
+    if not len(others):
+        return np.ones(len(anchors))
+    level = rings(muscle.adjacency, others, depth)
+    return np.minimum(level[anchors] / depth, 1.0)
 
 
 def _kkt_step(M: FloatArray, g: FloatArray, rhs: FloatArray) -> FloatArray:
