@@ -15,7 +15,7 @@ from ._near import Near
 from ._obstacle import Obstacle, bone_surface, pseudo_normals, signed_from_closest
 from ._placed import Placed
 from ._rest import anchors_at_rest, attachment_patches, kept_allowance, rest_push_out
-from ._sides import SideReference, on_their_side
+from ._sides import SideReference, on_their_side, passed_through
 
 __all__ = [
     "ContactReport",
@@ -32,6 +32,7 @@ __all__ = [
     "kept_allowance",
     "line_inside_depth",
     "on_their_side",
+    "passed_through",
     "pseudo_normals",
     "push_out",
     "rest_push_out",

@@ -14,7 +14,7 @@ from ..mesh import MeshError, check_mesh, repair_mesh, tidy_mesh
 __all__ = ["Obstacle", "bone_surface"]
 
 #: version of the stored grid; part of the cache key
-_FORMAT = 1
+_FORMAT = 2  # 2: a band of at least four cells
 
 
 def bone_surface(
@@ -145,7 +145,7 @@ class Obstacle:
     A grid of spacing ``h`` over the bone's bounding box holds, for each node,
     an interval for the signed distance: exact (both ends equal) near the
     surface (the "band": nodes within ``k`` cells of a cell holding a bone
-    vertex) and inside; ``[far, inf)`` outside off the band, where ``far > 0``
+    vertex, ``k`` at least 4) and inside; ``[far, inf)`` outside off the band, where ``far > 0``
     follows from ``k`` and the longest edge (every point of a triangle is
     within longest-edge/sqrt(3) of a vertex). The side of the regions off the
     band comes from generalized winding numbers (Jacobson et al. 2013),
@@ -201,6 +201,9 @@ class Obstacle:
         slack = float(L.max() / np.sqrt(3.0))
         reach = h * np.sqrt(3.0) / 2.0
         k = int(np.ceil((slack + reach) / h - 0.5 + 1e-3))
+        # exact values at least four cells out: the bounds are tight where contact looks
+        # (a muscle's vertices near a bone, and where they were on the way: SideReference)
+        k = max(k, int(np.ceil(3.5 + slack / h)))
         far = (k + 0.5) * h - slack  # non-band nodes are at least this far from the surface
         shape = np.ceil(ext / h).astype(np.int64) + 1
         occupied = np.zeros(tuple(shape), dtype=bool)
@@ -556,35 +559,14 @@ class Obstacle:
         G : (j, 3) float64 array
             Unit gradients (outward).
         """
-        Q = np.asarray(Q, dtype=np.float64)
-        box = np.flatnonzero(((Q >= self.lo) & (Q <= self.hi)).all(axis=1))
-        if not len(box):
-            return box, np.zeros(0), np.zeros((0, 3))
-        U = (Q[box] - self.lo) / self.h
-        base = np.clip(U.astype(np.int64), 0, self._shape - 2)
-        f = U - base
-        flat = self._corner_offsets[:, None] + (base @ self._strides)[None, :]
-        vals = self._lo_sd[flat].astype(np.float64)  # (8, k), corner bits (i, j, l)
-        exact = np.isfinite(self._hi_sd[flat]).all(axis=0)
-        v = vals.reshape(2, 2, 2, -1)
-        fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
-        # trilinear value and its derivatives
-        c00 = v[0, 0, 0] * (1 - fz) + v[0, 0, 1] * fz
-        c01 = v[0, 1, 0] * (1 - fz) + v[0, 1, 1] * fz
-        c10 = v[1, 0, 0] * (1 - fz) + v[1, 0, 1] * fz
-        c11 = v[1, 1, 0] * (1 - fz) + v[1, 1, 1] * fz
-        c0 = c00 * (1 - fy) + c01 * fy
-        c1 = c10 * (1 - fy) + c11 * fy
-        phi = c0 * (1 - fx) + c1 * fx
-        gx = c1 - c0
-        gy = (c01 - c00) * (1 - fx) + (c11 - c10) * fx
-        dz = [v[i, j, 1] - v[i, j, 0] for i in (0, 1) for j in (0, 1)]
-        gz = (dz[0] * (1 - fy) + dz[1] * fy) * (1 - fx) + (dz[2] * (1 - fy) + dz[3] * fy) * fx
-        G = np.stack([gx, gy, gz], axis=1)
-        norm = np.linalg.norm(G, axis=1)
-        keep = exact & (phi < reach) & (norm > 0)
-        G = G[keep] / norm[keep, None]
-        return box[keep], phi[keep], G
+        Q = np.ascontiguousarray(Q, dtype=np.float64).reshape(-1, 3)
+        index = np.empty(len(Q), dtype=np.int64)
+        phi = np.empty(len(Q))
+        G = np.empty((len(Q), 3))
+        k = _interpolate_kernel(
+            Q, self.lo, self.h, self._shape, self._lo_sd, self._hi_sd, float(reach), index, phi, G
+        )
+        return index[:k], phi[:k], G[:k]
 
     def query(
         self, Q: FloatArray, reach: float | FloatArray, lower: FloatArray | None = None
@@ -713,6 +695,60 @@ def _bound_at(x, y, z, lo, h, shape, lo_sd, hi_sd):  # noqa: ANN001, ANN202 # pr
 def _bounds_kernel(P, lo, h, shape, lo_sd, hi_sd, lower, upper):  # noqa: ANN001, ANN202 # pragma: no cover
     for i in range(P.shape[0]):
         lower[i], upper[i] = _bound_at(P[i, 0], P[i, 1], P[i, 2], lo, h, shape, lo_sd, hi_sd)
+
+
+@numba.njit(cache=True)
+def _interpolate_kernel(Q, lo, h, shape, lo_sd, hi_sd, reach, index, phi, G):  # noqa: ANN001, ANN202 # pragma: no cover
+    # per point in the grid's box whose cell has exact values at its eight corners: the
+    # trilinear value and its gradient (unit); kept where below reach; returns how many
+    s0, s1 = shape[1] * shape[2], shape[2]
+    k = 0
+    for i in range(Q.shape[0]):
+        inside = True
+        for a in range(3):
+            if not (lo[a] <= Q[i, a] <= lo[a] + h * (shape[a] - 1)):
+                inside = False
+        if not inside:
+            continue
+        u0, u1, u2 = (Q[i, 0] - lo[0]) / h, (Q[i, 1] - lo[1]) / h, (Q[i, 2] - lo[2]) / h
+        b0 = min(max(int(u0), 0), shape[0] - 2)
+        b1 = min(max(int(u1), 0), shape[1] - 2)
+        b2 = min(max(int(u2), 0), shape[2] - 2)
+        fx, fy, fz = u0 - b0, u1 - b1, u2 - b2
+        base = b0 * s0 + b1 * s1 + b2
+        exact = True
+        v = np.empty(8)  # corner bits (i, j, l) in that order
+        for c in range(8):
+            ci, cj, cl = c >> 2, (c >> 1) & 1, c & 1
+            kk = base + ci * s0 + cj * s1 + cl
+            if not np.isfinite(hi_sd[kk]):
+                exact = False
+                break
+            v[c] = lo_sd[kk]
+        if not exact:
+            continue
+        c00 = v[0] * (1 - fz) + v[1] * fz
+        c01 = v[2] * (1 - fz) + v[3] * fz
+        c10 = v[4] * (1 - fz) + v[5] * fz
+        c11 = v[6] * (1 - fz) + v[7] * fz
+        c0 = c00 * (1 - fy) + c01 * fy
+        c1 = c10 * (1 - fy) + c11 * fy
+        p = c0 * (1 - fx) + c1 * fx
+        if not p < reach:
+            continue
+        gx = c1 - c0
+        gy = (c01 - c00) * (1 - fx) + (c11 - c10) * fx
+        gz = ((v[1] - v[0]) * (1 - fy) + (v[3] - v[2]) * fy) * (1 - fx) + (
+            (v[5] - v[4]) * (1 - fy) + (v[7] - v[6]) * fy
+        ) * fx
+        norm = np.sqrt(gx * gx + gy * gy + gz * gz)
+        if not norm > 0:
+            continue
+        index[k] = i
+        phi[k] = p
+        G[k, 0], G[k, 1], G[k, 2] = gx / norm, gy / norm, gz / norm
+        k += 1
+    return k
 
 
 @numba.njit(cache=True)

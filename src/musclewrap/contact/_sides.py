@@ -22,7 +22,7 @@ import numpy.typing as npt
 from .._typing import FloatArray, IntArray
 from ._placed import Placed
 
-__all__ = ["SideReference", "on_their_side"]
+__all__ = ["SideReference", "on_their_side", "passed_through"]
 
 
 class SideReference:
@@ -68,6 +68,12 @@ class SideReference:
         self._kept: list[tuple[npt.NDArray[np.bool_], FloatArray, FloatArray] | None] = [
             None for _ in self.placed
         ]
+        self._lower: list[FloatArray | None] = [None for _ in self.placed]
+        self._all: FloatArray | None = None  # every vertex then (muscle frame), when needed
+        self._frames: list[FloatArray | None] = [None for _ in self.placed]
+        self._approach: dict[
+            tuple[int, float], tuple[IntArray, FloatArray, FloatArray, FloatArray]
+        ] = {}
 
     def at(self, b: int, rows: IntArray) -> tuple[FloatArray, FloatArray]:
         """Positions and outward directions of vertices ``rows`` against obstacle ``b`` then.
@@ -92,6 +98,82 @@ class SideReference:
             direction[todo] = N
             known[todo] = True
         return pos[rows], direction[rows]
+
+    def positions(self, b: int, rows: IntArray) -> FloatArray:
+        """Positions of vertices ``rows`` then, in obstacle ``b``'s frame."""
+        if self._frames[b] is None:
+            if self._all is None:
+                self._all = self._rows(np.arange(self.n))
+            self._frames[b] = np.ascontiguousarray(self.placed[b].to_obstacle(self._all))
+        Q = self._frames[b]
+        assert Q is not None
+        return Q[rows]
+
+    def were_near(self, b: int, reach: float) -> tuple[IntArray, FloatArray]:
+        """The vertices that may have been within ``reach`` of obstacle ``b`` then.
+
+        By the grid's lower bounds of their signed distance then (computed once
+        per obstacle). Returns their rows and those bounds.
+        """
+        if self._lower[b] is None:
+            Q = self.positions(b, np.arange(self.n))
+            self._lower[b] = self.placed[b].obstacle.bounds(Q)[0]
+        lower = self._lower[b]
+        assert lower is not None
+        rows = np.flatnonzero(lower < reach)
+        return rows, lower[rows]
+
+    def approaching(self, b: int, P: FloatArray, reach: float, thickness: float = 0.0) -> IntArray:
+        """The vertices ``P`` (now, muscle frame) that may have come through obstacle ``b``.
+
+        Those that may have been within ``reach`` of it then (`were_near`) and have
+        moved toward it, against its outward direction then (the grid's gradient
+        there), by more than their distance from it then and ``thickness``: a
+        vertex that lifted off, or slid along it, cannot have come through a part of
+        it at least that thick. Cheap: what depends only on then is kept per
+        obstacle and reach.
+        """
+        key = (b, float(reach))
+        if key not in self._approach:
+            rows, lower = self.were_near(b, reach)
+            ref_q = self.positions(b, rows)
+            got, _, ref_d = self.placed[b].obstacle.interpolate(ref_q, reach)
+            self._approach[key] = (rows[got], lower[got], ref_q[got], ref_d)
+        rows, lower, ref_q, ref_d = self._approach[key]
+        if not len(rows):
+            return rows
+        Q = self.placed[b].to_obstacle(P[rows])
+        return rows[np.einsum("ij,ij->i", Q - ref_q, ref_d) < -lower - thickness]
+
+
+def passed_through(
+    pl: Placed,
+    reference: SideReference,
+    b: int,
+    P: FloatArray,
+    handled: IntArray,
+    reach: float,
+    thickness: float = 0.0,
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """Vertices that came through obstacle ``b`` and have left it on its far side.
+
+    Of the vertices ``P`` (all, muscle frame) that may have come through the
+    obstacle since ``reference`` (`SideReference.approaching`: they were within
+    ``reach`` of it then and moved toward it by more than their distance and
+    ``thickness``, the thinnest part of it that counts) and
+    are not ``handled`` already (the ones near it now), those whose straight way
+    from then to now enters it (`on_their_side`). Returns their rows, their
+    signed distance from the tangent plane where they entered (negative: beyond
+    it) and its outward direction, in the obstacle's frame.
+    """
+    rows = reference.approaching(b, P, reach, thickness)
+    rows = rows[~np.isin(rows, handled)]
+    if not len(rows):
+        return rows, np.zeros(0), np.zeros((0, 3))
+    Q = np.ascontiguousarray(pl.to_obstacle(P[rows]))
+    phi, C, N = pl.obstacle.signed(Q)
+    phi, _, N, turned = on_their_side(pl, reference, b, rows, Q, phi, C, N)
+    return rows[turned], phi[turned], N[turned]
 
 
 def on_their_side(

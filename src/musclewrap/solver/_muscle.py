@@ -853,11 +853,21 @@ class Deformer:
         slack = tol.contact * edge
         band = defaults.contact_band * edge
         before = 0.0
-        if near.deepest() < edge:
-            # no vertex can be a mean edge too near (the grid's bounds): nothing for the cage
+        if near.deepest() < edge and (
+            sides is None
+            or not any(
+                len(sides.approaching(b, V, margin + band, 0.25 * band)) for b in range(len(placed))
+            )
+        ):
+            # no vertex can be a mean edge too near (the grid's bounds), nor have come
+            # through a thin bone (past it, not near it, yet on the wrong side): nothing
+            # for the cage
             return x, V, before
         # the deepest vertex inside an obstacle as the solve left it (exact)
-        before = max(pl.obstacle.measure(pl.to_obstacle(V))[1] for pl in placed)
+        before = max(
+            pl.obstacle.measure(pl.to_obstacle(V[near.within(b, V, -near.allowed[b])]))[1]
+            for b, pl in enumerate(placed)
+        )
         for _ in range(defaults.contact_cage_steps):
             idx, gap, N = contact_candidates(V, placed, margin, band, near, sides)
             if not len(idx) or gap.min() >= -defaults.contact_cage_depth * edge:
