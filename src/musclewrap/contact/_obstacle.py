@@ -415,20 +415,9 @@ class Obstacle:
         about ``1 / R``.
         """
         if getattr(self, "_convexity", None) is None:
-            VN = self._normals[1]
-            N = VN / np.maximum(np.linalg.norm(VN, axis=1), 1e-300)[:, None]
-            E = np.unique(
-                np.sort(self.F[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0
-            )
             k = np.zeros(len(self.V))
-            for v, w in ((E[:, 0], E[:, 1]), (E[:, 1], E[:, 0])):
-                d = self.V[w] - self.V[v]
-                kk = (
-                    -2.0
-                    * np.einsum("ij,ij->i", N[v], d)
-                    / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-                )
-                np.maximum.at(k, v, kk)
+            ip, ix = self.adjacency
+            _convexity_kernel(self.V, np.ascontiguousarray(self._normals[1]), ip, ix, k)
             self._convexity = k
         return self._convexity
 
@@ -695,6 +684,26 @@ def _bound_at(x, y, z, lo, h, shape, lo_sd, hi_sd):  # noqa: ANN001, ANN202 # pr
 def _bounds_kernel(P, lo, h, shape, lo_sd, hi_sd, lower, upper):  # noqa: ANN001, ANN202 # pragma: no cover
     for i in range(P.shape[0]):
         lower[i], upper[i] = _bound_at(P[i, 0], P[i, 1], P[i, 2], lo, h, shape, lo_sd, hi_sd)
+
+
+@numba.njit(cache=True)
+def _convexity_kernel(V, VN, ip, ix, k):  # noqa: ANN001, ANN202 # pragma: no cover
+    # per vertex: the largest -2 n . d / |d|^2 over its neighbours (0 when none is below
+    # its tangent plane; a vertex without a normal, as of a degenerate fan, gets 0)
+    for v in range(V.shape[0]):
+        n0, n1, n2 = VN[v, 0], VN[v, 1], VN[v, 2]
+        r = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if not r > 0:
+            continue
+        n0, n1, n2 = n0 / r, n1 / r, n2 / r
+        best = 0.0
+        for p in range(ip[v], ip[v + 1]):
+            w = ix[p]
+            d0, d1, d2 = V[w, 0] - V[v, 0], V[w, 1] - V[v, 1], V[w, 2] - V[v, 2]
+            dd = d0 * d0 + d1 * d1 + d2 * d2
+            if dd > 0:
+                best = max(best, -2.0 * (n0 * d0 + n1 * d1 + n2 * d2) / dd)
+        k[v] = best
 
 
 @numba.njit(cache=True)
