@@ -316,7 +316,7 @@ class Obstacle:
     _signed = signed
 
     def first_entry(
-        self, A: FloatArray, B: FloatArray, *, tol: float = 1e-6
+        self, A: FloatArray, B: FloatArray, *, tol: float = 1e-3
     ) -> tuple[npt.NDArray[np.bool_], FloatArray, FloatArray]:
         """Where each straight way ``A -> B`` first enters the obstacle (continuous test).
 
@@ -377,10 +377,16 @@ class Obstacle:
             todo, t_in, t_out = todo[maybe], t_in[maybe], t_out[maybe]
             if not len(todo):
                 break
-            # near the surface the bounds are loose: the exact side at 32 steps at once
+            # near the surface the bounds are loose: the side at 32 steps at once, by the
+            # bounds where they decide it, else exactly
             T = np.minimum(t_in[:, None] + samples[None, :] * (step / length[todo])[:, None], 1.0)
-            P = A[todo, None, :] + T[:, :, None] * D_ab[todo, None, :]
-            phi = self.signed(P.reshape(-1, 3))[0].reshape(T.shape)
+            P = (A[todo, None, :] + T[:, :, None] * D_ab[todo, None, :]).reshape(-1, 3)
+            lower, upper = self.bounds(P)
+            phi = np.where(upper < 0, upper, lower)
+            unsure = np.flatnonzero((lower <= 0) & (upper >= 0))
+            if len(unsure):
+                phi[unsure] = self.signed(P[unsure])[0]
+            phi = phi.reshape(T.shape)
             inside = phi < 0
             got = inside.any(axis=1)
             j = np.argmax(inside, axis=1)

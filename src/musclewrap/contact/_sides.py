@@ -42,10 +42,10 @@ class SideReference:
 
     Notes
     -----
-    Per obstacle and vertex, the position in the obstacle's frame and the
-    outward direction of its closest point on the obstacle are computed once,
-    when first asked for (`at`), and kept: every pose that takes its sides from
-    this state asks for much the same vertices.
+    Per obstacle, every vertex's position in the obstacle's frame, and per vertex
+    the outward direction of the obstacle there, are computed once, when first
+    asked for (`at`), and kept: every pose that takes its sides from this state
+    asks for much the same vertices.
     """
 
     def __init__(
@@ -64,8 +64,8 @@ class SideReference:
             self._rows = lambda rows: P[rows]
         self.n = int(n)
         self.placed = tuple(placed)
-        # per obstacle, made when first asked for: known, positions, directions
-        self._kept: list[tuple[npt.NDArray[np.bool_], FloatArray, FloatArray] | None] = [
+        # per obstacle, made when first asked for: known, directions
+        self._kept: list[tuple[npt.NDArray[np.bool_], FloatArray] | None] = [
             None for _ in self.placed
         ]
         self._lower: list[FloatArray | None] = [None for _ in self.placed]
@@ -80,24 +80,27 @@ class SideReference:
 
         Both in the obstacle's own frame: the position of each vertex in that
         state and the unit direction from its closest point on the obstacle to
-        it (the pseudo-normal where it lies on the surface).
+        it: the grid's gradient where the grid holds exact values around it (near
+        the obstacle), else the closest point's (an exact query; the pseudo-normal
+        where it lies on the surface).
         """
         rows = np.asarray(rows, dtype=np.int64)
         kept = self._kept[b]
         if kept is None:
-            kept = self._kept[b] = (
-                np.zeros(self.n, dtype=bool), np.empty((self.n, 3)), np.empty((self.n, 3))
-            )  # fmt: skip
-        known, pos, direction = kept
+            kept = self._kept[b] = (np.zeros(self.n, dtype=bool), np.empty((self.n, 3)))
+        known, direction = kept
         todo = np.unique(rows[~known[rows]])
         if len(todo):
-            pl = self.placed[b]
-            Q = np.ascontiguousarray(pl.to_obstacle(self._rows(todo)))
-            _, _, N = pl.obstacle.signed(Q)
-            pos[todo] = Q
-            direction[todo] = N
+            ob = self.placed[b].obstacle
+            Q = self.positions(b, todo)
+            got, _, G = ob.interpolate(Q, np.inf)
+            direction[todo[got]] = G
+            rest = np.ones(len(todo), dtype=bool)
+            rest[got] = False
+            if rest.any():
+                direction[todo[rest]] = ob.signed(Q[rest])[2]
             known[todo] = True
-        return pos[rows], direction[rows]
+        return self.positions(b, rows), direction[rows]
 
     def positions(self, b: int, rows: IntArray) -> FloatArray:
         """Positions of vertices ``rows`` then, in obstacle ``b``'s frame."""

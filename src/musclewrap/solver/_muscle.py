@@ -882,10 +882,12 @@ class Deformer:
             # the conditions conflict (a muscle squeezed between two bones) the least-energy
             # step can be several times longer, and the fine finish does better there
             need = float(-gap.min())
-            longest = float(np.linalg.norm(mu.W[idx] @ dx, axis=1).max())
-            if longest > defaults.contact_cage_reach * need:
-                dx = dx * (defaults.contact_cage_reach * need / longest)
             D = rows_dot(mu.W, np.hstack([dx, Hg]))
+            longest = float(np.linalg.norm(D[idx, :3], axis=1).max())
+            if longest > defaults.contact_cage_reach * need:
+                scale = defaults.contact_cage_reach * need / longest
+                dx = dx * scale
+                D[:, :3] *= scale
             P = V + D[:, :3]
             cP = mean_rows(P)
             t = cubic_root_near(volume_cubic(P - cP, -D[:, 3:], mu.F), mu.volume_rest, 0.0)
