@@ -273,9 +273,6 @@ def test_a_capsule_bent_over_a_sphere_as_its_line_swings_past(capsule_muscle):
     r = np.linalg.norm(res.V - [0.0, 30.0, 100.0], axis=1)
     assert r.min() >= 8.0 - 0.05  # no muscle vertex in the ball (its polygon's radius)
     assert d.muscle.shape_change(res.V).max() <= 0.5
-    # out the nearest way, the surface creases where it meets the ball
-    near = _swing(d, Obstacle(S, SF), [10.0, 20.0, 30.0, 40.0, 50.0, 60.0], (0.0, 1.0, 0.0), False)
-    assert d.muscle.shape_change(near.V).max() > 1.0
 
 
 def test_a_capsule_bent_over_a_box_edge(capsule_muscle):

@@ -149,6 +149,10 @@ class Defaults:
     contact_cage_depth : float
         The cage's contact steps stop once no vertex is more than this many
         mean edge lengths too near an obstacle (the fine finish takes the rest).
+    contact_cage_bone_passes : int
+        How many times the cage's steps look for the obstacles' vertices standing
+        in the muscle (once its vertices are out) and take them out as conditions on
+        its triangles (0: only the fine finish does).
     contact_bone_depth : float
         An obstacle vertex inside the muscle deeper than the margin plus this
         many mean edge lengths pushes the muscle's nearest triangle past it;
@@ -190,6 +194,7 @@ class Defaults:
     path_step: float = 10.0
     path_step_translation: float = 20.0
     contact_cage_depth: float = 0.5
+    contact_cage_bone_passes: int = 1
     contact_bone_depth: float = 0.1
     contact_band: float = 2.0
     contact_softness: float = 0.1

@@ -277,6 +277,8 @@ def _with_bone_vertices(
     for b, pl in enumerate(placed):
         if found is None:
             B, C, fi, dist, _ = _bone_vertices_in_muscle(P, F, pl, depth)
+        elif pl.allowance is not None:
+            continue  # a kept rest overlap: the bone may stand in the muscle as it did
         else:
             deep = found[b].depth > depth
             B, C, fi, dist = (

@@ -35,6 +35,7 @@ from ..contact import (
     Obstacle,
     Placed,
     SideReference,
+    bone_vertices_inside,
     contact_candidates,
     push_out,
     rings,
@@ -43,6 +44,7 @@ from ..contact import (
 from ..coordinates import mean_value_coordinates, rows_dot
 from ..mesh import (
     atomic_path,
+    barycentric,
     check_memory,
     check_mesh,
     clean_mesh,
@@ -868,23 +870,39 @@ class Deformer:
             pl.obstacle.measure(pl.to_obstacle(V[near.within(b, V, -near.allowed[b])]))[1]
             for b, pl in enumerate(placed)
         )
+        inside_pass = 0
+        points = None
         for _ in range(defaults.contact_cage_steps):
             idx, gap, N = contact_candidates(V, placed, margin, band, near, sides)
-            if not len(idx) or gap.min() >= -defaults.contact_cage_depth * edge:
+            deep = len(idx) and gap.min() < -defaults.contact_cage_depth * edge
+            if not deep and inside_pass < defaults.contact_cage_bone_passes:
+                # the muscle's vertices are out (to half an edge): the bones' vertices that
+                # stand in it (a spur between its vertices) as conditions on its triangles,
+                # for the cage to move the region round them, not the finish to tent it
+                inside_pass += 1
+                points = self._bone_points(V, placed, margin, near, edge)
+            if not deep and points is None:
                 break
             c = mean_rows(x)
             g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
             Hg = self._Hinv @ g
-            dx = cage_push(mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack)
+            dx = cage_push(
+                mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points
+            )
             if not np.abs(dx).max() > 0:
                 break
             # no vertex near the contact moves much further than the deepest one must: where
             # the conditions conflict (a muscle squeezed between two bones) the least-energy
             # step can be several times longer, and the fine finish does better there
-            need = float(-gap.min())
+            need = float(max(-gap.min(initial=0.0), 0.0))
             D = rows_dot(mu.W, np.hstack([dx, Hg]))
-            longest = float(np.linalg.norm(D[idx, :3], axis=1).max())
-            if longest > defaults.contact_cage_reach * need:
+            moves = [np.linalg.norm(D[idx, :3], axis=1).max(initial=0.0)]
+            if points is not None:
+                need = max(need, float(-points[1].min()))
+                moves.append(np.linalg.norm(points[0] @ dx, axis=1).max())
+            points = None
+            longest = float(max(moves))
+            if need > 0 and longest > defaults.contact_cage_reach * need:
                 scale = defaults.contact_cage_reach * need / longest
                 dx = dx * scale
                 D[:, :3] *= scale
@@ -896,6 +914,40 @@ class Deformer:
             x = x + dx - t * Hg
             V = P - t * D[:, 3:]
         return x, V, before
+
+    def _bone_points(
+        self, V: FloatArray, placed: Sequence[Placed], margin: float, near: Near, edge: float
+    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """Conditions that take the obstacles' vertices standing in the muscle out of it.
+
+        `musclewrap.contact.bone_vertices_inside` on the positions ``V``: each one
+        deeper than the margin plus ``defaults.contact_bone_depth`` mean edges gives
+        a condition on the muscle's nearest point (its triangle's vertices' rows of
+        ``W``, weighted by the point's barycentric coordinates): past the obstacle's
+        vertex along the way from it to the point. None where there are none.
+        """
+        mu = self.muscle
+        A = mu.adjacency
+        deep = margin + defaults.contact_bone_depth * edge
+        found = bone_vertices_inside(
+            V, mu.F, placed, near, edge=edge, faces=mu.vertex_faces, deep=deep,
+            adjacency=(A.indptr.astype(np.int64), A.indices.astype(np.int64)),
+        )  # fmt: skip
+        rows, gaps, dirs = [], [], []
+        for pl, f in zip(placed, found, strict=True):
+            keep = f.depth > deep
+            if pl.allowance is not None or not keep.any():
+                continue  # a kept rest overlap: the bone may stand in the muscle as it did
+            B, C, fi, d = f.B[keep], f.C[keep], f.face[keep], f.depth[keep]
+            tri = mu.F[fi]
+            w = np.clip(barycentric(C, V[tri]), 0.0, None)
+            w /= w.sum(axis=1, keepdims=True)
+            rows.append(np.einsum("ij,ijk->ik", w, mu.W[tri]))
+            dirs.append((B - C) / np.maximum(d, 1e-300)[:, None])
+            gaps.append(-(d + margin))
+        if not rows:
+            return None
+        return np.vstack(rows), np.concatenate(gaps), np.vstack(dirs)
 
     def _result(
         self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact=None

@@ -22,6 +22,7 @@ def cage_push(
     *,
     slack: float,
     max_sets: int = 4,
+    points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
 ) -> FloatArray:
     """The cage displacement of least energy that takes fine vertices off the obstacles.
 
@@ -48,6 +49,13 @@ def cage_push(
         A group per fine vertex (its dominant cage vertex).
     slack : float
         How far beyond the margin the active vertices are taken.
+    points : (Wp, gap, N), optional
+        Conditions on points of the surface other than its vertices, each a row
+        of coordinates ``Wp`` (k, m) (a point of a triangle: its vertices' rows
+        weighted by its barycentric coordinates), its gap and its direction:
+        ``n . (Wp dx) >= slack - gap`` (where an obstacle's vertex stands inside
+        the muscle, the muscle's nearest point goes past it). All of them, after
+        the vertices' one per group.
 
     Returns
     -------
@@ -55,7 +63,8 @@ def cage_push(
         ``dx`` (zeros when no vertex is too near).
     """
     m = Hinv.shape[0]
-    if not len(idx) or gap.min() >= 0:
+    extra = points is not None and len(points[0]) > 0
+    if (not len(idx) or gap.min() >= 0) and not extra:
         return np.zeros((m, 3))
     # one candidate per group: the nearest (most negative gap)
     order = np.lexsort((gap, group[idx]))
@@ -64,6 +73,12 @@ def cage_push(
     pool = order[first]
     rows, r, Nn = idx[pool], slack - gap[pool], N[pool]
     Wr = W[rows]
+    if extra:
+        assert points is not None
+        Wp, gp, Np = points
+        Wr = np.vstack([Wr, Wp])
+        r = np.concatenate([r, slack - gp])
+        Nn = np.vstack([Nn, Np])
     Y = Wr @ Hinv  # (k, m): W_i H^-1
     G = (Y @ Wr.T) * (Nn @ Nn.T)
     c = np.einsum("ij,ij->i", Nn, Wr @ Hg)
