@@ -193,7 +193,7 @@ class Defaults:
     contact_cage_steps: int = 6
     path_step: float = 10.0
     path_step_translation: float = 20.0
-    contact_cage_depth: float = 0.5
+    contact_cage_depth: float = 0.25
     contact_cage_bone_passes: int = 1
     contact_bone_depth: float = 0.1
     contact_band: float = 2.0

@@ -328,6 +328,7 @@ def push_out(
     near: Near | None = None,
     faces: tuple[IntArray, IntArray] | None = None,
     sides: SideReference | None = None,
+    inside: list[Inside] | None = None,
 ) -> tuple[FloatArray, ContactReport]:
     """Move a muscle's vertices out of obstacles, keeping its volume exact.
 
@@ -377,6 +378,10 @@ def push_out(
         An earlier state of the muscle on its path: a vertex that has come
         through an obstacle since goes back out on the side where it entered,
         not the nearest (`musclewrap.contact.on_their_side`).
+    inside : list of Inside, optional
+        The obstacles' vertices inside the muscle at ``V`` where the caller has
+        looked already (``bone_vertices="near"``, with the same ``near``, margin
+        and edge): not looked for again before the first round.
 
     Returns
     -------
@@ -419,7 +424,7 @@ def push_out(
             )
 
         if not len(hit):
-            found = bones_inside(V)
+            found = bones_inside(V) if inside is None else inside
             hit, target, gap = _with_bone_vertices(
                 V, F, placed, margin, slack, hit, target, gap, found
             )

@@ -31,6 +31,7 @@ from ..conditions import (
 )
 from ..constants import defaults, tol
 from ..contact import (
+    Inside,
     Near,
     Obstacle,
     Placed,
@@ -810,7 +811,7 @@ class Deformer:
             if obstacles and np.isfinite(V).all():
                 placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
                 near = Near(V, placed, margin)
-                x, V, before = self._cage_contact(x, V, placed, margin, near, sides)
+                x, V, before, inside = self._cage_contact(x, V, placed, margin, near, sides)
             if obstacles and np.isfinite(V).all() and finish:
                 V, contact = push_out(
                     V,
@@ -824,6 +825,7 @@ class Deformer:
                     bone_vertices="near",
                     faces=self.muscle.vertex_faces,
                     sides=sides,
+                    inside=inside,
                 )
                 contact = dataclasses.replace(
                     contact, depth_before=max(before, contact.depth_before)
@@ -841,14 +843,17 @@ class Deformer:
         margin: float,
         near: Near,
         sides: SideReference | None = None,
-    ) -> tuple[FloatArray, FloatArray, float]:
+    ) -> tuple[FloatArray, FloatArray, float, list[Inside] | None]:
         """Move the cage so that the fine vertices leave the obstacles (`cage_push`).
 
-        Repeated on the new positions while a vertex is more than a mean fine edge
-        too near; each step ends on the exact fine volume (a cubic along
-        ``-H^-1 g``). What remains is left to the fine finish (`push_out`).
-        Returns the cage, the fine positions and the deepest vertex inside an
-        obstacle before the first step.
+        Repeated on the new positions while a vertex is more than
+        ``defaults.contact_cage_depth`` mean fine edges too near; then once with
+        the obstacles' vertices standing in the muscle (`_bone_points`); each step
+        ends on the exact fine volume (a cubic along ``-H^-1 g``). What remains is
+        left to the fine finish (`push_out`). Returns the cage, the fine
+        positions, the deepest vertex inside an obstacle before the first step,
+        and the obstacles' vertices inside the muscle at the returned positions
+        where they were looked for there (None otherwise).
         """
         mu = self.muscle
         edge = self._fine_edge
@@ -864,7 +869,7 @@ class Deformer:
             # no vertex can be a mean edge too near (the grid's bounds), nor have come
             # through a thin bone (past it, not near it, yet on the wrong side): nothing
             # for the cage
-            return x, V, before
+            return x, V, before, None
         # the deepest vertex inside an obstacle as the solve left it (exact)
         before = max(
             pl.obstacle.measure(pl.to_obstacle(V[near.within(b, V, -near.allowed[b])]))[1]
@@ -872,6 +877,7 @@ class Deformer:
         )
         inside_pass = 0
         points = None
+        found: tuple[FloatArray, list[Inside]] | None = None  # positions, bones inside there
         for _ in range(defaults.contact_cage_steps):
             idx, gap, N = contact_candidates(V, placed, margin, band, near, sides)
             deep = len(idx) and gap.min() < -defaults.contact_cage_depth * edge
@@ -880,7 +886,8 @@ class Deformer:
                 # stand in it (a spur between its vertices) as conditions on its triangles,
                 # for the cage to move the region round them, not the finish to tent it
                 inside_pass += 1
-                points = self._bone_points(V, placed, margin, near, edge)
+                points, inside = self._bone_points(V, placed, margin, near, edge)
+                found = (V, inside)
             if not deep and points is None:
                 break
             c = mean_rows(x)
@@ -913,18 +920,20 @@ class Deformer:
                 break
             x = x + dx - t * Hg
             V = P - t * D[:, 3:]
-        return x, V, before
+        # the finish need not look again where nothing moved since
+        return x, V, before, (found[1] if found is not None and found[0] is V else None)
 
     def _bone_points(
         self, V: FloatArray, placed: Sequence[Placed], margin: float, near: Near, edge: float
-    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    ) -> tuple[tuple[FloatArray, FloatArray, FloatArray] | None, list[Inside]]:
         """Conditions that take the obstacles' vertices standing in the muscle out of it.
 
         `musclewrap.contact.bone_vertices_inside` on the positions ``V``: each one
         deeper than the margin plus ``defaults.contact_bone_depth`` mean edges gives
         a condition on the muscle's nearest point (its triangle's vertices' rows of
         ``W``, weighted by the point's barycentric coordinates): past the obstacle's
-        vertex along the way from it to the point. None where there are none.
+        vertex along the way from it to the point; None where there are none. And
+        what was found, per obstacle.
         """
         mu = self.muscle
         A = mu.adjacency
@@ -946,8 +955,8 @@ class Deformer:
             dirs.append((B - C) / np.maximum(d, 1e-300)[:, None])
             gaps.append(-(d + margin))
         if not rows:
-            return None
-        return np.vstack(rows), np.concatenate(gaps), np.vstack(dirs)
+            return None, found
+        return (np.vstack(rows), np.concatenate(gaps), np.vstack(dirs)), found
 
     def _result(
         self, x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact=None
