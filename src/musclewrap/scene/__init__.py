@@ -4,7 +4,7 @@ from ._config import BoneSpec, MuscleSpec, Scene, load_scene
 from ._drive import Drive, drive_scene, parse_frames
 from ._errors import SceneError
 from ._execute import Executor, LocalExecutor, ProcessExecutor
-from ._motion import Motion, read_motion
+from ._motion import Motion, random_motion, read_motion, write_motion
 from ._opensim import OpenSimModel
 from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_batch, run_scene
 
@@ -25,7 +25,9 @@ __all__ = [
     "drive_scene",
     "load_scene",
     "parse_frames",
+    "random_motion",
     "read_motion",
     "run_batch",
     "run_scene",
+    "write_motion",
 ]

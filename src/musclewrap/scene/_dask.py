@@ -59,7 +59,9 @@ def _identity(x: Any) -> Any:
 
 def _run_with_job(task: Any, job: Any) -> Any:
     """On a worker: the task with its muscle's job put back (it travelled once per worker)."""
-    return dataclasses.replace(task, job=job).run()
+    from ._execute import run_task
+
+    return run_task(dataclasses.replace(task, job=job))
 
 
 def _check_paths(paths: Sequence[str], token: str) -> str | None:

@@ -34,8 +34,18 @@ __all__ = ["Executor", "LocalExecutor", "Node", "ProcessExecutor", "Runner", "ru
 
 
 def run_task(task: Any) -> Any:
-    """What a worker calls: the task's ``run()``."""
-    return task.run()
+    """What every executor calls: the task's ``run()``, on one BLAS thread.
+
+    OpenBLAS's products and factorisations round differently on different
+    numbers of threads (a worker gets the machine's cores divided by the
+    workers): on one thread, always, a frame's files are the same bytes on any
+    number of workers, here or on a cluster. The compiled kernels sum in fixed
+    chunks and take every thread they are given.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1, user_api="blas"):
+        return task.run()
 
 
 class Executor:
@@ -122,7 +132,7 @@ class LocalExecutor(Executor):
         task, f = self._queue.pop(0)
         set_tick(self._sink)
         try:
-            f.set_result(task.run())
+            f.set_result(run_task(task))
         except Exception as exc:  # noqa: BLE001  # raised where the runner takes the result
             f.set_exception(exc)
         finally:

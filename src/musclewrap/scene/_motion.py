@@ -10,7 +10,7 @@ import numpy as np
 from .._typing import FloatArray, PathLike
 from ._errors import SceneError
 
-__all__ = ["Motion", "read_motion"]
+__all__ = ["Motion", "random_motion", "read_motion", "write_motion"]
 
 
 @dataclass(frozen=True)
@@ -132,3 +132,97 @@ def read_motion(path: PathLike) -> Motion:
         degrees_declared=declared,
         repeated=repeated,
     )
+
+
+def write_motion(
+    path: PathLike, time: FloatArray, columns: dict[str, FloatArray], *, in_degrees: bool = True
+) -> Path:
+    """Write coordinate values per frame as an OpenSim ``.mot`` file (`read_motion` reads it).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write (whole or not at all).
+    time : (k,) float array
+        Increasing times (s).
+    columns : dict of str to (k,) float array
+        Values per coordinate (degrees for rotations when ``in_degrees``).
+    in_degrees : bool, optional
+        The header's ``inDegrees``.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    from ..mesh import atomic_path
+
+    t = np.asarray(time, dtype=np.float64)
+    if t.ndim != 1 or not len(t) or (len(t) > 1 and not (np.diff(t) > 0).all()):
+        raise ValueError("time must be a non-empty increasing sequence")
+    cols = {k: np.asarray(v, dtype=np.float64) for k, v in columns.items()}
+    for k, v in cols.items():
+        if v.shape != t.shape or not np.isfinite(v).all():
+            raise ValueError(f"column {k!r} must have one finite value per time")
+    head = [
+        "Coordinates", "version=1", f"nRows={len(t)}", f"nColumns={len(cols) + 1}",
+        f"inDegrees={'yes' if in_degrees else 'no'}", "endheader",
+        "\t".join(["time", *cols]),
+    ]  # fmt: skip
+    table = np.column_stack([t, *cols.values()])
+    body = ["\t".join(f"{x:.10f}" for x in row) for row in table]
+    p = Path(path)
+    with atomic_path(p) as tmp:
+        Path(tmp).write_text("\n".join(head + body) + "\n", encoding="utf-8")
+    return p
+
+
+def random_motion(
+    ranges: dict[str, tuple[float, float]],
+    *,
+    seconds: float = 4.0,
+    rate: float = 50.0,
+    knots_per_second: float = 1.5,
+    seed: int = 0,
+) -> tuple[FloatArray, dict[str, FloatArray]]:
+    """A seeded random smooth motion inside given ranges: for trying a scene on motions of its own.
+
+    Each coordinate passes through values drawn uniformly in its range at
+    ``knots_per_second`` evenly spaced times, joined by monotone cubic (PCHIP)
+    interpolation: smooth (continuous first derivative), never outside the
+    range, and as fast as the knots make it (a swing over the whole range in
+    ``1 / knots_per_second`` seconds at most). The first knot of every coordinate
+    is drawn like the others (a motion need not start at the rest pose).
+
+    Parameters
+    ----------
+    ranges : dict of str to (low, high)
+        Each coordinate's range (e.g. `OpenSimModel.coordinate_range`, in the
+        units the motion is written in).
+    seconds, rate : float, optional
+        Duration (s) and frames per second.
+    knots_per_second : float, optional
+        How often a new value is drawn.
+    seed : int, optional
+        The same seed gives the same motion.
+
+    Returns
+    -------
+    time : (k,) float64 array
+    columns : dict of str to (k,) float64 array
+    """
+    from scipy.interpolate import PchipInterpolator
+
+    if seconds <= 0 or rate <= 0 or knots_per_second <= 0:
+        raise ValueError("seconds, rate and knots_per_second must be positive")
+    rng = np.random.default_rng(seed)
+    n = int(round(seconds * rate)) + 1
+    time = np.arange(n) / rate
+    k = max(int(np.ceil(seconds * knots_per_second)) + 1, 2)
+    knots = np.linspace(0.0, time[-1], k)
+    columns = {}
+    for name, (lo, hi) in ranges.items():
+        if not hi >= lo:
+            raise ValueError(f"range of {name!r} is empty: ({lo}, {hi})")
+        values = rng.uniform(lo, hi, size=k)
+        columns[name] = np.clip(PchipInterpolator(knots, values)(time), lo, hi)
+    return time, columns
