@@ -1,0 +1,109 @@
+"""Contact on motions nobody recorded: extreme hip motions and seeded random smooth ones.
+
+    python benchmarks/bench_motions.py [SCENE] [--random 5] [--seconds 3] [--check-every 2]
+
+Drives SCENE's model (default: examples/lhdl_walk.toml) with
+
+- ``extreme+`` / ``extreme-``: the hip flexed from the rest pose to 120 deg (30 past the LHDL
+  model's range) and back over 3 s while it adducts and rotates by 20 deg both ways (the
+  adduction's swing in one or the other direction first);
+- ``random1`` ... ``randomK``: `musclewrap.scene.random_motion` over the model's ranges of the
+  scene's coordinates (seeds 1..K, 20 frames per second),
+
+runs each with contact (and, with ``--no-collisions-too``, without), and checks the written
+meshes independently (`musclewrap.scene._verify.verify_run`) on every ``--check-every``-th
+frame; prints per motion and muscle the deepest muscle vertex in a bone, bone vertex in the
+muscle, the largest shape change (with how many frames exceed 0.5) and the skeleton fit on the
+frames where the action line itself stays out of the bones.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _extreme(sign: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    t = np.linspace(0.0, 3.0, 61)
+    s = np.sin(np.pi * t / 3.0) ** 2  # 0 -> 1 -> 0
+    return t, {
+        "hip_flexion_r": 1.576 + (120.0 - 1.576) * s,
+        "hip_adduction_r": -4.727 + 24.727 * s * np.sin(sign * 2 * np.pi * t / 1.5),
+        "hip_rotation_r": -5.29 + 25.29 * s * np.cos(2 * np.pi * t / 2.0),
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
+    p.add_argument("--random", type=int, default=5)
+    p.add_argument("--seconds", type=float, default=3.0)
+    p.add_argument("--check-every", type=int, default=2)
+    p.add_argument("--no-extreme", action="store_true")
+    p.add_argument("--no-collisions-too", action="store_true")
+    a = p.parse_args()
+
+    from musclewrap.scene import (
+        OpenSimModel,
+        load_scene,
+        random_motion,
+        read_motion,
+        run_scene,
+        write_motion,
+    )
+    from musclewrap.scene._verify import verify_run
+
+    scene = load_scene(a.scene)
+    model = OpenSimModel(scene.osim)
+    coords = list(scene.coordinates or ())
+    ranges = {}
+    for c in coords:
+        lo, hi = model.coordinate_range(c)
+        ranges[c] = (np.degrees(lo), np.degrees(hi)) if model.is_rotational(c) else (lo, hi)
+    motions = []
+    if not a.no_extreme:
+        motions += [("extreme+", _extreme(1)), ("extreme-", _extreme(-1))]
+    for seed in range(1, a.random + 1):
+        motions.append(
+            (f"random{seed}", random_motion(ranges, seconds=a.seconds, rate=20.0, seed=seed))
+        )
+    cache = Path(tempfile.mkdtemp()) / "cache"
+    print(f"{a.scene}: {len(motions)} motions, independent check on every {a.check_every}th frame")
+    for name, (t, cols) in motions:
+        with tempfile.TemporaryDirectory() as tmp:
+            mot = write_motion(Path(tmp) / f"{name}.mot", t, cols)
+            sc = dataclasses.replace(scene, motions=(mot,), paper_frames=0)
+            n = read_motion(mot).n_frames
+            frames = f"0:{n}:{a.check_every}"
+            peak = ", ".join(f"{c} {cols[c].min():.0f}..{cols[c].max():.0f}" for c in coords)
+            print(f"  {name} ({peak})")
+            for collisions in (True, False) if a.no_collisions_too else (True,):
+                out = Path(tmp) / ("on" if collisions else "off")
+                s = run_scene(
+                    sc, out, frames=frames, workers=2, cache_dir=cache, progress=None,
+                    render=False, collisions=collisions,
+                )  # fmt: skip
+                checked = verify_run(sc, out, frames)
+                for m in sc.muscles:
+                    q = [r for r in s.rows if r["muscle"] == m.name]
+                    w = [r for r in checked if r["muscle"] == m.name]
+                    shape = [r["shape_change_max"] for r in q]
+                    fit = [r["skeleton_fit_mean"] for r in q if r["line_inside_depth_max"] <= 0.5]
+                    print(
+                        f"    {'' if collisions else '--no-collisions '}{m.name:<16} muscle vertex"
+                        f" in bone <= {max(r['muscle_in_bone'] for r in w):6.2f}, bone vertex in"
+                        f" muscle <= {max(r['bone_in_muscle'] for r in w):6.2f}, shape change"
+                        f" <= {max(shape):.2f} ({sum(x > 0.5 for x in shape)}/{len(q)} over"
+                        f" 0.5), fit <= {max(fit, default=float('nan')):.2f} (line out of"
+                        f" bone), unconverged {sum(not r['converged'] for r in q)}"
+                    )
+
+
+if __name__ == "__main__":
+    main()
