@@ -74,7 +74,9 @@ def main() -> None:
             (f"random{seed}", random_motion(ranges, seconds=a.seconds, rate=20.0, seed=seed))
         )
     cache = Path(tempfile.mkdtemp()) / "cache"
-    print(f"{a.scene}: {len(motions)} motions, independent check on every {a.check_every}th frame")
+    print(
+        f"{a.scene}: {len(motions)} motions, run and checked independently every {a.check_every} frames"
+    )
     for name, (t, cols) in motions:
         with tempfile.TemporaryDirectory() as tmp:
             mot = write_motion(Path(tmp) / f"{name}.mot", t, cols)
