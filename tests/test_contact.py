@@ -60,7 +60,7 @@ def test_obstacle_query_sides_directions_and_bounds():
     assert np.all(lower <= exact) and np.array_equal(idx, np.flatnonzero(exact < 0.5))
 
 
-def test_ridge_vertices_near_match_brute_force():
+def test_vertices_near_match_brute_force():
     V, F = capsule(radius=8.0, length=40.0, n_around=40, cap_rings=12, segments=16)
     probe = Obstacle(V, F, max_grid_nodes=20_000)
     k = probe.convexity
@@ -69,10 +69,12 @@ def test_ridge_vertices_near_match_brute_force():
     rng = np.random.default_rng(5)
     Q = V[rng.integers(0, len(V), 50)] + rng.normal(scale=2.0, size=(50, 3))
     for radius, sharp in ((1.5, 0.1), (3.0, 0.0), (0.5, 0.12)):
-        got = probe.ridge_vertices_near(Q, radius, sharp)
-        d = np.linalg.norm(V[:, None] - Q[None], axis=2).min(axis=1)
+        got, nearest = probe.vertices_near(Q, radius, sharp)
+        D = np.linalg.norm(V[:, None] - Q[None], axis=2)
+        d = D.min(axis=1)
         assert np.array_equal(got, np.flatnonzero((d <= radius) & (k > sharp)))
-    assert len(probe.ridge_vertices_near(Q[:0], 1.0, 0.0)) == 0
+        assert np.allclose(D[got, nearest], d[got])
+    assert len(probe.vertices_near(Q[:0], 1.0, 0.0)[0]) == 0
 
 
 def test_obstacle_grid_is_exact_and_cached(tmp_path):

@@ -427,32 +427,6 @@ class Obstacle:
             self._convexity = k
         return self._convexity
 
-    def ridge_vertices_near(self, Q: FloatArray, radius: float, convexity: float) -> IntArray:
-        """Vertices with `convexity` above ``convexity`` within ``radius`` of a point of ``Q``.
-
-        Sorted. The vertices are binned once per ``(convexity, radius)`` in cells of
-        side ``radius``; a point looks in its cell and the 26 around it (compiled).
-        """
-        cells = self.__dict__.setdefault("_ridge_cells", {})
-        key = (float(convexity), float(radius))
-        if key not in cells:
-            idx = np.flatnonzero(self.convexity > convexity)
-            R = self.V[idx]
-            lo = R.min(axis=0) if len(R) else np.zeros(3)
-            ijk = np.floor((R - lo) / radius).astype(np.int64)
-            dims = ijk.max(axis=0) + 1 if len(R) else np.ones(3, np.int64)
-            flat = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-            order = np.argsort(flat, kind="stable")
-            indptr = np.searchsorted(flat[order], np.arange(int(np.prod(dims)) + 1))
-            cells[key] = (idx[order], np.ascontiguousarray(R[order]), lo, dims, indptr)
-        idx, R, lo, dims, indptr = cells[key]
-        Q = np.ascontiguousarray(Q, dtype=np.float64)
-        if not len(idx) or not len(Q):
-            return np.zeros(0, dtype=np.int64)
-        mark = np.zeros(len(idx), dtype=np.bool_)
-        _cells_near_kernel(Q, R, lo, float(radius), dims, indptr, mark)
-        return np.sort(idx[mark])
-
     @property
     def adjacency(self) -> tuple[IntArray, IntArray]:
         """The vertices' neighbours on the surface, CSR ``(indptr, indices)`` (built once)."""
@@ -790,26 +764,6 @@ def _march_kernel(A, B, t0, lo, h, shape, lo_sd, hi_sd, step, t_in, t_out):  # n
             last = tt
             t = tt + max(lb, step) / length
         t_out[i] = last
-
-
-@numba.njit(cache=True)
-def _cells_near_kernel(Q, R, lo, h, dims, indptr, mark):  # noqa: ANN001, ANN202 # pragma: no cover
-    # mark every binned point within h of a query point: its cell and the 26 around it
-    hh = h * h
-    for q in range(Q.shape[0]):
-        c0 = int(np.floor((Q[q, 0] - lo[0]) / h))
-        c1 = int(np.floor((Q[q, 1] - lo[1]) / h))
-        c2 = int(np.floor((Q[q, 2] - lo[2]) / h))
-        for a in range(max(c0 - 1, 0), min(c0 + 2, dims[0])):
-            for b in range(max(c1 - 1, 0), min(c1 + 2, dims[1])):
-                for c in range(max(c2 - 1, 0), min(c2 + 2, dims[2])):
-                    cell = (a * dims[1] + b) * dims[2] + c
-                    for j in range(indptr[cell], indptr[cell + 1]):
-                        if mark[j]:
-                            continue
-                        d0, d1, d2 = R[j, 0] - Q[q, 0], R[j, 1] - Q[q, 1], R[j, 2] - Q[q, 2]
-                        if d0 * d0 + d1 * d1 + d2 * d2 <= hh:
-                            mark[j] = True
 
 
 def _bin_points(
