@@ -190,3 +190,21 @@ def test_random_smooth_motions_inside_the_models_ranges(data_dir, tmp_path):
         )  # fmt: skip
         assert not any("leaves the model's range" in n for n in r.notes)
         _check(sc, out, "0:61:2", r.rows)
+
+
+@pytest.mark.realdata
+def test_a_waypoint_that_does_not_converge_is_named_in_the_notes(data_dir, tmp_path):
+    """The path's own solves are reported, with the waypoint's pose in the model's words."""
+    scene = load_scene(EXAMPLES / "lhdl_walk.toml")
+    psoas = next(m for m in scene.muscles if m.name == "psoas")
+    scene = dataclasses.replace(
+        scene, muscles=(dataclasses.replace(psoas, max_iterations=1),), paper_frames=0
+    )
+    r = run_scene(
+        scene, tmp_path / "o", frames="0:211:30", workers=1, cache_dir=tmp_path / "c",
+        progress=None, render=False,
+    )  # fmt: skip
+    notes = [n for n in r.notes if n.startswith("psoas: ") and "waypoints on the path" in n]
+    assert len(notes) == 1, r.notes
+    assert "hip_flexion_r " in notes[0] and " deg" in notes[0]
+    assert "did not converge" in notes[0] and "iteration" in notes[0]

@@ -145,7 +145,8 @@ class Waypoints:
     order where each one's ``parent`` (an index, -1: the rest pose) comes before
     it; ``frame`` (n,) is each frame's waypoint (-1: the rest pose); ``lines``,
     ``references`` per muscle and ``to_output`` per body as in `Drive`, at each
-    waypoint.
+    waypoint; ``rest`` the rest pose's coordinates (model units) and ``rotational``
+    which of them are angles.
     """
 
     coordinates: tuple[str, ...]
@@ -156,6 +157,18 @@ class Waypoints:
     lines: dict[str, list[dict[str, FloatArray]]]
     references: dict[str, list[FloatArray | None]]
     to_output: dict[str, FloatArray]
+    rest: FloatArray | None = None
+    rotational: tuple[bool, ...] = ()
+
+    def describe(self, k: int) -> str:
+        """Waypoint ``k``'s pose in words: ``hip_flexion_r 40 deg, hip_adduction_r -10 deg``."""
+        rest = np.zeros(len(self.coordinates)) if self.rest is None else self.rest
+        rot = self.rotational or (True,) * len(self.coordinates)
+        v = rest + self.nodes[k] * self.steps
+        return ", ".join(
+            f"{c} {np.degrees(x):.4g} deg" if r else f"{c} {x:.4g}"
+            for c, x, r in zip(self.coordinates, v.tolist(), rot, strict=True)
+        )
 
 
 def lattice_parent(u: FloatArray) -> FloatArray:
@@ -553,7 +566,8 @@ def _waypoints(
             refs[m.name].append(R[m.name])
         for b, T in output_transforms(to_g).items():
             out_T[b][k] = T
-    return Waypoints(tuple(coords), steps, nodes, parent, frame, lines, refs, out_T)
+    rot = tuple(bool(model.is_rotational(c)) for c in coords)
+    return Waypoints(tuple(coords), steps, nodes, parent, frame, lines, refs, out_T, r, rot)
 
 
 def _moment_arm_poses(

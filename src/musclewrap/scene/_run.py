@@ -420,6 +420,8 @@ class _SceneRun:
             # was had
             path = runner.result(self.path_keys[j.name]) if j.name in self.path_keys else None
             prepared = runner.result(pk) if pk is not None else path and path.prepared
+            if path is not None and path.reasons:
+                self.notes.append(self._path_note(j.name, path.reasons))
             comparison = (
                 runner.result((self.tag, "compare", j.name))
                 if scene.paper_frames > 0
@@ -457,6 +459,16 @@ class _SceneRun:
             files=files,
         )
         self.finished = True
+
+    def _path_note(self, name: str, reasons: list[tuple[int, str]]) -> str:
+        """A muscle's waypoints that did not converge: how many, the first one's pose, why."""
+        wp = self.inputs.drive.waypoints
+        k, why = reasons[0]
+        return (
+            f"{name}: {len(reasons)} of {len(wp.parent)} waypoints on the path from the rest pose "
+            f"did not converge (the frames after them take their sides of the bones from there); "
+            f"the first at {wp.describe(k)}: {why}"
+        )
 
     @property
     def draws(self) -> bool:
