@@ -30,6 +30,17 @@ def _run(scene: str, out: Path, frames: str, extra: list[str]) -> float:
     return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra])
 
 
+def _other(rows: list[dict]) -> str:
+    """The deepest vertex of a muscle in another one over the checked frames, and where."""
+    worst = max(rows, key=lambda x: x["muscle_in_muscle"])
+    if not worst["muscle_in_muscle"]:
+        return " 0.000"
+    return (
+        f"{worst['muscle_in_muscle']:6.3f} ({worst['muscle_in_muscle_other']}, frame "
+        f"{worst['frame']}, up to {max(x['muscle_in_muscle_vertices'] for x in rows)} vertices a frame)"
+    )
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
@@ -65,7 +76,8 @@ def main() -> None:
                     print(
                         f"    {mu.name:<18} muscle vertex in bone <= "
                         f"{max(x['muscle_in_bone'] for x in r):6.3f}, bone vertex in muscle <= "
-                        f"{max(x['bone_in_muscle'] for x in r):6.3f}; all frames: shape change <= "
+                        f"{max(x['bone_in_muscle'] for x in r):6.3f}, in another muscle <= "
+                        f"{_other(r)}; all frames: shape change <= "
                         f"{max(float(x['shape_change_max']) for x in q):.2f}, fit <= "
                         f"{max(float(x['skeleton_fit_mean']) for x in q):.2f}, unconverged "
                         f"{sum(x['converged'] != 'True' for x in q)}"
@@ -96,7 +108,8 @@ def main() -> None:
                 print(
                     f"    {m.name:<18} muscle vertex in bone <= "
                     f"{max(x['muscle_in_bone'] for x in r):6.3f}, bone vertex in muscle <= "
-                    f"{max(x['bone_in_muscle'] for x in r):6.3f}"
+                    f"{max(x['bone_in_muscle'] for x in r):6.3f}, in another muscle <= "
+                    f"{_other(r)}"
                 )
 
 

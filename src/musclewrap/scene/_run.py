@@ -427,9 +427,7 @@ class _SceneRun:
                 if scene.paper_frames > 0
                 else Comparison()
             )
-            results.append(
-                MuscleOutcome.merge(j.name, parts, prepared, comparison)
-            )
+            results.append(MuscleOutcome.merge(j.name, parts, prepared, comparison))
         order = {s.name: i for i, s in enumerate(scene.muscles)}
         results.sort(key=lambda r: order[r.name])
         rows, files = write_outputs(

@@ -1,4 +1,4 @@
-"""An independent check of a run's outputs against the full-resolution bones."""
+"""An independent check of a run's outputs: against the full-resolution bones, and each other."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from ..mesh import clean_mesh, read_mesh, tidy_mesh, volume
 from ._config import Scene
 from ._drive import apply, drive_scene
 
-__all__ = ["inside_depth", "verify_run"]
+__all__ = ["inside_depth", "muscle_overlaps", "verify_run"]
 
 
 def inside_depth(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[int, float]:
@@ -46,6 +46,25 @@ def inside_depth(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[int, float]
     return len(inside), float(np.sqrt(sq).max())
 
 
+def muscle_overlaps(
+    meshes: dict[str, tuple[FloatArray, IntArray]],
+) -> dict[str, tuple[int, float, str]]:
+    """Per muscle, its vertices inside the others (`inside_depth` against each).
+
+    Returns, per name of ``meshes`` (name -> closed surface ``V, F``): how many of its
+    vertices lie inside another surface (a vertex inside two counts twice), the
+    deepest one's distance to that surface, and the name of the surface it is in
+    ("" and 0 when none is).
+    """
+    out = {}
+    for a, (P, _) in meshes.items():
+        found = {b: inside_depth(P, *meshes[b]) for b in meshes if b != a}
+        hit = {b: d for b, (c, d) in found.items() if c}
+        other = max(hit, key=lambda b: hit[b], default="")
+        out[a] = (sum(c for c, _ in found.values()), hit.get(other, 0.0), other)
+    return out
+
+
 def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[dict[str, Any]]:
     """Check the meshes a run wrote against the scene's bones at full resolution.
 
@@ -70,7 +89,11 @@ def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[di
         Per frame and muscle: ``frame, muscle, muscle_in_bone, bone_in_muscle``
         (deepest, mesh units, 0 if none), ``muscle_in_bone_vertices``,
         ``bone_in_muscle_vertices``, ``relative_volume_error`` (of the file,
-        against the muscle's mesh as the run cleaned it).
+        against the muscle's mesh as the run cleaned it); and against the other
+        muscles of the frame (read back the same way): ``muscle_in_muscle`` (its
+        deepest vertex inside any other muscle), ``muscle_in_muscle_vertices`` (how
+        many of its vertices are inside another) and ``muscle_in_muscle_other`` (the
+        muscle the deepest one is in, "" if none).
     """
     bones = {}
     for b in scene.bones:
@@ -90,13 +113,19 @@ def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[di
             n: (apply(drive.to_output[body][k], apply(drive.to_body[n], V)), F)
             for n, (V, F, body) in bones.items()
         }
+        written = {}
         for m in scene.muscles:
             path = Path(outdir) / m.name / f"{m.name}_{frame:04d}.vtp"
-            if not path.is_file():
+            if path.is_file():
+                written[m.name] = read_mesh(path)
+        overlaps = muscle_overlaps(written)
+        for m in scene.muscles:
+            if m.name not in written:
                 continue
-            P, PF = read_mesh(path)
+            P, PF = written[m.name]
             mib = [inside_depth(P, BV, BF) for BV, BF in placed.values()]
             bim = [inside_depth(BV, P, PF) for BV, _ in placed.values()]
+            n_in, deepest, other = overlaps[m.name]
             rows.append(
                 {
                     "frame": frame,
@@ -106,6 +135,9 @@ def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[di
                     "bone_in_muscle": max((d for _, d in bim), default=0.0),
                     "bone_in_muscle_vertices": sum(c for c, _ in bim),
                     "relative_volume_error": volume(P, PF) / rest_volume[m.name] - 1.0,
+                    "muscle_in_muscle": deepest,
+                    "muscle_in_muscle_vertices": n_in,
+                    "muscle_in_muscle_other": other,
                 }
             )
     return rows
