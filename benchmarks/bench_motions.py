@@ -13,8 +13,9 @@ Drives SCENE's model (default: examples/lhdl_walk.toml) with
 runs each with contact (and, with ``--no-collisions-too``, without), and checks the written
 meshes independently (`musclewrap.scene._verify.verify_run`) on every ``--check-every``-th
 frame; prints per motion and muscle the deepest muscle vertex in a bone, bone vertex in the
-muscle, the largest shape change (with how many frames exceed 0.5) and the skeleton fit on the
-frames where the action line itself stays out of the bones.
+muscle, the largest shape change (with how many frames exceed 0.5) and the skeleton fit (the
+per-frame mean distance of the action line's samples from where the surface puts them), over all
+frames and over the frames where the action line itself stays out of the bones.
 """
 
 from __future__ import annotations
@@ -96,14 +97,20 @@ def main() -> None:
                     q = [r for r in s.rows if r["muscle"] == m.name]
                     w = [r for r in checked if r["muscle"] == m.name]
                     shape = [r["shape_change_max"] for r in q]
+                    fit_all = max(r["skeleton_fit_mean"] for r in q)
                     fit = [r["skeleton_fit_mean"] for r in q if r["line_inside_depth_max"] <= 0.5]
+                    fit_out = (
+                        f"{max(fit):.2f} where the line is out of the bones"
+                        if fit
+                        else "no frame with the line out of the bones"
+                    )
                     print(
                         f"    {'' if collisions else '--no-collisions '}{m.name:<16} muscle vertex"
                         f" in bone <= {max(r['muscle_in_bone'] for r in w):6.2f}, bone vertex in"
                         f" muscle <= {max(r['bone_in_muscle'] for r in w):6.2f}, shape change"
                         f" <= {max(shape):.2f} ({sum(x > 0.5 for x in shape)}/{len(q)} over"
-                        f" 0.5), fit <= {max(fit, default=float('nan')):.2f} (line out of"
-                        f" bone), unconverged {sum(not r['converged'] for r in q)}"
+                        f" 0.5), fit <= {fit_all:.2f} ({fit_out}), unconverged"
+                        f" {sum(not r['converged'] for r in q)}"
                     )
 
 
