@@ -1,0 +1,108 @@
+"""The contact's thresholds on either side of their defaults, on the deep squat.
+
+    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size]
+
+Drives `examples/lhdl_squat.toml` (the OpenCap deep squat, hip flexion to 106 deg) and, per
+setting, runs the muscles it matters for with the setting replaced, checks the written meshes
+independently (`musclewrap.scene._verify.verify_run`: muscle vertex in bone, bone vertex in
+muscle) and prints the largest shape change (and on how many frames it exceeds 0.5):
+
+- ``path_step`` (`musclewrap.constants.Defaults.path_step`, the waypoints' spacing): 5, 10
+  (default), 20, 45 deg and 200 deg (no waypoint: every frame from the rest pose), frames
+  560-760 every 4th (the deepest), gluteus maximus and iliacus;
+- ``cage_depth`` (``contact_cage_depth``, where the cage's contact steps hand over to the fine
+  finish): 0.5 and 0.25 (default) mean edges, gluteus maximus, frames 700-760;
+- ``cage_size`` (the iliacus's cage, `[[muscle]] cage_size`): 300 (the default) and 200
+  (`examples/lhdl_*.toml`), the whole squat, checked every 10th frame.
+
+Every run is in this process, on one worker (a replaced default does not reach worker
+processes); no timing is taken.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(scene, muscles, frames, check, cache, **setting):  # noqa: ANN001, ANN003, ANN202
+    from musclewrap.constants import defaults
+    from musclewrap.scene import run_scene
+    from musclewrap.scene._verify import verify_run
+
+    sc = dataclasses.replace(
+        scene, muscles=tuple(m for m in scene.muscles if m.name in muscles), paper_frames=0
+    )
+    old = {k: getattr(defaults, k) for k in setting}
+    try:
+        for k, v in setting.items():
+            object.__setattr__(defaults, k, v)
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "o"
+            s = run_scene(
+                sc, out, frames=frames, workers=1, cache_dir=cache, progress=None, render=False
+            )
+            checked = verify_run(sc, out, check)
+    finally:
+        for k, v in old.items():
+            object.__setattr__(defaults, k, v)
+    return s.rows, checked
+
+
+def _print(label, muscles, rows, checked) -> None:  # noqa: ANN001
+    for m in muscles:
+        q = [r for r in rows if r["muscle"] == m]
+        w = [r for r in checked if r["muscle"] == m]
+        shape = [r["shape_change_max"] for r in q]
+        print(
+            f"  {label:<24} {m:<16} muscle vertex in bone <= "
+            f"{max(r['muscle_in_bone'] for r in w):5.2f}, bone vertex in muscle <= "
+            f"{max(r['bone_in_muscle'] for r in w):5.2f}, shape change <= {max(shape):.2f} "
+            f"({sum(x > 0.5 for x in shape)} of {len(q)} frames over 0.5), unconverged "
+            f"{sum(not r['converged'] for r in q)}"
+        )
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--only", choices=("path_step", "cage_depth", "cage_size"))
+    a = p.parse_args()
+    from musclewrap.scene import load_scene
+
+    scene = load_scene(ROOT / "examples" / "lhdl_squat.toml")
+    cache = Path(tempfile.mkdtemp()) / "cache"
+    print(f"{ROOT / 'examples' / 'lhdl_squat.toml'}: thresholds on either side")
+    if a.only in (None, "path_step"):
+        mus = ("gluteus_maximus", "iliacus")
+        print("path_step (frames 560:760:4, every frame checked)")
+        for step in (5.0, 10.0, 20.0, 45.0, 200.0):
+            rows, checked = _run(scene, mus, "560:760:4", "560:760:4", cache, path_step=step)
+            _print(f"path_step {step:g} deg", mus, rows, checked)
+    if a.only in (None, "cage_depth"):
+        mus = ("gluteus_maximus",)
+        print("contact_cage_depth (frames 700:760:1, every frame checked)")
+        for depth in (0.5, 0.25):
+            rows, checked = _run(
+                scene, mus, "700:760:1", "700:760:1", cache, contact_cage_depth=depth
+            )
+            _print(f"contact_cage_depth {depth:g}", mus, rows, checked)
+    if a.only in (None, "cage_size"):
+        print("iliacus cage_size (frames 0:801:1, every 10th checked)")
+        for size in (300, 200):
+            sc = dataclasses.replace(
+                scene,
+                muscles=tuple(
+                    dataclasses.replace(m, cage_size=size) if m.name == "iliacus" else m
+                    for m in scene.muscles
+                ),
+            )
+            rows, checked = _run(sc, ("iliacus",), "0:801:1", "0:801:10", cache)
+            _print(f"cage_size {size}", ("iliacus",), rows, checked)
+
+
+if __name__ == "__main__":
+    main()
