@@ -168,6 +168,16 @@ class Defaults:
     contact_softness : float
         Regularisation of the cage's contact conditions, relative to the mean
         of their own diagonal (0: hard conditions).
+    muscle_rounds : int
+        Most rounds per frame in which muscles in contact take each other's
+        vertices out (`musclewrap.contact.overlaps`): each takes half the depth.
+    muscle_pair_reach : float
+        Two muscles may touch when their surfaces come within this many mean
+        edge lengths (the larger muscle's) of each other at rest.
+    muscle_facing_reach : float
+        A muscle's faces within this distance (mesh units) of another muscle at
+        rest, or inside it, are where the other's vertices leave it
+        (`musclewrap.contact.facing_faces`).
     """
 
     cage_size: int = 300
@@ -199,6 +209,9 @@ class Defaults:
     contact_band: float = 2.0
     contact_softness: float = 0.1
     contact_cage_reach: float = 1.25
+    muscle_rounds: int = 12
+    muscle_pair_reach: float = 3.0
+    muscle_facing_reach: float = 15.0
 
 
 tol = Tolerances()

@@ -1,16 +1,20 @@
-"""Contact: bones (and other obstacles), finding where a muscle meets them, the finish.
+"""Contact: bones, other muscles, finding where a muscle meets them, the finish.
 
 The one room that knows what an obstacle is: `Obstacle` (a closed surface with a
 signed-distance grid and exact closest points) placed in a pose (`Placed`); which
 vertices can be near it (`Near`); the contacts of a pose stated as linear conditions
 on the fine vertices (`contact_candidates`); the fine finish that takes the last
 vertices out, volume-exact (`push_out`); and the rest pose's overlap, settled once
-(`rest_push_out`, `anchors_at_rest`). The solver solves the conditions it is given.
+(`rest_push_out`, `anchors_at_rest`). Muscles against each other: which pairs meet
+(`contact_pairs`), where each faces the other (`facing_faces`), the vertices of each
+inside another with their way out (`overlaps`). The solver solves the conditions it
+is given.
 """
 
 from ._find import contact_candidates
 from ._finish import ContactReport, push_out, rings, vertex_faces
 from ._inside import Inside, bone_vertices_inside, line_inside_depth
+from ._muscles import Overlap, contact_pairs, facing_faces, overlap_depths, overlaps
 from ._near import Near
 from ._obstacle import Obstacle, bone_surface, pseudo_normals, signed_from_closest
 from ._placed import Placed
@@ -22,6 +26,7 @@ __all__ = [
     "Inside",
     "Near",
     "Obstacle",
+    "Overlap",
     "Placed",
     "SideReference",
     "anchors_at_rest",
@@ -29,9 +34,13 @@ __all__ = [
     "bone_surface",
     "bone_vertices_inside",
     "contact_candidates",
+    "contact_pairs",
+    "facing_faces",
     "kept_allowance",
     "line_inside_depth",
     "on_their_side",
+    "overlap_depths",
+    "overlaps",
     "passed_through",
     "pseudo_normals",
     "push_out",

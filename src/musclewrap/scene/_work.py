@@ -110,18 +110,23 @@ def bone_probe(bone: BoneMesh, cache_dir: str | None) -> Any:
     return _probes[key]
 
 
-def _deformer(job: MuscleJob) -> tuple[Any, Any, bool, str | None, float]:
-    """The muscle bound to its rest lines, kept per process (a muscle comes in chunks)."""
+def _deformer(job: MuscleJob, keep: int = 1) -> tuple[Any, Any, bool, str | None, float]:
+    """The muscle bound to its rest lines, kept per process (a muscle comes in chunks).
+
+    The ``keep`` muscles used last are kept (a group of muscles in contact needs them all).
+    """
     _deformers = _kept_dict("deformers")
     key = (job.name, job.run)
     if key in _deformers:
-        muscle, d = _deformers[key]
+        muscle, d = _deformers.pop(key)
+        _deformers[key] = (muscle, d)  # used last
         return muscle, d, True, None, 0.0
     t0 = time.perf_counter()
     muscle, hit, note = _prepare(job)
     seconds = time.perf_counter() - t0
     d = muscle.bind(job.rest_lines, reference_point=job.rest_reference, anchors=job.anchors)
-    _deformers.clear()  # one muscle at a time is enough
+    while len(_deformers) >= max(1, keep):
+        del _deformers[next(iter(_deformers))]  # the one used longest ago
     _deformers[key] = (muscle, d)
     return muscle, d, hit, note, seconds
 
@@ -302,35 +307,67 @@ class Compare:
 
 
 def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = None) -> ChunkResult:
-    from ..conditions import LineError
-    from ..contact import Placed, line_inside_depth
-    from ..solver import DeformationResult
+    c = _MuscleFrames(job, span, path)
+    for k in range(len(span)):
+        c.emit(k, c.solve_frame(k))
+    return c.result
 
-    muscle, d, hit, note, seconds_prepare = _deformer(job)
-    probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]
-    contact = job.contact  # None (no collisions), or {bone: allowance or None}
-    out = Path(job.outdir)
-    name = job.name
-    result = ChunkResult(name, [], [], seconds_prepare=seconds_prepare, cache_hit=hit)
-    fb, fibre_note = _fibres(job, muscle)
-    result.note = "; ".join(n for n in (note, fibre_note) if n) or None
-    kw: dict[str, Any] = {"method": job.method, "max_iterations": job.max_iterations}
-    if contact is not None:
-        kw["margin"] = job.margin
 
-    # the sides of the bones, per waypoint (kept: the frames of a chunk share a few)
-    in_contact = [(p, b) for p, b in probes if contact is not None and b in contact]
-    refs: dict[int, Any] = {}
+class _MuscleFrames:
+    """One muscle on a chunk of frames, in the process that runs it: solve, measure, write.
 
-    def sides_of(k: int) -> Any:
-        if contact is None or path is None:
+    ``solve_frame`` solves a frame (without the fine finish where ``grouped``: the
+    muscles of a group meet first, then `settle`); ``emit`` measures the result,
+    writes its files and adds its report row.
+    """
+
+    def __init__(
+        self, job: MuscleJob, span: FrameSpan, path: PathStates | None, keep: int = 1
+    ) -> None:
+        from ..contact import Placed
+
+        self.job, self.span, self.path = job, span, path
+        muscle, d, hit, note, seconds_prepare = _deformer(job, keep)
+        self.muscle, self.d = muscle, d
+        self.probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]
+        self.contact = job.contact  # None (no collisions), or {bone: allowance or None}
+        self.out = Path(job.outdir)
+        self.result = ChunkResult(job.name, [], [], seconds_prepare=seconds_prepare, cache_hit=hit)
+        self.fb, fibre_note = _fibres(job, muscle)
+        self.result.note = "; ".join(n for n in (note, fibre_note) if n) or None
+        self.kw: dict[str, Any] = {"method": job.method, "max_iterations": job.max_iterations}
+        if self.contact is not None:
+            self.kw["margin"] = job.margin
+        # the sides of the bones, per waypoint (kept: the frames of a chunk share a few)
+        self.in_contact = [
+            (p, b) for p, b in self.probes if self.contact is not None and b in self.contact
+        ]
+        self.refs: dict[int, Any] = {}
+        self._Placed = Placed
+
+    def sides_of(self, k: int) -> Any:
+        if self.contact is None or self.path is None:
             return None
+        span = self.span
         w = -1 if span.waypoint is None else int(span.waypoint[k])
-        if w not in refs:
-            refs[w] = side_reference(muscle, in_contact, path, w)
-        return refs[w]
+        if w not in self.refs:
+            self.refs[w] = side_reference(self.muscle, self.in_contact, self.path, w)
+        return self.refs[w]
+
+    def obstacles(self, T: FloatArray, bone_T: dict[str, FloatArray], bones: bool = True) -> Any:
+        """The scene's bones where contact is on (and ``bones``), else None."""
+        contact = self.contact
+        if contact is None or not bones:
+            return None
+        return [
+            # muscle's body frame -> bone's body frame in one transform
+            self._Placed(probe, invert_rigid(bone_T[bname]) @ T, contact[bname], bname)
+            for probe, bname in self.probes
+            if bname in contact
+        ]
 
     def solve(
+        self,
         lines: dict[str, FloatArray],
         reference: FloatArray | None,
         T: FloatArray,
@@ -339,29 +376,23 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
         bones: bool = True,
         sides: Any = None,
     ) -> Any:
-        # the scene's bones where contact is on (and ``bones``), else none
-        obstacles = (
-            [
-                # muscle's body frame -> bone's body frame in one transform
-                Placed(probe, invert_rigid(bone_T[bname]) @ T, contact[bname], bname)
-                for probe, bname in probes
-                if bname in contact
-            ]
-            if contact is not None and bones
-            else None
-        )
+        from ..conditions import LineError
+        from ..solver import DeformationResult
+
+        obstacles = self.obstacles(T, bone_T, bones)
         try:
-            return d.deform(
+            return self.d.deform(
                 lines,
                 reference_point=reference,
                 finish=finish,
                 obstacles=obstacles,
                 sides=sides if obstacles else None,
-                **kw,
+                **self.kw,
             )
         except LineError as exc:
             # this pose's lines cannot drive the muscle (e.g. a path collapsed to a point):
             # the frame is reported as failed and the motion goes on
+            muscle = self.muscle
             return DeformationResult.failed(
                 len(muscle.V),
                 len(muscle.cage.C),
@@ -369,17 +400,37 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
                 f"invalid action lines in this frame: {exc}",
             )
 
-    for k in range(len(span)):
-        frame = span.frames[k]
-        T = span.to_output[k]
-        sides = sides_of(k)
-        res = solve(
+    def frame_obstacles(self, k: int) -> Any:
+        span = self.span
+        return self.obstacles(span.to_output[k], {b: TB[k] for b, TB in span.bone_T.items()})
+
+    def solve_frame(self, k: int, finish: bool = True) -> Any:
+        span = self.span
+        return self.solve(
             span.lines[k],
             span.references[k],
-            T,
+            span.to_output[k],
             {b: TB[k] for b, TB in span.bone_T.items()},
-            sides=sides,
+            finish=finish,
+            sides=self.sides_of(k),
         )
+
+    def emit(self, k: int, res: Any, overlap: float | None = None) -> None:
+        """Frame ``k``'s result measured, its files written, its row added.
+
+        ``overlap``: the deepest vertex of this muscle inside another (muscles in
+        contact; NaN otherwise).
+        """
+        from ..contact import line_inside_depth
+
+        job, span, muscle, d = self.job, self.span, self.muscle, self.d
+        contact, probes, out, name, result = (
+            self.contact, self.probes, self.out, job.name, self.result
+        )  # fmt: skip
+        fb = self.fb
+        frame = span.frames[k]
+        T = span.to_output[k]
+        sides = self.sides_of(k)
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
         nan = float("nan")
@@ -389,7 +440,7 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
         bone_depth = nan
         # the bones as placed in this frame; those the contact did not keep the muscle out of
         here = {
-            bname: Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
+            bname: self._Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
             for probe, bname in probes
         }
         measured = [pl for b, pl in here.items() if contact is None or b not in contact]
@@ -426,7 +477,7 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
                 k,
                 job.moment_arms,
                 span.side,
-                lambda *a, sides=sides, **kw: solve(*a, sides=sides, **kw),
+                lambda *a, sides=sides, **kw: self.solve(*a, sides=sides, **kw),
             )
             if got["points"] is not None:
                 fname = f"{name}/{name}_fibres_{frame:04d}.vtp"
@@ -458,6 +509,7 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
                 "penetration_share": n_in / len(muscle.V),
                 "penetration_depth_max": depth,
                 "bone_inside_depth_max": bone_depth,
+                "muscle_overlap_max": nan if overlap is None else overlap,
                 "contact_vertices": res.contact_vertices,
                 "penetration_depth_before": (
                     res.penetration_depth_before if contact is not None else depth
@@ -467,4 +519,100 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
             }
         )
         _tick()
-    return result
+
+
+@dataclass(frozen=True)
+class DeformGroup:
+    """Muscles that may touch each other, on a chunk of frames: each frame solved together.
+
+    Per frame, every muscle is solved against its bones (without the fine finish),
+    then in rounds (`musclewrap.contact.overlaps`, Jacobi: every muscle's step from
+    the same snapshot of all of them) each muscle's vertices inside another are
+    taken out by half their depth through the faces that face it, with its bones'
+    conditions, by one cage step each (`Deformer.contact_round`); then each muscle's
+    bone finish (`Deformer.settle`) and the deepest vertex still inside another,
+    exact. The muscles go in the order of their names: the files do not depend on
+    the order the scene lists them in, nor on the chunks or the workers.
+
+    ``to_common`` per muscle: the transform from its frame into the scene's, at rest
+    (where the pairs and the faces that face each other are found).
+    """
+
+    jobs: tuple[MuscleJob, ...]
+    spans: tuple[FrameSpan, ...]
+    paths: tuple[PathStates | None, ...]
+    to_common: tuple[FloatArray, ...]
+
+    def run(self) -> dict[str, ChunkResult]:
+        from ..constants import defaults
+        from ..contact import contact_pairs, facing_faces, overlap_depths, overlaps
+
+        order = sorted(range(len(self.jobs)), key=lambda i: self.jobs[i].name)
+        ms = {
+            self.jobs[i].name: _MuscleFrames(
+                self.jobs[i], self.spans[i], self.paths[i], keep=len(self.jobs)
+            )
+            for i in order
+        }
+        names = list(ms)
+        T0 = {self.jobs[i].name: self.to_common[i] for i in order}
+        edge = {n: float(m.d._fine_edge) for n, m in ms.items()}
+        rest = {n: (apply(T0[n], m.muscle.V), m.muscle.F) for n, m in ms.items()}
+        reach = {n: defaults.muscle_pair_reach * edge[n] for n in names}
+        pairs = contact_pairs(rest, reach)
+        facing = {}
+        for a, b in pairs:
+            for me, other in ((a, b), (b, a)):
+                facing[me, other] = facing_faces(
+                    *rest[me], *rest[other], defaults.muscle_facing_reach
+                )
+        n_frames = len(self.spans[0])
+        for k in range(n_frames):
+            res = {n: m.solve_frame(k, finish=False) for n, m in ms.items()}
+            state = {n: (r.cage, r.V) for n, r in res.items()}
+            live = [n for n in names if np.isfinite(state[n][1]).all()]
+            live_pairs = [(a, b) for a, b in pairs if a in live and b in live]
+            T = {n: ms[n].span.to_output[k] for n in names}
+            for _ in range(defaults.muscle_rounds if live_pairs else 0):
+                surf = {n: (apply(T[n], state[n][1]), ms[n].muscle.F) for n in live}
+                found = overlaps(surf, live_pairs, facing)
+                if not any(
+                    o.depth.max() > 0.5 * tol_contact(edge[n]) for n in live for o in found[n]
+                ):
+                    break
+                new = {}
+                for n in live:
+                    if not found[n]:
+                        continue
+                    R = T[n][:3, :3]
+                    rows = np.concatenate([o.rows for o in found[n]])
+                    need = 0.5 * np.concatenate([o.depth for o in found[n]])
+                    out = np.vstack([o.out for o in found[n]]) @ R  # into the muscle's frame
+                    new[n] = ms[n].d.contact_round(
+                        *state[n], rows, need, out,
+                        obstacles=ms[n].frame_obstacles(k), margin=self.jobs[0].margin,
+                        sides=ms[n].sides_of(k),
+                    )  # fmt: skip
+                state.update(new)
+            final = {}
+            for n, m in ms.items():
+                final[n] = m.d.settle(
+                    res[n], *state[n], m.span.lines[k],
+                    reference_point=m.span.references[k], obstacles=m.frame_obstacles(k),
+                    margin=m.job.margin, sides=m.sides_of(k),
+                )  # fmt: skip
+            ok = [n for n in names if np.isfinite(final[n].V).all()]
+            depth = overlap_depths(
+                {n: (apply(T[n], final[n].V), ms[n].muscle.F) for n in ok},
+                [(a, b) for a, b in pairs if a in ok and b in ok],
+            )
+            for n, m in ms.items():
+                m.emit(k, final[n], depth[n][1] if n in depth else float("nan"))
+        return {n: m.result for n, m in ms.items()}
+
+
+def tol_contact(edge: float) -> float:
+    """The contact's slack for a muscle of mean edge ``edge`` (`musclewrap.constants.tol`)."""
+    from ..constants import tol
+
+    return float(tol.contact * edge)

@@ -39,6 +39,7 @@ REPORT_FIELDS = [
     "penetration_share",
     "penetration_depth_max",
     "bone_inside_depth_max",
+    "muscle_overlap_max",
     "contact_vertices",
     "penetration_depth_before",
     "line_inside_depth_max",

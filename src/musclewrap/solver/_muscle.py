@@ -833,7 +833,98 @@ class Deformer:
                 if not contact.ok:
                     reason = contact.reason if ok else f"{reason}; {contact.reason}"
                     ok = False
-            return self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact)
+            res = self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact)
+            if obstacles and contact is None and np.isfinite(V).all():
+                # the finish is the caller's (`settle`): what the solve alone gave, kept
+                res = dataclasses.replace(res, penetration_depth_before=before)
+            return res
+
+    def contact_round(
+        self,
+        x: FloatArray,
+        V: FloatArray,
+        rows: IntArray,
+        need: FloatArray,
+        out: FloatArray,
+        *,
+        obstacles: Sequence[Placed | Obstacle] | None = None,
+        margin: float = 0.0,
+        sides: SideReference | None = None,
+    ) -> tuple[FloatArray, FloatArray]:
+        """One cage step that moves fine vertices ``rows`` by ``need`` along ``out``, bones kept.
+
+        The conditions ``out_i . (W_i dx) >= need_i`` (``out`` unit vectors in the
+        muscle's frame; a vertex may come more than once) join the obstacles' own
+        (`musclewrap.contact.contact_candidates`, with ``sides``) in one least-energy
+        step of the cage (`cage_push`), ended on the exact fine volume: what muscles
+        pressed against each other take each round (`musclewrap.contact.overlaps`).
+        Returns the new cage and fine positions (the same arrays where nothing moved).
+        """
+        edge = self._fine_edge
+        slack = tol.contact * edge
+        idx, gap, N = rows, slack - np.asarray(need, dtype=np.float64), out
+        if obstacles:
+            placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
+            near = Near(V, placed, margin)
+            bi, bg, bn = contact_candidates(
+                V, placed, margin, defaults.contact_band * edge, near, sides
+            )
+            idx, gap, N = np.concatenate([idx, bi]), np.concatenate([gap, bg]), np.vstack([N, bn])
+        if not len(idx):
+            return x, V
+        step = self._cage_step(x, V, np.asarray(idx, dtype=np.int64), gap, N, slack)
+        return (x, V) if step is None else step
+
+    def settle(
+        self,
+        result: DeformationResult,
+        x: FloatArray,
+        V: FloatArray,
+        current_lines: Mapping[str, npt.ArrayLike],
+        *,
+        reference_point: npt.ArrayLike | None = None,
+        obstacles: Sequence[Placed | Obstacle] | None = None,
+        margin: float = 0.0,
+        sides: SideReference | None = None,
+    ) -> DeformationResult:
+        """The result of a pose solved with ``finish=False`` and moved since (``x, V``), finished.
+
+        The obstacles' fine finish (`musclewrap.contact.push_out`) on ``V``, then the
+        result as `deform` gives it (fit and energy of the cage ``x``, the contact's
+        report; the solve's iterations, history and reason kept).
+        """
+        t0 = time.perf_counter()
+        with np.errstate(all="ignore"):
+            cur, s_cur, d_L = self._targets(current_lines, reference_point)
+            ok, reason, contact = result.converged, result.reason, None
+            if obstacles and np.isfinite(V).all():
+                placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
+                near = Near(V, placed, margin)
+                V, contact = push_out(
+                    V,
+                    self.muscle.F,
+                    placed,
+                    volume_target=self.muscle.volume_rest,
+                    margin=margin,
+                    A=self.muscle.adjacency,
+                    edge=self._fine_edge,
+                    near=near,
+                    bone_vertices="near",
+                    faces=self.muscle.vertex_faces,
+                    sides=sides,
+                )
+                before = result.penetration_depth_before
+                contact = dataclasses.replace(
+                    contact, depth_before=max(before, contact.depth_before)
+                )
+                if not contact.ok:
+                    reason = contact.reason if ok else f"{reason}; {contact.reason}"
+                    ok = False
+            res = self._result(
+                x, V, result.iterations, ok, reason, list(result.history), cur, d_L, s_cur,
+                result.method, t0, contact,
+            )  # fmt: skip
+        return dataclasses.replace(res, seconds=result.seconds + res.seconds)
 
     def _cage_contact(
         self,
@@ -855,7 +946,6 @@ class Deformer:
         and the obstacles' vertices inside the muscle at the returned positions
         where they were looked for there (None otherwise).
         """
-        mu = self.muscle
         edge = self._fine_edge
         slack = tol.contact * edge
         band = defaults.contact_band * edge
@@ -890,38 +980,57 @@ class Deformer:
                 found = (V, inside)
             if not deep and points is None:
                 break
-            c = mean_rows(x)
-            g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
-            Hg = self._Hinv @ g
-            dx = cage_push(
-                mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points
-            )
-            if not np.abs(dx).max() > 0:
-                break
-            # no vertex near the contact moves much further than the deepest one must: where
-            # the conditions conflict (a muscle squeezed between two bones) the least-energy
-            # step can be several times longer, and the fine finish does better there
-            need = float(max(-gap.min(initial=0.0), 0.0))
-            D = rows_dot(mu.W, np.hstack([dx, Hg]))
-            moves = [np.linalg.norm(D[idx, :3], axis=1).max(initial=0.0)]
-            if points is not None:
-                need = max(need, float(-points[1].min()))
-                moves.append(np.linalg.norm(points[0] @ dx, axis=1).max())
+            step = self._cage_step(x, V, idx, gap, N, slack, points)
             points = None
-            longest = float(max(moves))
-            if need > 0 and longest > defaults.contact_cage_reach * need:
-                scale = defaults.contact_cage_reach * need / longest
-                dx = dx * scale
-                D[:, :3] *= scale
-            P = V + D[:, :3]
-            cP = mean_rows(P)
-            t = cubic_root_near(volume_cubic(P - cP, -D[:, 3:], mu.F), mu.volume_rest, 0.0)
-            if not np.isfinite(t):
+            if step is None:
                 break
-            x = x + dx - t * Hg
-            V = P - t * D[:, 3:]
+            x, V = step
         # the finish need not look again where nothing moved since
         return x, V, before, (found[1] if found is not None and found[0] is V else None)
+
+    def _cage_step(
+        self,
+        x: FloatArray,
+        V: FloatArray,
+        idx: IntArray,
+        gap: FloatArray,
+        N: FloatArray,
+        slack: float,
+        points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """One contact step of the cage (`cage_push`), ended on the exact fine volume.
+
+        None where it moves nothing or the volume cannot be restored along ``-H^-1 g``.
+        """
+        mu = self.muscle
+        c = mean_rows(x)
+        g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
+        Hg = self._Hinv @ g
+        dx = cage_push(
+            mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points
+        )
+        if not np.abs(dx).max() > 0:
+            return None
+        # no vertex near the contact moves much further than the deepest one must: where
+        # the conditions conflict (a muscle squeezed between two bones) the least-energy
+        # step can be several times longer, and the fine finish does better there
+        need = float(max(-gap.min(initial=0.0), 0.0))
+        D = rows_dot(mu.W, np.hstack([dx, Hg]))
+        moves = [np.linalg.norm(D[idx, :3], axis=1).max(initial=0.0)]
+        if points is not None:
+            need = max(need, float(-points[1].min()))
+            moves.append(np.linalg.norm(points[0] @ dx, axis=1).max())
+        longest = float(max(moves))
+        if need > 0 and longest > defaults.contact_cage_reach * need:
+            scale = defaults.contact_cage_reach * need / longest
+            dx = dx * scale
+            D[:, :3] *= scale
+        P = V + D[:, :3]
+        cP = mean_rows(P)
+        t = cubic_root_near(volume_cubic(P - cP, -D[:, 3:], mu.F), mu.volume_rest, 0.0)
+        if not np.isfinite(t):
+            return None
+        return x + dx - t * Hg, P - t * D[:, 3:]
 
     def _bone_points(
         self, V: FloatArray, placed: Sequence[Placed], margin: float, near: Near, edge: float
