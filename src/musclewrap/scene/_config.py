@@ -40,7 +40,7 @@ _MUSCLE = {
     "mesh", "paths", "body", "reference", "cage_size", "cage_coarsening", "method",
     "max_iterations", "repair", "frame", "bones", "fibre_origin", "fibre_insertion",
 }  # fmt: skip
-_COLLISIONS = {"enabled", "margin", "rest_overlap"}
+_COLLISIONS = {"enabled", "margin", "rest_overlap", "muscles"}
 _FIBRES = {
     "count", "points", "moment_arms", "step", "voxels", "moment_arm_contact", "landmark_radius",
 }  # fmt: skip
@@ -149,6 +149,7 @@ class Scene:
     margin: float = 0.0
     rest_overlap: str = "resolve"
     fibres: FibreSpec | None = None
+    muscle_collisions: bool = False
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -337,6 +338,7 @@ def load_scene(path: PathLike) -> Scene:
     margin = _get(coll, "margin", float, "[collisions]", src) if "margin" in coll else 0.0
     if not (np.isfinite(margin) and margin >= 0):
         raise SceneError(f"{src}: [collisions] margin must be >= 0 (mesh units), got {margin}")
+    against = _get(coll, "muscles", bool, "[collisions]", src) if "muscles" in coll else True
     rest_overlap = coll.get("rest_overlap", "resolve")
     if rest_overlap not in ("resolve", "keep"):
         raise SceneError(
@@ -445,6 +447,7 @@ def load_scene(path: PathLike) -> Scene:
         margin=margin,
         rest_overlap=rest_overlap,
         fibres=_fibres(raw, src, osim),
+        muscle_collisions=collisions and against and len(muscles) > 1,
     )
 
 

@@ -45,7 +45,7 @@ from ._plan import (
     path_span,
 )
 from ._read import Inputs, check_outputs_spare_inputs, default_cache_dir, read_inputs
-from ._work import Compare, DeformChunk, FollowPath, Prepare, ProbeBone
+from ._work import Compare, DeformChunk, DeformGroup, FollowPath, Prepare, ProbeBone
 from ._write import GIF, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
 
 __all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_batch", "run_scene"]
@@ -210,6 +210,11 @@ def run_batch(
 _AHEAD = 3
 
 
+def _part(result: Any, name: str) -> ChunkResult:
+    """A muscle's chunk: the task's result, or its part of a group's."""
+    return result[name] if isinstance(result, dict) else result  # type: ignore[no-any-return]
+
+
 def _finish_ready(runs: list[_SceneRun], runner: Runner) -> None:
     for r in runs:
         if r.planned and not r.finished and not runner.busy(r.keys):
@@ -246,6 +251,7 @@ class _SceneRun:
     finished: bool = False
     summary: RunSummary | None = None
     picture_keys: list[Any] = field(default_factory=list)
+    grouped: bool = field(init=False, default=False)
     drawn: bool = False  # finished, and its GIF written (or not asked for)
     t0: float = field(default_factory=time.perf_counter)
     cache: Path | None = None
@@ -281,7 +287,12 @@ class _SceneRun:
         run = os.urandom(8).hex()  # tells a worker's kept muscle from another run's
         self.jobs = muscle_jobs(self.inputs, self.outdir, run)
         spans = {j.name: frame_span(self.inputs, j.name) for j in self.jobs}
-        parts = chunks(n, len(self.jobs), ex.workers)
+        # muscles against each other: the muscles of a frame are solved together, in one
+        # task per chunk of frames
+        self.grouped = (
+            self.collisions is not False and scene.muscle_collisions and len(self.jobs) > 1
+        )
+        parts = chunks(n, 1 if self.grouped else len(self.jobs), ex.workers)
         journal = Journal(self.outdir, self.inputs.key, [(c.start, c.stop) for c in parts], resume)
         self.journal = journal
         self.tag = tag
@@ -301,6 +312,9 @@ class _SceneRun:
                     shared.append(nodes[-1].key)
         self.prepare_keys = {}
         self.path_keys = {}
+        group_after: list[Any] = []
+        group_kept: list[list[Any]] = []
+        compare_of: list[Any] = []
         for j in self.jobs:
             after = list(shared)
             p = j.prepare_path()
@@ -327,6 +341,14 @@ class _SceneRun:
                     )
                 )
             chunk_keys = []
+            if self.grouped:
+                group_after.extend(a for a in after if a not in group_after)
+                if path_key is not None:
+                    group_after.append(path_key)
+                group_kept.append(kept_all)
+                if scene.paper_frames > 0:
+                    compare_of.append(j)
+                continue
             for ks, kept in zip(parts, kept_all, strict=True):
                 key = (tag, "chunk", j.name, ks.start)
                 part = spans[j.name].slice(ks.start, ks.stop)
@@ -359,12 +381,81 @@ class _SceneRun:
                 if found is not None:
                     node.result, node.finished = Comparison.from_json(found), True
                 nodes.append(node)
+        if self.grouped:
+            nodes += self._group_nodes(spans, group_after, group_kept, compare_of, bar)
         self.nodes = nodes
         self.keys = [nd.key for nd in nodes]
         self.chunk_keys = {
-            j.name: [(tag, "chunk", j.name, ks.start) for ks in parts] for j in self.jobs
+            j.name: [
+                (tag, "group", ks.start) if self.grouped else (tag, "chunk", j.name, ks.start)
+                for ks in parts
+            ]
+            for j in self.jobs
         }
         self.planned = True
+
+    def _group_nodes(
+        self,
+        spans: dict[str, Any],
+        after: list[Any],
+        kept: list[list[Any]],
+        compare_of: list[Any],
+        bar: Progress | None,
+    ) -> list[Node]:
+        """The muscles in contact: a task per chunk of frames with all of them (`DeformGroup`)."""
+        tag, jobs, drive = self.tag, tuple(self.jobs), self.inputs.drive
+        to_common = tuple(np.linalg.inv(drive.to_body[j.name]) for j in jobs)
+        path_keys = [self.path_keys.get(j.name) for j in jobs]
+        nodes = []
+        keys = []
+        for p, ks in enumerate(self.parts):
+            key = (tag, "group", ks.start)
+            part = tuple(spans[j.name].slice(ks.start, ks.stop) for j in jobs)
+
+            def make(results: dict[Any, Any], part: tuple[Any, ...] = part) -> DeformGroup:
+                paths = tuple(None if k is None else results[k] for k in path_keys)
+                return DeformGroup(jobs, part, paths, to_common)
+
+            node = Node(
+                key,
+                make,
+                tuple(after),
+                done=self._group_done(ks),
+                frames=len(ks) * len(jobs),
+            )
+            done = [kept[i][p] for i in range(len(jobs))]
+            if all(d is not None for d in done):
+                node.result = {
+                    j.name: ChunkResult.from_json(d) for j, d in zip(jobs, done, strict=True)
+                }
+                node.finished = True
+                if bar is not None:
+                    bar.skip(len(ks) * len(jobs))
+                node.frames = 0
+            nodes.append(node)
+            keys.append(key)
+        for j in compare_of:
+            key = (tag, "compare", j.name)
+            found = self.journal.comparison(j.name)
+            node = Node(
+                key,
+                self._compare_task(j, spans[j.name], keys),
+                tuple(keys),
+                done=self._compare_done(j.name),
+                priority=3,
+            )
+            if found is not None:
+                node.result, node.finished = Comparison.from_json(found), True
+            nodes.append(node)
+        return nodes
+
+    def _group_done(self, ks: range) -> Callable[[dict[str, ChunkResult]], Any]:
+        def done(parts: dict[str, ChunkResult]) -> dict[str, ChunkResult]:
+            for name, part in parts.items():
+                self.journal.save_chunk(name, ks.start, ks.stop, part.to_json())
+            return parts
+
+        return done
 
     def _chunk_done(self, name: str, ks: range) -> Callable[[ChunkResult], ChunkResult]:
         def done(part: ChunkResult) -> ChunkResult:
@@ -392,7 +483,7 @@ class _SceneRun:
         job: Any, span: Any, chunk_keys: list[Any]
     ) -> Callable[[dict[Any, Any]], Any]:
         def make(results: dict[Any, Any]) -> Compare:
-            rows = [r for k in chunk_keys for r in results[k].rows]
+            rows = [r for k in chunk_keys for r in _part(results[k], job.name).rows]
             worst, solved = Compare.frames_of(rows)
             return Compare(job, span, worst, solved)
 
@@ -414,7 +505,7 @@ class _SceneRun:
         scene, drive = self.scene, self.inputs.drive
         results = []
         for j in self.jobs:
-            parts = [runner.result(k) for k in self.chunk_keys[j.name]]
+            parts = [_part(runner.result(k), j.name) for k in self.chunk_keys[j.name]]
             pk = self.prepare_keys.get(j.name)
             # without a preparation task, the path's (the muscle's first task) says how it
             # was had
@@ -513,14 +604,17 @@ class _SceneRun:
     ) -> Callable[[dict[Any, Any]], PictureTask]:
         scene, drive = self.scene, self.inputs.drive
         bones = tuple(b.name for b in scene.bones)
+        order = [s.name for s in scene.muscles]
 
         def make(results: dict[Any, Any]) -> PictureTask:
             files: dict[int, list[str]] = {}
             for k, f in self.bone_entries:
                 files.setdefault(k, []).append(f)
             for key in after:  # the scene's order: bones, then each muscle's files
-                for k, f in results[key].entries:
-                    files.setdefault(k, []).append(f)
+                got = results[key]
+                for part in [got[m] for m in order] if isinstance(got, dict) else [got]:
+                    for k, f in part.entries:
+                        files.setdefault(k, []).append(f)
             colours: dict[str, str] = {}
             camera = label_files(files[0], bones, colours)
             steps = tuple(

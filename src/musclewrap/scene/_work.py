@@ -545,7 +545,7 @@ class DeformGroup:
 
     def run(self) -> dict[str, ChunkResult]:
         from ..constants import defaults
-        from ..contact import contact_pairs, facing_faces, overlap_depths, overlaps
+        from ..contact import facing_faces, overlap_depths, overlaps
 
         order = sorted(range(len(self.jobs)), key=lambda i: self.jobs[i].name)
         ms = {
@@ -558,8 +558,9 @@ class DeformGroup:
         T0 = {self.jobs[i].name: self.to_common[i] for i in order}
         edge = {n: float(m.d._fine_edge) for n, m in ms.items()}
         rest = {n: (apply(T0[n], m.muscle.V), m.muscle.F) for n, m in ms.items()}
-        reach = {n: defaults.muscle_pair_reach * edge[n] for n in names}
-        pairs = contact_pairs(rest, reach)
+        # every pair (those whose boxes do not meet in a frame cost nothing there); where
+        # each faces the other at rest, for the way out (none: the nearest)
+        pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
         facing = {}
         for a, b in pairs:
             for me, other in ((a, b), (b, a)):
