@@ -171,9 +171,13 @@ class Defaults:
     muscle_rounds : int
         Most rounds per frame in which muscles in contact take each other's
         vertices out (`musclewrap.contact.overlaps`): each takes half the depth.
-    muscle_pair_reach : float
-        Two muscles may touch when their surfaces come within this many mean
-        edge lengths (the larger muscle's) of each other at rest.
+    muscle_share : float
+        The share of its depth a vertex inside another muscle is taken out by in
+        a round (the other muscle's vertices inside it take theirs).
+    muscle_overlap_depth : float
+        The rounds stop once no vertex is deeper than this many of its muscle's
+        mean edge lengths inside another muscle (or a round no longer takes the
+        deepest out by a tenth of its depth).
     muscle_facing_reach : float
         A muscle's faces within this distance (mesh units) of another muscle at
         rest, or inside it, are where the other's vertices leave it
@@ -210,7 +214,8 @@ class Defaults:
     contact_softness: float = 0.1
     contact_cage_reach: float = 1.25
     muscle_rounds: int = 12
-    muscle_pair_reach: float = 3.0
+    muscle_share: float = 0.5
+    muscle_overlap_depth: float = 0.05
     muscle_facing_reach: float = 15.0
 
 

@@ -26,12 +26,14 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..mesh import WindingGrid
+from ._inside import _triangle_weights
 
-__all__ = ["Overlap", "contact_pairs", "facing_faces", "overlaps", "overlap_depths"]
+__all__ = ["Overlap", "contact_pairs", "facing_faces", "overlap_depths", "overlaps"]
 
 
 @dataclass(frozen=True)
@@ -58,15 +60,47 @@ class Overlap:
 
 
 def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, FloatArray]:
-    """Distances of the points ``P`` to the triangles ``F`` of ``V``, and the closest points."""
+    """Distances of the points ``P`` to the triangles ``F`` of ``V``, and the closest points.
+
+    Exact either way: every triangle per point where that is few tests (a few points
+    inside a neighbour: 0.2 ms where building libigl's tree costs 1.2 ms), else
+    libigl's AABB tree.
+    """
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    if len(P) * len(F) <= 200_000:
+        dist, C = np.empty(len(P)), np.empty((len(P), 3))
+        _closest_kernel(P, V, F, dist, C)
+        return dist, C
     import igl
 
-    sq, _, C = igl.point_mesh_squared_distance(
-        np.ascontiguousarray(P, dtype=np.float64),
-        np.ascontiguousarray(V, dtype=np.float64),
-        np.ascontiguousarray(F, dtype=np.int64),
-    )
+    sq, _, C = igl.point_mesh_squared_distance(P, V, F)
     return np.sqrt(np.maximum(sq, 0.0)), np.asarray(C)
+
+
+@numba.njit(cache=True)
+def _closest_kernel(P, V, F, dist, C):  # noqa: ANN001, ANN202 # pragma: no cover
+    # every triangle for every point (Ericson's closest point, `_triangle_weights`)
+    for i in range(P.shape[0]):
+        p0, p1, p2 = P[i, 0], P[i, 1], P[i, 2]
+        best = np.inf
+        b0 = b1 = b2 = 0.0
+        for f in range(F.shape[0]):
+            x, y, z = F[f, 0], F[f, 1], F[f, 2]
+            wu, wv, ww = _triangle_weights(
+                p0, p1, p2, V[x, 0], V[x, 1], V[x, 2], V[y, 0], V[y, 1], V[y, 2],
+                V[z, 0], V[z, 1], V[z, 2],
+            )  # fmt: skip
+            q0 = wu * V[x, 0] + wv * V[y, 0] + ww * V[z, 0]
+            q1 = wu * V[x, 1] + wv * V[y, 1] + ww * V[z, 1]
+            q2 = wu * V[x, 2] + wv * V[y, 2] + ww * V[z, 2]
+            d = (p0 - q0) ** 2 + (p1 - q1) ** 2 + (p2 - q2) ** 2
+            if d < best:
+                best = d
+                b0, b1, b2 = q0, q1, q2
+        dist[i] = np.sqrt(best)
+        C[i, 0], C[i, 1], C[i, 2] = b0, b1, b2
 
 
 def contact_pairs(
@@ -176,3 +210,4 @@ def overlap_depths(
                 max(float(o.depth.max()) for o in found),
             )
     return out
+

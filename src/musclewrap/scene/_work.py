@@ -545,7 +545,7 @@ class DeformGroup:
 
     def run(self) -> dict[str, ChunkResult]:
         from ..constants import defaults
-        from ..contact import facing_faces, overlap_depths, overlaps
+        from ..contact import Near, facing_faces, overlap_depths, overlaps
 
         order = sorted(range(len(self.jobs)), key=lambda i: self.jobs[i].name)
         ms = {
@@ -574,32 +574,40 @@ class DeformGroup:
             live = [n for n in names if np.isfinite(state[n][1]).all()]
             live_pairs = [(a, b) for a, b in pairs if a in live and b in live]
             T = {n: ms[n].span.to_output[k] for n in names}
+            obstacles = {n: ms[n].frame_obstacles(k) for n in names}
+            nears: dict[str, Any] = {}
+            last = np.inf
             for _ in range(defaults.muscle_rounds if live_pairs else 0):
                 surf = {n: (apply(T[n], state[n][1]), ms[n].muscle.F) for n in live}
                 found = overlaps(surf, live_pairs, facing)
-                if not any(
-                    o.depth.max() > 0.5 * tol_contact(edge[n]) for n in live for o in found[n]
-                ):
-                    break
+                # deep enough to take a round: the deepest vertex, in its muscle's edges
+                deep = max(
+                    (float(o.depth.max()) / edge[n] for n in live for o in found[n]), default=0.0
+                )
+                if deep <= defaults.muscle_overlap_depth or deep > 0.9 * last:
+                    break  # out (to the tolerance), or no longer getting out
+                last = deep
                 new = {}
                 for n in live:
                     if not found[n]:
                         continue
                     R = T[n][:3, :3]
                     rows = np.concatenate([o.rows for o in found[n]])
-                    need = 0.5 * np.concatenate([o.depth for o in found[n]])
+                    need = defaults.muscle_share * np.concatenate([o.depth for o in found[n]])
                     out = np.vstack([o.out for o in found[n]]) @ R  # into the muscle's frame
+                    if obstacles[n] and n not in nears:
+                        nears[n] = Near(state[n][1], obstacles[n], ms[n].job.margin)
                     new[n] = ms[n].d.contact_round(
                         *state[n], rows, need, out,
-                        obstacles=ms[n].frame_obstacles(k), margin=self.jobs[0].margin,
-                        sides=ms[n].sides_of(k),
+                        obstacles=obstacles[n], margin=ms[n].job.margin,
+                        sides=ms[n].sides_of(k), near=nears.get(n),
                     )  # fmt: skip
                 state.update(new)
             final = {}
             for n, m in ms.items():
                 final[n] = m.d.settle(
                     res[n], *state[n], m.span.lines[k],
-                    reference_point=m.span.references[k], obstacles=m.frame_obstacles(k),
+                    reference_point=m.span.references[k], obstacles=obstacles[n],
                     margin=m.job.margin, sides=m.sides_of(k),
                 )  # fmt: skip
             ok = [n for n in names if np.isfinite(final[n].V).all()]
@@ -611,9 +619,3 @@ class DeformGroup:
                 m.emit(k, final[n], depth[n][1] if n in depth else float("nan"))
         return {n: m.result for n, m in ms.items()}
 
-
-def tol_contact(edge: float) -> float:
-    """The contact's slack for a muscle of mean edge ``edge`` (`musclewrap.constants.tol`)."""
-    from ..constants import tol
-
-    return float(tol.contact * edge)

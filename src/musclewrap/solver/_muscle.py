@@ -850,6 +850,7 @@ class Deformer:
         obstacles: Sequence[Placed | Obstacle] | None = None,
         margin: float = 0.0,
         sides: SideReference | None = None,
+        near: Near | None = None,
     ) -> tuple[FloatArray, FloatArray]:
         """One cage step that moves fine vertices ``rows`` by ``need`` along ``out``, bones kept.
 
@@ -859,13 +860,15 @@ class Deformer:
         step of the cage (`cage_push`), ended on the exact fine volume: what muscles
         pressed against each other take each round (`musclewrap.contact.overlaps`).
         Returns the new cage and fine positions (the same arrays where nothing moved).
+        ``near``: the obstacles' `Near` from an earlier position of this pose's rounds
+        (its bounds hold wherever the vertices have moved since).
         """
         edge = self._fine_edge
         slack = tol.contact * edge
         idx, gap, N = rows, slack - np.asarray(need, dtype=np.float64), out
         if obstacles:
             placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
-            near = Near(V, placed, margin)
+            near = Near(V, placed, margin) if near is None else near
             bi, bg, bn = contact_candidates(
                 V, placed, margin, defaults.contact_band * edge, near, sides
             )
