@@ -526,16 +526,13 @@ class DeformGroup:
     """Muscles that may touch each other, on a chunk of frames: each frame solved together.
 
     Per frame, every muscle is solved against its bones (without the fine finish),
-    then in rounds (`musclewrap.contact.overlaps`, Jacobi: every muscle's step from
-    the same snapshot of all of them) each muscle's vertices inside another are
-    taken out by half their depth through the faces that face it, with its bones'
-    conditions, by one cage step each (`Deformer.contact_round`); then each muscle's
-    bone finish (`Deformer.settle`) and the deepest vertex still inside another,
-    exact. The muscles go in the order of their names: the files do not depend on
-    the order the scene lists them in, nor on the chunks or the workers.
+    then they meet (`musclewrap.solver.meet`: rounds in which each takes half of its
+    depth in another out, then its bone finish). The muscles go in the order of
+    their names: the files do not depend on the order the scene lists them in, nor
+    on the chunks or the workers.
 
     ``to_common`` per muscle: the transform from its frame into the scene's, at rest
-    (where the pairs and the faces that face each other are found).
+    (where the faces that face each other are found).
     """
 
     jobs: tuple[MuscleJob, ...]
@@ -544,8 +541,7 @@ class DeformGroup:
     to_common: tuple[FloatArray, ...]
 
     def run(self) -> dict[str, ChunkResult]:
-        from ..constants import defaults
-        from ..contact import Near, facing_faces, overlap_depths, overlaps
+        from ..solver import facing_at_rest, meet
 
         order = sorted(range(len(self.jobs)), key=lambda i: self.jobs[i].name)
         ms = {
@@ -554,68 +550,22 @@ class DeformGroup:
             )
             for i in order
         }
-        names = list(ms)
-        T0 = {self.jobs[i].name: self.to_common[i] for i in order}
-        edge = {n: float(m.d._fine_edge) for n, m in ms.items()}
-        rest = {n: (apply(T0[n], m.muscle.V), m.muscle.F) for n, m in ms.items()}
-        # every pair (those whose boxes do not meet in a frame cost nothing there); where
-        # each faces the other at rest, for the way out (none: the nearest)
-        pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
-        facing = {}
-        for a, b in pairs:
-            for me, other in ((a, b), (b, a)):
-                facing[me, other] = facing_faces(
-                    *rest[me], *rest[other], defaults.muscle_facing_reach
-                )
-        n_frames = len(self.spans[0])
-        for k in range(n_frames):
-            res = {n: m.solve_frame(k, finish=False) for n, m in ms.items()}
-            state = {n: (r.cage, r.V) for n, r in res.items()}
-            live = [n for n in names if np.isfinite(state[n][1]).all()]
-            live_pairs = [(a, b) for a, b in pairs if a in live and b in live]
-            T = {n: ms[n].span.to_output[k] for n in names}
-            obstacles = {n: ms[n].frame_obstacles(k) for n in names}
-            nears: dict[str, Any] = {}
-            last = np.inf
-            for _ in range(defaults.muscle_rounds if live_pairs else 0):
-                surf = {n: (apply(T[n], state[n][1]), ms[n].muscle.F) for n in live}
-                found = overlaps(surf, live_pairs, facing)
-                # deep enough to take a round: the deepest vertex, in its muscle's edges
-                deep = max(
-                    (float(o.depth.max()) / edge[n] for n in live for o in found[n]), default=0.0
-                )
-                if deep <= defaults.muscle_overlap_depth or deep > 0.9 * last:
-                    break  # out (to the tolerance), or no longer getting out
-                last = deep
-                new = {}
-                for n in live:
-                    if not found[n]:
-                        continue
-                    R = T[n][:3, :3]
-                    rows = np.concatenate([o.rows for o in found[n]])
-                    need = defaults.muscle_share * np.concatenate([o.depth for o in found[n]])
-                    out = np.vstack([o.out for o in found[n]]) @ R  # into the muscle's frame
-                    if obstacles[n] and n not in nears:
-                        nears[n] = Near(state[n][1], obstacles[n], ms[n].job.margin)
-                    new[n] = ms[n].d.contact_round(
-                        *state[n], rows, need, out,
-                        obstacles=obstacles[n], margin=ms[n].job.margin,
-                        sides=ms[n].sides_of(k), near=nears.get(n),
-                    )  # fmt: skip
-                state.update(new)
-            final = {}
-            for n, m in ms.items():
-                final[n] = m.d.settle(
-                    res[n], *state[n], m.span.lines[k],
-                    reference_point=m.span.references[k], obstacles=obstacles[n],
-                    margin=m.job.margin, sides=m.sides_of(k),
-                )  # fmt: skip
-            ok = [n for n in names if np.isfinite(final[n].V).all()]
-            depth = overlap_depths(
-                {n: (apply(T[n], final[n].V), ms[n].muscle.F) for n in ok},
-                [(a, b) for a, b in pairs if a in ok and b in ok],
+        ds = {n: m.d for n, m in ms.items()}
+        facing = facing_at_rest(ds, {self.jobs[i].name: self.to_common[i] for i in order})
+        margin = self.jobs[0].margin
+        for k in range(len(self.spans[0])):
+            final = meet(
+                ds,
+                {n: m.solve_frame(k, finish=False) for n, m in ms.items()},
+                {n: m.span.lines[k] for n, m in ms.items()},
+                frames={n: m.span.to_output[k] for n, m in ms.items()},
+                reference_points={n: m.span.references[k] for n, m in ms.items()},
+                obstacles={n: m.frame_obstacles(k) for n, m in ms.items()},
+                margin=margin,
+                sides={n: m.sides_of(k) for n, m in ms.items()},
+                facing=facing,
             )
             for n, m in ms.items():
-                m.emit(k, final[n], depth[n][1] if n in depth else float("nan"))
+                m.emit(k, final[n], final[n].muscle_overlap)
         return {n: m.result for n, m in ms.items()}
 

@@ -4,6 +4,7 @@ from ..mesh import cubic_root_near
 from ._muscle import METHODS, Deformer, Muscle, deform
 from ._paper import solve_paper
 from ._result import DeformationResult
+from ._together import deform_together, facing_at_rest, meet
 
 __all__ = [
     "METHODS",
@@ -12,5 +13,8 @@ __all__ = [
     "Muscle",
     "cubic_root_near",
     "deform",
+    "deform_together",
+    "facing_at_rest",
+    "meet",
     "solve_paper",
 ]

@@ -64,6 +64,11 @@ class DeformationResult:
         How many obstacle vertices lie inside it.
     contact_moved : float
         Largest displacement of a vertex by the contact finish.
+    muscle_overlap : float
+        Deepest vertex inside another muscle (exact), where the muscles of a pose
+        were solved together (`deform_together`); NaN otherwise.
+    muscle_rounds : int
+        The rounds they took (`deform_together`).
     """
 
     V: FloatArray
@@ -87,6 +92,8 @@ class DeformationResult:
     contact_moved: float = 0.0
     bone_inside_depth: float = 0.0
     bone_inside_vertices: int = 0
+    muscle_overlap: float = float("nan")
+    muscle_rounds: int = 0
 
     @classmethod
     def failed(

@@ -1,0 +1,198 @@
+"""Muscles of one pose solved together: each against its bones, then against each other.
+
+Each muscle is solved on its own (`Deformer.deform` without the fine finish); then,
+in rounds, every muscle's vertices inside another (`musclewrap.contact.overlaps`)
+are taken out by a share of their depth (`defaults.muscle_share`, half: the other
+muscle's vertices inside it take the other half, so the surfaces meet between where
+they were), through the faces that face it at rest, by one least-energy step of its
+cage with its bones' conditions (`Deformer.contact_round`). The rounds are Jacobi
+rounds: every muscle's step is computed from the same snapshot of all of them, and
+the muscles go in the order of their names, so the result does not depend on the
+order they are given in. Then each muscle's bone finish (`Deformer.settle`) and,
+exact, the deepest vertex still inside another.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .._typing import FloatArray, IntArray
+from ..constants import defaults
+from ..contact import Near, facing_faces, overlap_depths, overlaps
+from ._muscle import Deformer
+from ._result import DeformationResult
+
+__all__ = ["deform_together", "facing_at_rest", "meet"]
+
+
+def _apply(T: FloatArray | None, P: FloatArray) -> FloatArray:
+    return P if T is None else P @ T[:3, :3].T + T[:3, 3]
+
+
+def facing_at_rest(
+    deformers: Mapping[str, Deformer],
+    rest_frames: Mapping[str, FloatArray] | None = None,
+    reach: float | None = None,
+) -> dict[tuple[str, str], IntArray]:
+    """For every ordered pair, the faces of the second that face the first at rest.
+
+    ``rest_frames[name]``: the transform from the muscle's frame into a common one
+    at rest (default: they share one). ``reach`` (mesh units): default
+    ``defaults.muscle_facing_reach``.
+    """
+    reach = defaults.muscle_facing_reach if reach is None else reach
+    names = sorted(deformers)
+    rest = {
+        n: (
+            _apply(None if rest_frames is None else rest_frames[n], deformers[n].muscle.V),
+            deformers[n].muscle.F,
+        )
+        for n in names
+    }
+    out = {}
+    for i, a in enumerate(names):
+        for b in names[i + 1 :]:
+            out[a, b] = facing_faces(*rest[a], *rest[b], reach)
+            out[b, a] = facing_faces(*rest[b], *rest[a], reach)
+    return out
+
+
+def meet(
+    deformers: Mapping[str, Deformer],
+    results: Mapping[str, DeformationResult],
+    lines: Mapping[str, Mapping[str, npt.ArrayLike]],
+    *,
+    frames: Mapping[str, FloatArray] | None = None,
+    reference_points: Mapping[str, npt.ArrayLike | None] | None = None,
+    obstacles: Mapping[str, Sequence[Any] | None] | None = None,
+    margin: float = 0.0,
+    sides: Mapping[str, Any] | None = None,
+    facing: Mapping[tuple[str, str], IntArray] | None = None,
+) -> dict[str, DeformationResult]:
+    """Muscles solved on their own (``finish=False``) taken out of each other, then finished.
+
+    ``frames[name]``: the transform from the muscle's frame into one common to
+    all in this pose (default: they share one). ``obstacles``, ``sides``: per
+    muscle, as `Deformer.deform` takes them. ``facing``: `facing_at_rest`
+    (computed here when None). Returns each muscle's finished result with
+    ``muscle_overlap`` and ``muscle_rounds``.
+    """
+    names = sorted(deformers)
+    frames = frames or {}
+    refs = reference_points or {}
+    obstacles = obstacles or {}
+    sides = sides or {}
+    if facing is None:
+        facing = facing_at_rest(deformers)
+    edge = {n: float(deformers[n]._fine_edge) for n in names}
+    state = {n: (results[n].cage, results[n].V) for n in names}
+    live = [n for n in names if np.isfinite(state[n][1]).all()]
+    pairs = [(a, b) for i, a in enumerate(live) for b in live[i + 1 :]]
+    nears: dict[str, Near] = {}
+    last, rounds = np.inf, 0
+    for _ in range(defaults.muscle_rounds if pairs else 0):
+        surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
+        found = overlaps(surf, pairs, facing)
+        # deep enough for a round: the deepest vertex, in its muscle's mean edges
+        deep = max((float(o.depth.max()) / edge[n] for n in live for o in found[n]), default=0.0)
+        if deep <= defaults.muscle_overlap_depth or deep > 0.9 * last:
+            break  # out (to the tolerance), or no longer getting out
+        last = deep
+        rounds += 1
+        new = {}
+        for n in live:
+            if not found[n]:
+                continue
+            T = frames.get(n)
+            rows = np.concatenate([o.rows for o in found[n]])
+            need = defaults.muscle_share * np.concatenate([o.depth for o in found[n]])
+            out = np.vstack([o.out for o in found[n]])
+            if T is not None:
+                out = out @ T[:3, :3]  # into the muscle's frame
+            obs = obstacles.get(n)
+            if obs and n not in nears:
+                nears[n] = Near(state[n][1], obs, margin)
+            new[n] = deformers[n].contact_round(
+                *state[n], rows, need, out, obstacles=obs, margin=margin, sides=sides.get(n),
+                near=nears.get(n),
+            )  # fmt: skip
+        state.update(new)
+    final = {
+        n: deformers[n].settle(
+            results[n], *state[n], lines[n], reference_point=refs.get(n),
+            obstacles=obstacles.get(n), margin=margin, sides=sides.get(n),
+        )  # fmt: skip
+        for n in names
+    }
+    ok = [n for n in names if np.isfinite(final[n].V).all()]
+    depth = overlap_depths(
+        {n: (_apply(frames.get(n), final[n].V), deformers[n].muscle.F) for n in ok},
+        [(a, b) for i, a in enumerate(ok) for b in ok[i + 1 :]],
+    )
+    return {
+        n: dataclasses.replace(
+            final[n],
+            muscle_overlap=depth[n][1] if n in depth else float("nan"),
+            muscle_rounds=rounds,
+        )
+        for n in names
+    }
+
+
+def deform_together(
+    deformers: Mapping[str, Deformer],
+    lines: Mapping[str, Mapping[str, npt.ArrayLike]],
+    *,
+    frames: Mapping[str, FloatArray] | None = None,
+    reference_points: Mapping[str, npt.ArrayLike | None] | None = None,
+    obstacles: Mapping[str, Sequence[Any] | None] | None = None,
+    margin: float = 0.0,
+    sides: Mapping[str, Any] | None = None,
+    facing: Mapping[tuple[str, str], IntArray] | None = None,
+    **kw: Any,
+) -> dict[str, DeformationResult]:
+    """Deform several muscles for one pose together: each follows its lines, none inside another.
+
+    Parameters
+    ----------
+    deformers : mapping of name to Deformer
+        The muscles, bound to their rest lines.
+    lines : mapping of name to lines
+        Each muscle's current lines (as `Deformer.deform` takes them).
+    frames : mapping of name to (4, 4) array, optional
+        The transform from each muscle's frame into one common to all in this pose
+        (default: they share one).
+    reference_points, obstacles, sides : mappings by name, optional
+        As `Deformer.deform` takes them, per muscle.
+    margin : float, optional
+        The bones' margin.
+    facing : optional
+        `facing_at_rest` (computed when None: the muscles' rest meshes must then
+        share a frame).
+    **kw
+        ``method``, ``max_iterations``: passed to each solve.
+
+    Returns
+    -------
+    dict of name to DeformationResult
+        With ``muscle_overlap`` (exact) and ``muscle_rounds``.
+    """
+    refs = reference_points or {}
+    obstacles = obstacles or {}
+    sides = sides or {}
+    results = {
+        n: d.deform(
+            lines[n], reference_point=refs.get(n), obstacles=obstacles.get(n), margin=margin,
+            finish=False, sides=sides.get(n), **kw,
+        )  # fmt: skip
+        for n, d in deformers.items()
+    }
+    return meet(
+        deformers, results, lines, frames=frames, reference_points=refs, obstacles=obstacles,
+        margin=margin, sides=sides, facing=facing,
+    )  # fmt: skip
