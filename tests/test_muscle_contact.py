@@ -1,6 +1,7 @@
 """Muscles against each other (issue 24): the independent check's muscle-muscle part."""
 
 import numpy as np
+import pytest
 
 from musclewrap.scene._verify import muscle_overlaps
 from musclewrap.synthetic import capsule
@@ -41,3 +42,155 @@ def test_overlap_of_a_sphere_inside_another():
     # the small sphere's deepest vertex: 10 - (3 - 1) = 8 from the big one's surface
     assert 7.9 <= depth <= 8.05
     assert out["big"] == (0, 0.0, "")
+
+
+# ------------------------------------------------------------------ capsules pressed together
+def _capsules(offsets):
+    """Capsules of radius 10 along z (0..60), one per x offset, each bound to its axis."""
+    from musclewrap.solver import Muscle
+
+    V, F = capsule(radius=10.0, length=40.0, n_around=32, cap_rings=8, segments=24)
+    m = Muscle.from_mesh(V, F, cage_size=150)
+    out = {}
+    for name, x in offsets.items():
+        mx = Muscle.from_mesh(V + [x, 0.0, 0.0], F, cage_size=150) if x else m
+        out[name] = mx.bind({"axis": [[x, 0.0, 0.0], [x, 0.0, 60.0]]})
+    return out
+
+
+def _axis(x):
+    return {"axis": [[x, 0.0, 0.0], [x, 0.0, 60.0]]}
+
+
+@pytest.fixture(scope="module")
+def pair():
+    # 24 apart at rest (a gap of 4), their lines pushed to 16 apart: 4 deep into each other
+    return _capsules({"a": 0.0, "b": 24.0})
+
+
+def test_two_capsules_pressed_together_meet_between_volumes_exact(pair):
+    from musclewrap.mesh import mean_edge_length, volume
+    from musclewrap.solver import deform_together
+
+    lines = {"a": _axis(4.0), "b": _axis(20.0)}
+    alone = {n: d.deform(lines[n]) for n, d in pair.items()}
+    before = muscle_overlaps({n: (r.V, pair[n].muscle.F) for n, r in alone.items()})
+    assert min(before[n][1] for n in pair) > 3.0  # the solve alone: 4 deep
+    res = deform_together(pair, lines)
+    surf = {n: (r.V, pair[n].muscle.F) for n, r in res.items()}
+    after = muscle_overlaps(surf)
+    edge = mean_edge_length(pair["a"].muscle.V, pair["a"].muscle.F)
+    for n, r in res.items():
+        assert r.converged, r.reason
+        assert abs(volume(r.V, pair[n].muscle.F) / pair[n].muscle.volume_rest - 1) <= 1e-12
+        assert after[n][1] <= 0.05 * edge + 1e-9  # the rounds' tolerance
+        assert r.muscle_overlap == pytest.approx(after[n][1], abs=1e-9)
+        assert 1 <= r.muscle_rounds <= 12
+        assert pair[n].muscle.shape_change(r.V).max() <= 0.5
+    # they meet between where they were: the faces in contact (within a tenth of an edge of
+    # the other) lie flat on x = 12 (symmetry), not one pushed whole out of the other
+    import igl
+
+    for me, other in (("a", "b"), ("b", "a")):
+        P = res[me].V
+        sq, _, _ = igl.point_mesh_squared_distance(P, res[other].V, pair[other].muscle.F)
+        touching = np.sqrt(sq) <= 0.1 * edge
+        assert touching.sum() > 20
+        assert np.abs(P[touching, 0] - 12.0).max() <= 0.25 * edge
+
+
+def test_the_order_the_muscles_come_in_changes_nothing(pair):
+    from musclewrap.solver import deform_together
+
+    lines = {"a": _axis(4.0), "b": _axis(20.0)}
+    one = deform_together(pair, lines)
+    other = deform_together(dict(reversed(list(pair.items()))), dict(reversed(list(lines.items()))))
+    for n in pair:
+        assert np.array_equal(one[n].V, other[n].V)
+        assert np.array_equal(one[n].cage, other[n].cage)
+
+
+def test_three_capsules_in_a_row():
+    from musclewrap.mesh import mean_edge_length, volume
+    from musclewrap.solver import deform_together
+
+    ds = _capsules({"a": 0.0, "b": 24.0, "c": 48.0})
+    # the outer two pushed in by 8 each (4 into b): b is pressed from both sides
+    lines = {"a": _axis(8.0), "b": _axis(24.0), "c": _axis(40.0)}
+    res = deform_together(ds, lines)
+    after = muscle_overlaps({n: (r.V, ds[n].muscle.F) for n, r in res.items()})
+    edge = mean_edge_length(ds["a"].muscle.V, ds["a"].muscle.F)
+    for n, r in res.items():
+        assert r.converged, r.reason
+        assert abs(volume(r.V, ds[n].muscle.F) / ds[n].muscle.volume_rest - 1) <= 1e-12
+        assert after[n][1] <= 0.05 * edge + 1e-9
+    # each side gives half: a and c end 2 short of their lines' push, b is squeezed by 2 from
+    # either side (its faces at 16 and 32) and keeps its volume by growing across
+    assert res["a"].V[:, 0].max() == pytest.approx(16.0, abs=0.5)
+    assert res["c"].V[:, 0].min() == pytest.approx(32.0, abs=0.5)
+    assert res["b"].V[:, 0].min() == pytest.approx(16.0, abs=0.5)
+    assert res["b"].V[:, 0].max() == pytest.approx(32.0, abs=0.5)
+    assert np.ptp(res["b"].V[:, 1]) > 20.5
+
+
+# ------------------------------------------------------------------ scenes
+def _two_muscles(data_dir, second: str, extra: str = "", path: str = "iliacus_r") -> str:
+    lhdl = data_dir / "lhdl"
+    return f"""name = "two"
+[units]
+mesh = "mm"
+model = "m"
+[model]
+osim = "{lhdl / "model" / "LHDL_hip_r.osim"}"
+motion = "{data_dir / "opensim" / "motions" / "subject01_walk1_ik.mot"}"
+coordinates = ["hip_flexion_r", "hip_adduction_r", "hip_rotation_r"]
+rest_pose = {{ hip_flexion_r = 1.576, hip_adduction_r = -4.727, hip_rotation_r = -5.29 }}
+output_frame = "pelvis"
+angle_unit = "deg"
+[muscles.psoas]
+mesh = "{lhdl / "muscles" / "LHDL_R_Psoas.vtk"}"
+paths = ["psoas_r"]
+body = "pelvis"
+reference = "femur_r"
+[muscles.other]
+mesh = "{second}"
+paths = ["{path}"]
+body = "pelvis"
+reference = "femur_r"
+[output]
+gif = false
+paper_frames = 0
+{extra}"""
+
+
+@pytest.mark.realdata
+def test_muscles_that_cannot_be_kept_apart_are_refused(data_dir, tmp_path):
+    from musclewrap.scene import SceneError, load_scene, run_scene
+
+    psoas = data_dir / "lhdl" / "muscles" / "LHDL_R_Psoas.vtk"
+    toml = tmp_path / "s.toml"
+    # the same mesh twice
+    toml.write_text(_two_muscles(data_dir, str(psoas)))
+    same = r"'psoas' \(.*Psoas.vtk\) and 'other' \(.*Psoas.vtk\) are the same mesh"
+    with pytest.raises(SceneError, match=same):
+        run_scene(load_scene(toml), tmp_path / "o", frames="0:2", cache_dir=False, progress=None)
+    # without muscle contact, neither is refused for it
+    toml.write_text(_two_muscles(data_dir, str(psoas), "[collisions]\nmuscles = false\n"))
+    assert not load_scene(toml).muscle_collisions
+
+
+def test_a_muscle_inside_another_at_rest_is_refused(tmp_path):
+    from types import SimpleNamespace
+
+    from musclewrap.scene import SceneError
+    from musclewrap.scene._read import check_muscles_apart
+
+    big, small = _sphere(10.0, [0, 0, 0]), _sphere(3.0, [2, 0, 0])
+    near = _sphere(10.0, [19, 0, 0])  # overlaps big by 1: allowed (pushed apart per frame)
+    spec = lambda n: SimpleNamespace(name=n, mesh=tmp_path / f"{n}.stl")  # noqa: E731
+    scene = SimpleNamespace(muscles=[spec("big"), spec("small"), spec("near")])
+    drive = SimpleNamespace(to_body={n: np.eye(4) for n in ("big", "small", "near")})
+    with pytest.raises(SceneError, match=r"'small' \(.*small.stl\) lies entirely inside 'big'"):
+        check_muscles_apart(scene, drive, {"big": big, "small": small, "near": near})
+    scene.muscles = [spec("big"), spec("near")]
+    check_muscles_apart(scene, drive, {"big": big, "near": near})

@@ -395,6 +395,44 @@ def _rest_overlap(
     return out_muscles, contact, anchors
 
 
+def check_muscles_apart(
+    scene: Scene, drive: Drive, muscles: dict[str, tuple[FloatArray, IntArray]]
+) -> None:
+    """Muscles that cannot be kept apart: refused, naming both (muscle contact on).
+
+    Two muscles that are the same mesh (the same file, or the same vertices), or one
+    whose every vertex lies inside another at rest (a wrong file, frame or unit).
+    """
+    from ..mesh import WindingGrid
+
+    specs = {m.name: m for m in scene.muscles}
+    names = list(specs)
+    rest = {n: apply(np.linalg.inv(drive.to_body[n]), muscles[n][0]) for n in names}
+    for i, a in enumerate(names):
+        for b in names[i + 1 :]:
+            Va, Vb = rest[a], rest[b]
+            if (Va.min(0) > Vb.max(0)).any() or (Vb.min(0) > Va.max(0)).any():
+                continue
+            where = f"{a!r} ({specs[a].mesh}) and {b!r} ({specs[b].mesh})"
+            size = float(np.ptp(np.vstack([Va, Vb]), axis=0).max())
+            same = Path(specs[a].mesh).resolve() == Path(specs[b].mesh).resolve() or (
+                Va.shape == Vb.shape
+                and np.allclose(np.sort(Va, axis=0), np.sort(Vb, axis=0), atol=1e-9 * size)
+            )
+            if same:
+                raise SceneError(
+                    f"muscles {where} are the same mesh: two muscles cannot be kept out of each "
+                    "other; name each muscle's own mesh, or set [collisions] muscles = false"
+                )
+            for x, y in ((a, b), (b, a)):
+                if (WindingGrid(rest[y], muscles[y][1])(rest[x]) > 0).all():
+                    raise SceneError(
+                        f"muscle {x!r} ({specs[x].mesh}) lies entirely inside {y!r} "
+                        f"({specs[y].mesh}) at rest: check their files, frames and units, or set "
+                        "[collisions] muscles = false"
+                    )
+
+
 def gather(runner: Any, nodes: list[Node]) -> dict[Any, Any]:
     """Run ``nodes`` through ``runner`` and wait; results by key.
 

@@ -44,7 +44,13 @@ from ._plan import (
     muscle_jobs,
     path_span,
 )
-from ._read import Inputs, check_outputs_spare_inputs, default_cache_dir, read_inputs
+from ._read import (
+    Inputs,
+    check_muscles_apart,
+    check_outputs_spare_inputs,
+    default_cache_dir,
+    read_inputs,
+)
 from ._work import Compare, DeformChunk, DeformGroup, FollowPath, Prepare, ProbeBone
 from ._write import GIF, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
 
@@ -292,6 +298,8 @@ class _SceneRun:
         self.grouped = (
             self.collisions is not False and scene.muscle_collisions and len(self.jobs) > 1
         )
+        if self.grouped:
+            check_muscles_apart(scene, drive, self.inputs.muscles)
         parts = chunks(n, 1 if self.grouped else len(self.jobs), ex.workers)
         journal = Journal(self.outdir, self.inputs.key, [(c.start, c.stop) for c in parts], resume)
         self.journal = journal
