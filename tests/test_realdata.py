@@ -174,7 +174,9 @@ def test_winding_numbers_match_libigl_on_real_muscles(data_dir):
     from musclewrap.mesh import winding_numbers
 
     rng = np.random.default_rng(7)
-    files = sorted((data_dir / "lhdl" / "muscles").glob("*.vtk")) + [data_dir / "vhf" / f for f in VHF]
+    files = sorted((data_dir / "lhdl" / "muscles").glob("*.vtk")) + [
+        data_dir / "vhf" / f for f in VHF
+    ]
     for path in files:
         V, F = read_mesh(path)
         lo, hi = V.min(axis=0), V.max(axis=0)

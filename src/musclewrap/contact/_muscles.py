@@ -210,4 +210,3 @@ def overlap_depths(
                 max(float(o.depth.max()) for o in found),
             )
     return out
-

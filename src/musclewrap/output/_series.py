@@ -193,11 +193,13 @@ def plot_penetration(
     line_inside: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
     limit: float | None = None,
     unit: str = "mm",
+    muscle_inside: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
 ) -> Path:
     """Plot per frame how deep muscles and bones lie in each other, one colour per muscle.
 
     Above, the deepest muscle vertex inside a bone; below (with ``bone_inside``),
-    the deepest bone vertex inside the muscle.
+    the deepest bone vertex inside the muscle; last (with ``muscle_inside``), the
+    deepest vertex of the muscle inside another muscle.
 
     Parameters
     ----------
@@ -220,6 +222,8 @@ def plot_penetration(
         A horizontal line: the depth a target allows.
     unit : str, optional
         Mesh unit, for the axis label.
+    muscle_inside : mapping of str to (frames, depths), optional
+        Deepest vertex of the muscle inside another muscle per frame (a last panel).
 
     Returns
     -------
@@ -230,7 +234,7 @@ def plot_penetration(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = 2 if bone_inside else 1
+    panels = 1 + bool(bone_inside) + bool(muscle_inside)
     fig, axes = plt.subplots(
         panels, 1, figsize=(7, 3.2 * panels + 0.8), dpi=110, sharex=True, squeeze=False
     )
@@ -265,6 +269,13 @@ def plot_penetration(
         ax2.set_ylabel(f"bone vertex in muscle ({unit})")
         ax2.set_ylim(bottom=0.0)
         ax2.grid(True, alpha=0.3)
+    if muscle_inside:
+        ax3 = axes[-1, 0]
+        for i, (label, (x, y)) in enumerate(muscle_inside.items()):
+            ax3.plot(list(x), list(y), marker=".", ms=3, color=f"C{i % 10}", label=label)
+        ax3.set_ylabel(f"vertex in another muscle ({unit})")
+        ax3.set_ylim(bottom=0.0)
+        ax3.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("frame")
     return _save_png(fig, path)
 

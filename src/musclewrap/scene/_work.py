@@ -568,4 +568,3 @@ class DeformGroup:
             for n, m in ms.items():
                 m.emit(k, final[n], final[n].muscle_overlap)
         return {n: m.result for n, m in ms.items()}
-

@@ -105,6 +105,11 @@ class RunSummary:
                 f"{max((r['contact_vertices'] for r in solved), default=0)} contact vertices)"
                 if any(r["contact_vertices"] for r in solved)
                 else ""
+            )
+            + (
+                f"; deepest vertex in another muscle {worst('muscle_overlap_max'):.3g}"
+                if any(np.isfinite(r.get("muscle_overlap_max", np.nan)) for r in solved)
+                else ""
             ),
             "  preparation: "
             + ", ".join(
@@ -173,14 +178,17 @@ def _plots(
                 title=f"{scene.name}: convergence on the worst frame",
             )
         )
-    if scene.bones:
 
-        def depth(key: str) -> dict[str, tuple[list[int], list[float]]]:
-            return {
-                res.name: ([r["frame"] for r in res.rows], [r[key] for r in res.rows])
-                for res in results
-            }
+    def depth(key: str) -> dict[str, tuple[list[int], list[float]]]:
+        return {
+            res.name: ([r["frame"] for r in res.rows], [r.get(key, float("nan")) for r in res.rows])
+            for res in results
+        }
 
+    together = any(
+        np.isfinite(r.get("muscle_overlap_max", np.nan)) for res in results for r in res.rows
+    )
+    if scene.bones or together:
         files.append(
             plot_penetration(
                 outdir / PLOT_PENETRATION,
@@ -189,8 +197,9 @@ def _plots(
                 bone_inside=depth("bone_inside_depth_max") if collisions else None,
                 line_inside=depth("line_inside_depth_max"),
                 title=f"{scene.name}: muscles and bones in each other"
-                + ("" if collisions else " (collisions off)"),
+                + ("" if collisions or together else " (collisions off)"),
                 unit=scene.mesh_unit,
+                muscle_inside=depth("muscle_overlap_max") if together else None,
             )
         )
     return files

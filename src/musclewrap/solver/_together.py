@@ -100,14 +100,16 @@ def meet(
         found = overlaps(surf, pairs, facing)
         # deep enough for a round: the deepest vertex, in its muscle's mean edges
         deep = max((float(o.depth.max()) / edge[n] for n in live for o in found[n]), default=0.0)
-        if deep <= defaults.muscle_overlap_depth or deep > 0.9 * last:
-            break  # out (to the tolerance), or no longer getting out
+        if deep <= defaults.muscle_overlap_depth or deep > 0.99 * last:
+            break  # out (to the tolerance), or no longer getting out at all
         last = deep
         rounds += 1
         new = {}
         for n in live:
-            if not found[n]:
-                continue
+            if max((float(o.depth.max()) for o in found[n]), default=0.0) <= (
+                defaults.muscle_overlap_depth * edge[n]
+            ):
+                continue  # out already (to the tolerance): no step
             T = frames.get(n)
             rows = np.concatenate([o.rows for o in found[n]])
             need = defaults.muscle_share * np.concatenate([o.depth for o in found[n]])
@@ -124,8 +126,13 @@ def meet(
         state.update(new)
     final = {
         n: deformers[n].settle(
-            results[n], *state[n], lines[n], reference_point=refs.get(n),
-            obstacles=obstacles.get(n), margin=margin, sides=sides.get(n),
+            results[n],
+            *state[n],
+            lines[n],
+            reference_point=refs.get(n),
+            obstacles=obstacles.get(n),
+            margin=margin,
+            sides=sides.get(n),
         )  # fmt: skip
         for n in names
     }
@@ -187,8 +194,13 @@ def deform_together(
     sides = sides or {}
     results = {
         n: d.deform(
-            lines[n], reference_point=refs.get(n), obstacles=obstacles.get(n), margin=margin,
-            finish=False, sides=sides.get(n), **kw,
+            lines[n],
+            reference_point=refs.get(n),
+            obstacles=obstacles.get(n),
+            margin=margin,
+            finish=False,
+            sides=sides.get(n),
+            **kw,
         )  # fmt: skip
         for n, d in deformers.items()
     }
