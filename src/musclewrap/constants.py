@@ -176,9 +176,8 @@ class Defaults:
         a round (the other muscle's vertices inside it take theirs).
     muscle_overlap_depth : float
         The rounds stop once no vertex is deeper than this many of its muscle's
-        mean edge lengths inside another muscle (or a round no longer takes the
-        deepest out by a hundredth of its depth); a muscle whose vertices are all
-        out to that depth takes no step in a round.
+        mean edge lengths inside another muscle (or after ``muscle_rounds``); a
+        muscle whose vertices are all out to that depth takes no step in a round.
     muscle_facing_reach : float
         A muscle's faces within this distance (mesh units) of another muscle at
         rest, or inside it, are where the other's vertices leave it

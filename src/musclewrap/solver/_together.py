@@ -94,21 +94,20 @@ def meet(
     live = [n for n in names if np.isfinite(state[n][1]).all()]
     pairs = [(a, b) for i, a in enumerate(live) for b in live[i + 1 :]]
     nears: dict[str, Near] = {}
-    last, rounds = np.inf, 0
+    rounds = 0
     for _ in range(defaults.muscle_rounds if pairs else 0):
         surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
         found = overlaps(surf, pairs, facing)
-        # deep enough for a round: the deepest vertex, in its muscle's mean edges
-        deep = max((float(o.depth.max()) / edge[n] for n in live for o in found[n]), default=0.0)
-        if deep <= defaults.muscle_overlap_depth or deep > 0.99 * last:
-            break  # out (to the tolerance), or no longer getting out at all
-        last = deep
+        # per muscle its deepest vertex inside another, in its mean edges
+        deep = {
+            n: max((float(o.depth.max()) for o in found[n]), default=0.0) / edge[n] for n in live
+        }
+        if max(deep.values()) <= defaults.muscle_overlap_depth:
+            break  # all out, to the tolerance
         rounds += 1
         new = {}
         for n in live:
-            if max((float(o.depth.max()) for o in found[n]), default=0.0) <= (
-                defaults.muscle_overlap_depth * edge[n]
-            ):
+            if deep[n] <= defaults.muscle_overlap_depth:
                 continue  # out already (to the tolerance): no step
             T = frames.get(n)
             rows = np.concatenate([o.rows for o in found[n]])
