@@ -88,8 +88,9 @@ def _parser() -> argparse.ArgumentParser:
             "action lines per frame with OpenSim (or read them from a CSV), deform every "
             "muscle, and write OUTDIR/<muscle>/<muscle>_<frame>.vtp, bones, action lines, "
             "scene.pvd (ParaView), report.csv, volume_error.png, convergence.png, "
-            "penetration.png (scenes with bones) and scene.gif. Muscles are kept out of the "
-            "scene's bones unless --no-collisions or [collisions] enabled = false. Several "
+            "penetration.png (scenes with bones or several muscles) and scene.gif. Muscles are "
+            "kept out of the scene's bones and out of each other unless --no-collisions or "
+            "[collisions] enabled = false ([collisions] muscles = false: bones only). Several "
             "scenes run as one batch, into OUTDIR/<scene file stem>/ each."
         ),
     )
@@ -119,7 +120,8 @@ def _parser() -> argparse.ArgumentParser:
     ru.add_argument(
         "--no-collisions",
         action="store_true",
-        help="let muscles pass through bones (penetration is still measured and reported)",
+        help="let muscles pass through bones and each other (penetration is still measured "
+        "and reported)",
     )
     ru.add_argument(
         "--no-fibres",

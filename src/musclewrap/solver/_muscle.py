@@ -851,6 +851,7 @@ class Deformer:
         margin: float = 0.0,
         sides: SideReference | None = None,
         near: Near | None = None,
+        points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
     ) -> tuple[FloatArray, FloatArray]:
         """One cage step that moves fine vertices ``rows`` by ``need`` along ``out``, bones kept.
 
@@ -861,7 +862,10 @@ class Deformer:
         pressed against each other take each round (`musclewrap.contact.overlaps`).
         Returns the new cage and fine positions (the same arrays where nothing moved).
         ``near``: the obstacles' `Near` from an earlier position of this pose's rounds
-        (its bounds hold wherever the vertices have moved since).
+        (its bounds hold wherever the vertices have moved since). ``points``: ``(Wp,
+        need, out)``, conditions on points of the surface other than its vertices
+        (rows of coordinates ``Wp``, a triangle's rows weighted barycentrically):
+        where another muscle's vertex stands inside this one, its surface gives way.
         """
         edge = self._fine_edge
         slack = tol.contact * edge
@@ -873,9 +877,12 @@ class Deformer:
                 V, placed, margin, defaults.contact_band * edge, near, sides
             )
             idx, gap, N = np.concatenate([idx, bi]), np.concatenate([gap, bg]), np.vstack([N, bn])
-        if not len(idx):
+        extra = None
+        if points is not None and len(points[0]):
+            extra = (points[0], slack - np.asarray(points[1], dtype=np.float64), points[2])
+        if not len(idx) and extra is None:
             return x, V
-        step = self._cage_step(x, V, np.asarray(idx, dtype=np.int64), gap, N, slack)
+        step = self._cage_step(x, V, np.asarray(idx, dtype=np.int64), gap, N, slack, extra)
         return (x, V) if step is None else step
 
     def settle(

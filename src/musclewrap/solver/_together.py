@@ -24,6 +24,7 @@ import numpy.typing as npt
 from .._typing import FloatArray, IntArray
 from ..constants import defaults
 from ..contact import Near, facing_faces, overlap_depths, overlaps
+from ..mesh import barycentric
 from ._muscle import Deformer
 from ._result import DeformationResult
 
@@ -105,22 +106,44 @@ def meet(
         if max(deep.values()) <= defaults.muscle_overlap_depth:
             break  # all out, to the tolerance
         rounds += 1
+        share = defaults.muscle_share
+        # where another muscle's vertex stands inside this one: its surface gives the other
+        # share there (a muscle held by a bone cannot take its own; and where only one
+        # surface has vertices inside the other, both still move)
+        given: dict[str, list[Any]] = {n: [] for n in live}
+        for m in live:
+            for o in found[m]:
+                given[o.other].append(o)
         new = {}
         for n in live:
-            if deep[n] <= defaults.muscle_overlap_depth:
+            mine = max((float(o.depth.max()) for o in given[n]), default=0.0) / edge[n]
+            if max(deep[n], mine) <= defaults.muscle_overlap_depth:
                 continue  # out already (to the tolerance): no step
-            T = frames.get(n)
-            rows = np.concatenate([o.rows for o in found[n]])
-            need = defaults.muscle_share * np.concatenate([o.depth for o in found[n]])
-            out = np.vstack([o.out for o in found[n]])
-            if T is not None:
-                out = out @ T[:3, :3]  # into the muscle's frame
+            R = None if frames.get(n) is None else frames[n][:3, :3]
+            mu, V = deformers[n].muscle, state[n][1]
+            rows = np.concatenate([o.rows for o in found[n]] + [np.zeros(0, np.int64)])
+            need = share * np.concatenate([o.depth for o in found[n]] + [np.zeros(0)])
+            out = np.vstack([o.out for o in found[n]] + [np.zeros((0, 3))])
+            points = None
+            if given[n]:
+                tri = mu.F[np.concatenate([o.face for o in given[n]])]
+                Cn = np.vstack([o.point for o in given[n]])
+                Vn = _apply(frames.get(n), V)
+                w = np.clip(barycentric(Cn, Vn[tri]), 0.0, None)
+                w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
+                Wp = np.einsum("ij,ijk->ik", w, mu.W[tri])
+                back = -np.vstack([o.out for o in given[n]])
+                if R is not None:
+                    back = back @ R
+                points = (Wp, (1.0 - share) * np.concatenate([o.depth for o in given[n]]), back)
+            if R is not None:
+                out = out @ R  # into the muscle's frame
             obs = obstacles.get(n)
             if obs and n not in nears:
-                nears[n] = Near(state[n][1], obs, margin)
+                nears[n] = Near(V, obs, margin)
             new[n] = deformers[n].contact_round(
                 *state[n], rows, need, out, obstacles=obs, margin=margin, sides=sides.get(n),
-                near=nears.get(n),
+                near=nears.get(n), points=points,
             )  # fmt: skip
         state.update(new)
     final = {
