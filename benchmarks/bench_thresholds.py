@@ -1,6 +1,6 @@
 """The contact's thresholds on either side of their defaults, on the deep squat.
 
-    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size]
+    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing]
 
 Drives `examples/lhdl_squat.toml` (the OpenCap deep squat, hip flexion to 106 deg) and, per
 setting, runs the muscles it matters for with the setting replaced, checks the written meshes
@@ -13,7 +13,11 @@ muscle) and prints the largest shape change (and on how many frames it exceeds 0
 - ``cage_depth`` (``contact_cage_depth``, where the cage's contact steps hand over to the fine
   finish): 0.5 and 0.25 (default) mean edges, gluteus maximus, frames 700-760;
 - ``cage_size`` (the iliacus's cage, `[[muscle]] cage_size`): 300 (the default) and 200
-  (`examples/lhdl_*.toml`), the whole squat, checked every 10th frame.
+  (`examples/lhdl_*.toml`), the whole squat, checked every 10th frame;
+- ``facing`` (``muscle_facing_reach``, the faces of a muscle through which another's vertices
+  leave it): 5, 10, 15 (default) and 25 mm, and 1000 mm (every face: the nearest way out), on
+  `examples/gait2392_walk.toml`'s worst frames (50, 125, 200; the rectus femoris 14.9 mm into
+  the vastus lateralis without muscle contact), every muscle checked against the others.
 
 Every run is in this process, on one worker (a replaced default does not reach worker
 processes); no timing is taken.
@@ -53,7 +57,7 @@ def _run(scene, muscles, frames, check, cache, **setting):  # noqa: ANN001, ANN0
     return s.rows, checked
 
 
-def _print(label, muscles, rows, checked) -> None:  # noqa: ANN001
+def _print(label, muscles, rows, checked, others=False) -> None:  # noqa: ANN001
     for m in muscles:
         q = [r for r in rows if r["muscle"] == m]
         w = [r for r in checked if r["muscle"] == m]
@@ -61,7 +65,13 @@ def _print(label, muscles, rows, checked) -> None:  # noqa: ANN001
         print(
             f"  {label:<24} {m:<16} muscle vertex in bone <= "
             f"{max(r['muscle_in_bone'] for r in w):5.2f}, bone vertex in muscle <= "
-            f"{max(r['bone_in_muscle'] for r in w):5.2f}, shape change <= {max(shape):.2f} "
+            f"{max(r['bone_in_muscle'] for r in w):5.2f}, "
+            + (
+                f"in another muscle <= {max(r['muscle_in_muscle'] for r in w):5.2f}, "
+                if others
+                else ""
+            )
+            + f"shape change <= {max(shape):.2f} "
             f"({sum(x > 0.5 for x in shape)} of {len(q)} frames over 0.5), unconverged "
             f"{sum(not r['converged'] for r in q)}"
         )
@@ -69,7 +79,7 @@ def _print(label, muscles, rows, checked) -> None:  # noqa: ANN001
 
 def main() -> None:
     p = argparse.ArgumentParser()
-    p.add_argument("--only", choices=("path_step", "cage_depth", "cage_size"))
+    p.add_argument("--only", choices=("path_step", "cage_depth", "cage_size", "facing"))
     a = p.parse_args()
     from musclewrap.scene import load_scene
 
@@ -102,6 +112,15 @@ def main() -> None:
             )
             rows, checked = _run(sc, ("iliacus",), "0:801:1", "0:801:10", cache)
             _print(f"cage_size {size}", ("iliacus",), rows, checked)
+    if a.only in (None, "facing"):
+        gait = load_scene(ROOT / "examples" / "gait2392_walk.toml")
+        names = tuple(m.name for m in gait.muscles)
+        print("muscle_facing_reach (gait2392 walk, frames 50:201:75, every frame checked)")
+        for reach in (5.0, 10.0, 15.0, 25.0, 1000.0):
+            rows, checked = _run(
+                gait, names, "50:201:75", "50:201:75", cache, muscle_facing_reach=reach
+            )
+            _print(f"facing {reach:g} mm", names, rows, checked, others=True)
 
 
 if __name__ == "__main__":
