@@ -31,6 +31,7 @@ from ..conditions import (
 )
 from ..constants import defaults, tol
 from ..contact import (
+    ContactReport,
     Inside,
     Near,
     Obstacle,
@@ -813,26 +814,9 @@ class Deformer:
                 near = Near(V, placed, margin)
                 x, V, before, inside = self._cage_contact(x, V, placed, margin, near, sides)
             if obstacles and np.isfinite(V).all() and finish:
-                V, contact = push_out(
-                    V,
-                    self.muscle.F,
-                    placed,
-                    volume_target=self.muscle.volume_rest,
-                    margin=margin,
-                    A=self.muscle.adjacency,
-                    edge=self._fine_edge,
-                    near=near,
-                    bone_vertices="near",
-                    faces=self.muscle.vertex_faces,
-                    sides=sides,
-                    inside=inside,
+                V, contact, ok, reason = self._finish(
+                    V, placed, margin, near, sides, before, ok, reason, inside
                 )
-                contact = dataclasses.replace(
-                    contact, depth_before=max(before, contact.depth_before)
-                )
-                if not contact.ok:
-                    reason = contact.reason if ok else f"{reason}; {contact.reason}"
-                    ok = False
             res = self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact)
             if obstacles and contact is None and np.isfinite(V).all():
                 # the finish is the caller's (`settle`): what the solve alone gave, kept
@@ -910,31 +894,47 @@ class Deformer:
             if obstacles and np.isfinite(V).all():
                 placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
                 near = Near(V, placed, margin)
-                V, contact = push_out(
-                    V,
-                    self.muscle.F,
-                    placed,
-                    volume_target=self.muscle.volume_rest,
-                    margin=margin,
-                    A=self.muscle.adjacency,
-                    edge=self._fine_edge,
-                    near=near,
-                    bone_vertices="near",
-                    faces=self.muscle.vertex_faces,
-                    sides=sides,
+                V, contact, ok, reason = self._finish(
+                    V, placed, margin, near, sides, result.penetration_depth_before, ok, reason
                 )
-                before = result.penetration_depth_before
-                contact = dataclasses.replace(
-                    contact, depth_before=max(before, contact.depth_before)
-                )
-                if not contact.ok:
-                    reason = contact.reason if ok else f"{reason}; {contact.reason}"
-                    ok = False
             res = self._result(
                 x, V, result.iterations, ok, reason, list(result.history), cur, d_L, s_cur,
                 result.method, t0, contact,
             )  # fmt: skip
         return dataclasses.replace(res, seconds=result.seconds + res.seconds)
+
+    def _finish(
+        self,
+        V: FloatArray,
+        placed: Sequence[Placed],
+        margin: float,
+        near: Near,
+        sides: SideReference | None,
+        before: float,
+        ok: bool,
+        reason: str,
+        inside: list[Inside] | None = None,
+    ) -> tuple[FloatArray, ContactReport, bool, str]:
+        """The obstacles' fine finish (`push_out`) on ``V``: positions, report, verdict, reason."""
+        V, contact = push_out(
+            V,
+            self.muscle.F,
+            placed,
+            volume_target=self.muscle.volume_rest,
+            margin=margin,
+            A=self.muscle.adjacency,
+            edge=self._fine_edge,
+            near=near,
+            bone_vertices="near",
+            faces=self.muscle.vertex_faces,
+            sides=sides,
+            inside=inside,
+        )
+        contact = dataclasses.replace(contact, depth_before=max(before, contact.depth_before))
+        if not contact.ok:
+            reason = contact.reason if ok else f"{reason}; {contact.reason}"
+            ok = False
+        return V, contact, ok, reason
 
     def _cage_contact(
         self,
