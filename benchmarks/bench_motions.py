@@ -13,7 +13,7 @@ Drives SCENE's model (default: examples/lhdl_walk.toml) with
 runs each with contact (and, with ``--no-collisions-too``, without), and checks the written
 meshes independently (`musclewrap.scene._verify.verify_run`) on every ``--check-every``-th
 frame; prints per motion and muscle the deepest muscle vertex in a bone, bone vertex in the
-muscle, the largest shape change (with how many frames exceed 0.5) and the skeleton fit (the
+muscle and vertex in another muscle, the largest shape change (with how many frames exceed 0.5) and the skeleton fit (the
 per-frame mean distance of the action line's samples from where the surface puts them), over all
 frames and over the frames where the action line itself stays out of the bones.
 """
@@ -107,7 +107,8 @@ def main() -> None:
                     print(
                         f"    {'' if collisions else '--no-collisions '}{m.name:<16} muscle vertex"
                         f" in bone <= {max(r['muscle_in_bone'] for r in w):6.2f}, bone vertex in"
-                        f" muscle <= {max(r['bone_in_muscle'] for r in w):6.2f}, shape change"
+                        f" muscle <= {max(r['bone_in_muscle'] for r in w):6.2f}, in another"
+                        f" muscle <= {max(r['muscle_in_muscle'] for r in w):6.2f}, shape change"
                         f" <= {max(shape):.2f} ({sum(x > 0.5 for x in shape)}/{len(q)} over"
                         f" 0.5), fit <= {fit_all:.2f} ({fit_out}), unconverged"
                         f" {sum(not r['converged'] for r in q)}"

@@ -134,33 +134,19 @@ def test_three_capsules_in_a_row():
 
 
 # ------------------------------------------------------------------ scenes
-def _two_muscles(data_dir, second: str, extra: str = "", path: str = "iliacus_r") -> str:
-    lhdl = data_dir / "lhdl"
-    return f"""name = "two"
-[units]
-mesh = "mm"
-model = "m"
-[model]
-osim = "{lhdl / "model" / "LHDL_hip_r.osim"}"
-motion = "{data_dir / "opensim" / "motions" / "subject01_walk1_ik.mot"}"
-coordinates = ["hip_flexion_r", "hip_adduction_r", "hip_rotation_r"]
-rest_pose = {{ hip_flexion_r = 1.576, hip_adduction_r = -4.727, hip_rotation_r = -5.29 }}
-output_frame = "pelvis"
-angle_unit = "deg"
-[muscles.psoas]
-mesh = "{lhdl / "muscles" / "LHDL_R_Psoas.vtk"}"
-paths = ["psoas_r"]
-body = "pelvis"
-reference = "femur_r"
-[muscles.other]
+def _two_muscles(data_dir, second: str, extra: str = "") -> str:
+    """test_contact's LHDL psoas scene with a second muscle, ``second``, on the iliacus's path."""
+    from test_contact import _scene_text
+
+    return _scene_text(
+        data_dir,
+        f'''[muscles.other]
 mesh = "{second}"
-paths = ["{path}"]
+paths = ["iliacus_r"]
 body = "pelvis"
-reference = "femur_r"
-[output]
-gif = false
-paper_frames = 0
-{extra}"""
+reference = "femur"
+{extra}''',
+    )
 
 
 @pytest.mark.realdata

@@ -5,16 +5,16 @@ signed-distance grid and exact closest points) placed in a pose (`Placed`); whic
 vertices can be near it (`Near`); the contacts of a pose stated as linear conditions
 on the fine vertices (`contact_candidates`); the fine finish that takes the last
 vertices out, volume-exact (`push_out`); and the rest pose's overlap, settled once
-(`rest_push_out`, `anchors_at_rest`). Muscles against each other: which pairs meet
-(`contact_pairs`), where each faces the other (`facing_faces`), the vertices of each
-inside another with their way out (`overlaps`). The solver solves the conditions it
+(`rest_push_out`, `anchors_at_rest`). Muscles against each other: where each faces
+the other at rest (`facing_faces`), the vertices of each inside another with their way
+out (`overlaps`), the deepest (`overlap_depths`). The solver solves the conditions it
 is given.
 """
 
 from ._find import contact_candidates
 from ._finish import ContactReport, push_out, rings, vertex_faces
 from ._inside import Inside, bone_vertices_inside, line_inside_depth
-from ._muscles import Overlap, contact_pairs, facing_faces, overlap_depths, overlaps
+from ._muscles import Overlap, facing_faces, overlap_depths, overlaps
 from ._near import Near
 from ._obstacle import Obstacle, bone_surface, pseudo_normals, signed_from_closest
 from ._placed import Placed
@@ -34,7 +34,6 @@ __all__ = [
     "bone_surface",
     "bone_vertices_inside",
     "contact_candidates",
-    "contact_pairs",
     "facing_faces",
     "kept_allowance",
     "line_inside_depth",

@@ -243,15 +243,7 @@ def _nearest_face_kernel(B, starts, P, F, Ap, Ai, VFp, VFi, ring, dist, C, face)
                 u = v0 if k == Ap[v0 + 1] else Ai[k]
                 for m in range(VFp[u], VFp[u + 1]):
                     f = VFi[m]
-                    x, y, z = F[f, 0], F[f, 1], F[f, 2]
-                    wu, wv, ww = _triangle_weights(
-                        p0, p1, p2, P[x, 0], P[x, 1], P[x, 2], P[y, 0], P[y, 1], P[y, 2],
-                        P[z, 0], P[z, 1], P[z, 2],
-                    )  # fmt: skip
-                    q0 = wu * P[x, 0] + wv * P[y, 0] + ww * P[z, 0]
-                    q1 = wu * P[x, 1] + wv * P[y, 1] + ww * P[z, 1]
-                    q2 = wu * P[x, 2] + wv * P[y, 2] + ww * P[z, 2]
-                    d = (p0 - q0) ** 2 + (p1 - q1) ** 2 + (p2 - q2) ** 2
+                    d, q0, q1, q2 = _closest_on_triangle(p0, p1, p2, P, F[f])
                     if d < best:
                         best, bf = d, f
                         b0, b1, b2 = q0, q1, q2
@@ -289,6 +281,20 @@ def line_inside_depth(
         return 0.0
     Q = np.vstack(pts)
     return max(pl.obstacle.measure(pl.to_obstacle(Q))[1] for pl in placed)
+
+
+@numba.njit(cache=True)
+def _closest_on_triangle(p0, p1, p2, V, t):  # noqa: ANN001, ANN202 # pragma: no cover
+    # the squared distance of p to triangle t (a row of F) of V, and the closest point
+    x, y, z = t[0], t[1], t[2]
+    wu, wv, ww = _triangle_weights(
+        p0, p1, p2, V[x, 0], V[x, 1], V[x, 2], V[y, 0], V[y, 1], V[y, 2],
+        V[z, 0], V[z, 1], V[z, 2],
+    )  # fmt: skip
+    q0 = wu * V[x, 0] + wv * V[y, 0] + ww * V[z, 0]
+    q1 = wu * V[x, 1] + wv * V[y, 1] + ww * V[z, 1]
+    q2 = wu * V[x, 2] + wv * V[y, 2] + ww * V[z, 2]
+    return (p0 - q0) ** 2 + (p1 - q1) ** 2 + (p2 - q2) ** 2, q0, q1, q2
 
 
 @numba.njit(cache=True)

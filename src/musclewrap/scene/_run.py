@@ -322,7 +322,6 @@ class _SceneRun:
         self.path_keys = {}
         group_after: list[Any] = []
         group_kept: list[list[Any]] = []
-        compare_of: list[Any] = []
         for j in self.jobs:
             after = list(shared)
             p = j.prepare_path()
@@ -354,8 +353,6 @@ class _SceneRun:
                 if path_key is not None:
                     group_after.append(path_key)
                 group_kept.append(kept_all)
-                if scene.paper_frames > 0:
-                    compare_of.append(j)
                 continue
             for ks, kept in zip(parts, kept_all, strict=True):
                 key = (tag, "chunk", j.name, ks.start)
@@ -377,20 +374,9 @@ class _SceneRun:
                 nodes.append(node)
                 chunk_keys.append(key)
             if scene.paper_frames > 0:
-                key = (tag, "compare", j.name)
-                found = journal.comparison(j.name)
-                node = Node(
-                    key,
-                    self._compare_task(j, spans[j.name], chunk_keys),
-                    tuple(chunk_keys),
-                    done=self._compare_done(j.name),
-                    priority=3,
-                )
-                if found is not None:
-                    node.result, node.finished = Comparison.from_json(found), True
-                nodes.append(node)
+                nodes.append(self._compare_node(j, spans[j.name], chunk_keys))
         if self.grouped:
-            nodes += self._group_nodes(spans, group_after, group_kept, compare_of, bar)
+            nodes += self._group_nodes(spans, group_after, group_kept, bar)
         self.nodes = nodes
         self.keys = [nd.key for nd in nodes]
         self.chunk_keys = {
@@ -407,7 +393,6 @@ class _SceneRun:
         spans: dict[str, Any],
         after: list[Any],
         kept: list[list[Any]],
-        compare_of: list[Any],
         bar: Progress | None,
     ) -> list[Node]:
         """The muscles in contact: a task per chunk of frames with all of them (`DeformGroup`)."""
@@ -442,20 +427,23 @@ class _SceneRun:
                 node.frames = 0
             nodes.append(node)
             keys.append(key)
-        for j in compare_of:
-            key = (tag, "compare", j.name)
-            found = self.journal.comparison(j.name)
-            node = Node(
-                key,
-                self._compare_task(j, spans[j.name], keys),
-                tuple(keys),
-                done=self._compare_done(j.name),
-                priority=3,
-            )
-            if found is not None:
-                node.result, node.finished = Comparison.from_json(found), True
-            nodes.append(node)
+        if self.scene.paper_frames > 0:
+            nodes += [self._compare_node(j, spans[j.name], keys) for j in jobs]
         return nodes
+
+    def _compare_node(self, job: Any, span: Any, after: list[Any]) -> Node:
+        """The paper's iteration beside the default for one muscle, once its frames are done."""
+        node = Node(
+            (self.tag, "compare", job.name),
+            self._compare_task(job, span, after),
+            tuple(after),
+            done=self._compare_done(job.name),
+            priority=3,
+        )
+        found = self.journal.comparison(job.name)
+        if found is not None:
+            node.result, node.finished = Comparison.from_json(found), True
+        return node
 
     def _group_done(self, ks: range) -> Callable[[dict[str, ChunkResult]], Any]:
         def done(parts: dict[str, ChunkResult]) -> dict[str, ChunkResult]:

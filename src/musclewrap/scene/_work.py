@@ -49,7 +49,7 @@ _probes: dict[tuple[str, str | None], Any] = {}
 _kept = threading.local()
 
 
-def _kept_dict(name: str) -> dict[tuple[str, str], Any]:
+def _kept_dict(name: str) -> dict[tuple[Any, ...], Any]:
     d = getattr(_kept, name, None)
     if d is None:
         d = {}
@@ -316,16 +316,14 @@ def _deform_chunk(job: MuscleJob, span: FrameSpan, path: PathStates | None = Non
 class _MuscleFrames:
     """One muscle on a chunk of frames, in the process that runs it: solve, measure, write.
 
-    ``solve_frame`` solves a frame (without the fine finish where ``grouped``: the
-    muscles of a group meet first, then `settle`); ``emit`` measures the result,
-    writes its files and adds its report row.
+    ``solve_frame`` solves a frame (``finish=False`` in a `DeformGroup`: the muscles
+    meet first, `musclewrap.solver.meet`, which finishes them); ``emit`` measures the
+    result, writes its files and adds its report row.
     """
 
     def __init__(
         self, job: MuscleJob, span: FrameSpan, path: PathStates | None, keep: int = 1
     ) -> None:
-        from ..contact import Placed
-
         self.job, self.span, self.path = job, span, path
         muscle, d, hit, note, seconds_prepare = _deformer(job, keep)
         self.muscle, self.d = muscle, d
@@ -343,7 +341,6 @@ class _MuscleFrames:
             (p, b) for p, b in self.probes if self.contact is not None and b in self.contact
         ]
         self.refs: dict[int, Any] = {}
-        self._Placed = Placed
 
     def sides_of(self, k: int) -> Any:
         if self.contact is None or self.path is None:
@@ -356,12 +353,14 @@ class _MuscleFrames:
 
     def obstacles(self, T: FloatArray, bone_T: dict[str, FloatArray], bones: bool = True) -> Any:
         """The scene's bones where contact is on (and ``bones``), else None."""
+        from ..contact import Placed
+
         contact = self.contact
         if contact is None or not bones:
             return None
         return [
             # muscle's body frame -> bone's body frame in one transform
-            self._Placed(probe, invert_rigid(bone_T[bname]) @ T, contact[bname], bname)
+            Placed(probe, invert_rigid(bone_T[bname]) @ T, contact[bname], bname)
             for probe, bname in self.probes
             if bname in contact
         ]
@@ -421,7 +420,7 @@ class _MuscleFrames:
         ``overlap``: the deepest vertex of this muscle inside another (muscles in
         contact; NaN otherwise).
         """
-        from ..contact import line_inside_depth
+        from ..contact import Placed, line_inside_depth
 
         job, span, muscle, d = self.job, self.span, self.muscle, self.d
         contact, probes, out, name, result = (
@@ -440,7 +439,7 @@ class _MuscleFrames:
         bone_depth = nan
         # the bones as placed in this frame; those the contact did not keep the muscle out of
         here = {
-            bname: self._Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
+            bname: Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
             for probe, bname in probes
         }
         measured = [pl for b, pl in here.items() if contact is None or b not in contact]
@@ -551,7 +550,14 @@ class DeformGroup:
             for i in order
         }
         ds = {n: m.d for n, m in ms.items()}
-        facing = facing_at_rest(ds, {self.jobs[i].name: self.to_common[i] for i in order})
+        # where they face each other at rest: once per run in this process (every chunk of
+        # the run's frames needs the same)
+        kept = _kept_dict("facing")
+        key = (self.jobs[0].run, tuple(ms))
+        if key not in kept:
+            kept.clear()
+            kept[key] = facing_at_rest(ds, {self.jobs[i].name: self.to_common[i] for i in order})
+        facing = kept[key]
         margin = self.jobs[0].margin
         for k in range(len(self.spans[0])):
             final = meet(

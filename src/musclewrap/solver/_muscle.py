@@ -1042,6 +1042,20 @@ class Deformer:
             return None
         return x + dx - t * Hg, P - t * D[:, 3:]
 
+    def surface_rows(self, C: FloatArray, faces: IntArray, P: FloatArray) -> FloatArray:
+        """Rows of coordinates of points ``C`` on the muscle's triangles ``faces`` (positions ``P``).
+
+        Each point's triangle's rows of ``W`` weighted by its barycentric coordinates
+        (clipped to the triangle): ``surface_rows(...) @ x`` moves the points with the
+        cage, for conditions on points of the surface other than its vertices.
+        ``C`` and ``P`` in one frame (any: barycentric coordinates do not change with it).
+        """
+        mu = self.muscle
+        tri = mu.F[faces]
+        w = np.clip(barycentric(C, P[tri]), 0.0, None)
+        w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
+        return np.einsum("ij,ijk->ik", w, mu.W[tri])
+
     def _bone_points(
         self, V: FloatArray, placed: Sequence[Placed], margin: float, near: Near, edge: float
     ) -> tuple[tuple[FloatArray, FloatArray, FloatArray] | None, list[Inside]]:
@@ -1067,10 +1081,7 @@ class Deformer:
             if pl.allowance is not None or not keep.any():
                 continue  # a kept rest overlap: the bone may stand in the muscle as it did
             B, C, fi, d = f.B[keep], f.C[keep], f.face[keep], f.depth[keep]
-            tri = mu.F[fi]
-            w = np.clip(barycentric(C, V[tri]), 0.0, None)
-            w /= w.sum(axis=1, keepdims=True)
-            rows.append(np.einsum("ij,ijk->ik", w, mu.W[tri]))
+            rows.append(self.surface_rows(C, fi, V))
             dirs.append((B - C) / np.maximum(d, 1e-300)[:, None])
             gaps.append(-(d + margin))
         if not rows:

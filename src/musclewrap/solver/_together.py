@@ -24,7 +24,7 @@ import numpy.typing as npt
 from .._typing import FloatArray, IntArray
 from ..constants import defaults
 from ..contact import Near, facing_faces, overlap_depths, overlaps
-from ..mesh import barycentric
+from ..mesh import WindingGrid
 from ._muscle import Deformer
 from ._result import DeformationResult
 
@@ -55,12 +55,13 @@ def facing_at_rest(
         )
         for n in names
     }
-    out = {}
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            out[a, b] = facing_faces(*rest[a], *rest[b], reach)
-            out[b, a] = facing_faces(*rest[b], *rest[a], reach)
-    return out
+    grids = {n: WindingGrid(*rest[n]) for n in names}
+    return {
+        (a, b): facing_faces(*rest[a], *rest[b], reach, grids[a])
+        for a in names
+        for b in names
+        if a != b
+    }
 
 
 def meet(
@@ -96,9 +97,10 @@ def meet(
     pairs = [(a, b) for i, a in enumerate(live) for b in live[i + 1 :]]
     nears: dict[str, Near] = {}
     rounds = 0
+    surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
+    memo: dict[Any, Any] = {}  # what stays over the rounds for the muscles that stay
     for _ in range(defaults.muscle_rounds if pairs else 0):
-        surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
-        found = overlaps(surf, pairs, facing)
+        found = overlaps(surf, pairs, facing, memo)
         # per muscle its deepest vertex inside another, in its mean edges
         deep = {
             n: max((float(o.depth.max()) for o in found[n]), default=0.0) / edge[n] for n in live
@@ -120,18 +122,17 @@ def meet(
             if max(deep[n], mine) <= defaults.muscle_overlap_depth:
                 continue  # out already (to the tolerance): no step
             R = None if frames.get(n) is None else frames[n][:3, :3]
-            mu, V = deformers[n].muscle, state[n][1]
+            V = state[n][1]
             rows = np.concatenate([o.rows for o in found[n]] + [np.zeros(0, np.int64)])
             need = share * np.concatenate([o.depth for o in found[n]] + [np.zeros(0)])
             out = np.vstack([o.out for o in found[n]] + [np.zeros((0, 3))])
             points = None
             if given[n]:
-                tri = mu.F[np.concatenate([o.face for o in given[n]])]
-                Cn = np.vstack([o.point for o in given[n]])
-                Vn = _apply(frames.get(n), V)
-                w = np.clip(barycentric(Cn, Vn[tri]), 0.0, None)
-                w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
-                Wp = np.einsum("ij,ijk->ik", w, mu.W[tri])
+                Wp = deformers[n].surface_rows(
+                    np.vstack([o.point for o in given[n]]),
+                    np.concatenate([o.face for o in given[n]]),
+                    surf[n][0],
+                )
                 back = -np.vstack([o.out for o in given[n]])
                 if R is not None:
                     back = back @ R
@@ -145,6 +146,9 @@ def meet(
                 *state[n], rows, need, out, obstacles=obs, margin=margin, sides=sides.get(n),
                 near=nears.get(n), points=points,
             )  # fmt: skip
+        for n, (x, V) in new.items():
+            if V is not state[n][1]:  # moved: its surface anew (the others' stay, memo too)
+                surf[n] = (_apply(frames.get(n), V), deformers[n].muscle.F)
         state.update(new)
     final = {
         n: deformers[n].settle(
