@@ -178,6 +178,10 @@ class Defaults:
         The rounds stop once no vertex is deeper than this many of its muscle's
         mean edge lengths inside another muscle (or after ``muscle_rounds``); a
         muscle whose vertices are all out to that depth takes no step in a round.
+    muscle_fine_depth : float
+        A muscle no deeper than this many of its mean edge lengths inside another
+        (nor the other in it) takes its round on its fine vertices
+        (`musclewrap.contact.nudge`), not by a step of its cage.
     muscle_facing_reach : float
         A muscle's faces within this distance (mesh units) of another muscle at
         rest, or inside it, are where the other's vertices leave it
@@ -216,6 +220,7 @@ class Defaults:
     muscle_rounds: int = 12
     muscle_share: float = 0.5
     muscle_overlap_depth: float = 0.05
+    muscle_fine_depth: float = 0.25
     muscle_facing_reach: float = 15.0
 
 

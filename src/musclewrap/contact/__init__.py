@@ -12,7 +12,7 @@ is given.
 """
 
 from ._find import contact_candidates
-from ._finish import ContactReport, push_out, rings, vertex_faces
+from ._finish import ContactReport, nudge, push_out, rings, vertex_faces
 from ._inside import Inside, bone_vertices_inside, line_inside_depth
 from ._muscles import Overlap, facing_faces, overlap_depths, overlaps
 from ._near import Near
@@ -42,6 +42,7 @@ __all__ = [
     "overlaps",
     "passed_through",
     "pseudo_normals",
+    "nudge",
     "push_out",
     "rest_push_out",
     "rings",

@@ -26,7 +26,7 @@ from ._near import Near
 from ._placed import Placed
 from ._sides import SideReference, on_their_side
 
-__all__ = ["ContactReport", "push_out", "rings", "vertex_faces"]
+__all__ = ["ContactReport", "nudge", "push_out", "rings", "vertex_faces"]
 
 
 @dataclass(frozen=True)
@@ -548,6 +548,44 @@ def push_out(
         **({} if bone_vertices != "near" else _bone_fields(found or bones_inside(P))),
     )
     return P, report
+
+
+def nudge(
+    V: FloatArray,
+    F: IntArray,
+    A: sp.csr_matrix,
+    hit: IntArray,
+    D: FloatArray,
+    *,
+    volume_target: float,
+    edge: float,
+) -> FloatArray | None:
+    """The fine vertices ``hit`` moved by ``D``, smoothly over the rings round them, volume exact.
+
+    What the cage cannot do for a few vertices a fraction of an edge inside another
+    muscle (the last of `musclewrap.solver.meet`'s rounds): the pushes spread
+    harmonically over the rings of the mesh round them (zero beyond a radius that
+    grows with the longest push, as `push_out` spreads its own), then the volume
+    restored exactly along the vertex normals of the rest of the surface (zero over the
+    pushes' rings). None where the volume cannot be restored.
+    """
+    n = len(V)
+    radius = int(min(np.ceil(defaults.contact_spread * np.linalg.norm(D, axis=1).max() / edge) + 1, 12))
+    level = rings(A, hit, radius)
+    region = np.flatnonzero((level > 0) & (level <= radius))
+    Dall = np.zeros((n, 3))
+    Dall[hit] = D
+    if len(region):
+        _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
+    P = V + Dall
+    # away from the pushes, over the whole surface beyond their rings (a ramp round them
+    # would press the neighbouring rings into what was pushed away from)
+    level = rings(A, hit, radius + 2)
+    Zm = vertex_normals(P, F) * np.clip((level - radius) / 2.0, 0.0, 1.0)[:, None]
+    t = cubic_root_near(volume_cubic(P - mean_rows(P), Zm, F), volume_target, 0.0)
+    if not np.isfinite(t):
+        return None
+    return P + t * Zm
 
 
 def _bone_fields(found: list[Inside]) -> dict[str, float]:

@@ -69,14 +69,15 @@ class Overlap:
 def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, FloatArray, IntArray]:
     """Distances of the points ``P`` to the triangles ``F`` of ``V``, closest points, their rows of F.
 
-    Exact either way: every triangle per point where that is few tests (a few points
-    inside a neighbour: 0.2 ms where building libigl's tree costs 1.2 ms), else
-    libigl's AABB tree.
+    Exact either way: per point, the triangles whose bounding spheres come within the
+    best so far, where there are few points (about 2 ns per triangle and point, where
+    libigl's AABB tree costs about 0.45 us per triangle to build: the tree from 200
+    points on).
     """
     P = np.ascontiguousarray(P, dtype=np.float64)
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
-    if len(P) * len(F) <= 200_000:
+    if len(P) <= 200:
         dist, C = np.empty(len(P)), np.empty((len(P), 3))
         face = np.empty(len(P), dtype=np.int64)
         _closest_kernel(P, V, F, dist, C, face)
@@ -89,14 +90,37 @@ def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, Flo
 
 @numba.njit(cache=True)
 def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: no cover
-    # every triangle for every point
+    # every triangle for every point, but for those whose bounding sphere (about the
+    # centroid) lies further than the best so far; ties go to the lowest row of F
+    m = F.shape[0]
+    cen = np.empty((m, 3))
+    rad = np.empty(m)
+    for f in range(m):
+        r = 0.0
+        for k in range(3):
+            cen[f, k] = (V[F[f, 0], k] + V[F[f, 1], k] + V[F[f, 2], k]) / 3.0
+        for j in range(3):
+            e = 0.0
+            for k in range(3):
+                e += (V[F[f, j], k] - cen[f, k]) ** 2
+            r = max(r, e)
+        rad[f] = np.sqrt(r)
+    dc = np.empty(m)
     for i in range(P.shape[0]):
-        best = np.inf
-        b0 = b1 = b2 = 0.0
-        bf = -1
-        for f in range(F.shape[0]):
-            d, q0, q1, q2 = _closest_on_triangle(P[i, 0], P[i, 1], P[i, 2], V, F[f])
-            if d < best:
+        p0, p1, p2 = P[i, 0], P[i, 1], P[i, 2]
+        first, low = 0, np.inf
+        for f in range(m):
+            dc[f] = np.sqrt((p0 - cen[f, 0]) ** 2 + (p1 - cen[f, 1]) ** 2 + (p2 - cen[f, 2]) ** 2)
+            if dc[f] < low:
+                first, low = f, dc[f]
+        best, b0, b1, b2 = _closest_on_triangle(p0, p1, p2, V, F[first])
+        bf = first
+        for f in range(m):
+            lb = dc[f] - rad[f]
+            if f == first or (lb > 0.0 and lb * lb > best):
+                continue
+            d, q0, q1, q2 = _closest_on_triangle(p0, p1, p2, V, F[f])
+            if d < best or (d == best and f < bf):
                 best, bf = d, f
                 b0, b1, b2 = q0, q1, q2
         dist[i] = np.sqrt(best)

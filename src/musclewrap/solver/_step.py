@@ -9,6 +9,11 @@ from ..constants import defaults
 
 __all__ = ["cage_push"]
 
+# conditions on points of the surface kept per cage vertex that dominates them: the deepest
+# few (one leaves 0.49 mm of the gait2392 walk's overlaps, three 0.24 mm, all of them
+# 0.14 mm at 1.6 times the cost)
+_PER_LEAD = 3
+
 
 def cage_push(
     W: FloatArray,
@@ -54,8 +59,9 @@ def cage_push(
         of coordinates ``Wp`` (k, m) (a point of a triangle: its vertices' rows
         weighted by its barycentric coordinates), its gap and its direction:
         ``n . (Wp dx) >= slack - gap`` (where an obstacle's vertex stands inside
-        the muscle, the muscle's nearest point goes past it). All of them, after
-        the vertices' one per group.
+        the muscle, the muscle's nearest point goes past it). After the vertices'
+        one per group, the deepest three per cage vertex with the largest weight in
+        their rows.
 
     Returns
     -------
@@ -76,6 +82,15 @@ def cage_push(
     if extra:
         assert points is not None
         Wp, gp, Np = points
+        # the deepest few per cage vertex that dominates them (many of another muscle's
+        # vertices can stand in this one: a dense system of thousands)
+        lead = np.argmax(np.abs(Wp), axis=1)
+        order = np.lexsort((gp, lead))
+        start = np.ones(len(order), dtype=bool)
+        start[1:] = lead[order[1:]] != lead[order[:-1]]
+        rank = np.arange(len(order)) - np.maximum.accumulate(np.where(start, np.arange(len(order)), 0))
+        keep = order[rank < _PER_LEAD]
+        Wp, gp, Np = Wp[keep], gp[keep], Np[keep]
         Wr = np.vstack([Wr, Wp])
         r = np.concatenate([r, slack - gp])
         Nn = np.vstack([Nn, Np])

@@ -22,9 +22,9 @@ import numpy as np
 import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
-from ..constants import defaults
-from ..contact import Near, facing_faces, overlap_depths, overlaps
-from ..mesh import WindingGrid
+from ..constants import defaults, tol
+from ..contact import Near, facing_faces, nudge, overlap_depths, overlaps
+from ..mesh import WindingGrid, barycentric
 from ._muscle import Deformer
 from ._result import DeformationResult
 
@@ -33,6 +33,50 @@ __all__ = ["deform_together", "facing_at_rest", "meet"]
 
 def _apply(T: FloatArray | None, P: FloatArray) -> FloatArray:
     return P if T is None else P @ T[:3, :3].T + T[:3, 3]
+
+
+def _nudge(
+    d: Deformer,
+    V: FloatArray,
+    S: FloatArray,
+    rows: IntArray,
+    need: FloatArray,
+    out: FloatArray,
+    faces: IntArray,
+    at: FloatArray,
+    give: FloatArray,
+    back: FloatArray,
+) -> FloatArray | None:
+    """A muscle's fine vertices out of the others by ``need`` along ``out``, its surface giving way.
+
+    ``faces, at, give, back``: where another muscle's vertex stands inside this one,
+    the point ``at`` of its triangle ``faces`` (``S``: this muscle's positions in the
+    frame of ``at``) moves by ``give`` along ``back``: the triangle's vertices by the
+    least displacement that carries it there (barycentric weights). A vertex pushed
+    twice takes the longer push. `musclewrap.contact.nudge` spreads them and keeps
+    the volume.
+    """
+    mu = d.muscle
+    slack = tol.contact * d._fine_edge
+    hit = [rows]
+    D = [(need + slack)[:, None] * out]
+    if len(faces):
+        tri = mu.F[faces]
+        w = np.clip(barycentric(at, S[tri]), 0.0, None)
+        w = w / np.maximum(np.sum(w * w, axis=1), 1e-300)[:, None]
+        hit.append(tri.ravel())
+        D.append((w[:, :, None] * ((give + slack)[:, None] * back)[:, None, :]).reshape(-1, 3))
+    idx, push = np.concatenate(hit), np.vstack(D)
+    if not len(idx):
+        return None
+    order = np.argsort(np.linalg.norm(push, axis=1), kind="stable")  # the longest last
+    full = np.zeros((len(V), 3))
+    full[idx[order]] = push[order]
+    hit_rows = np.unique(idx)
+    return nudge(
+        V, mu.F, mu.adjacency, hit_rows, full[hit_rows], volume_target=mu.volume_rest,
+        edge=d._fine_edge,
+    )  # fmt: skip
 
 
 def facing_at_rest(
@@ -75,13 +119,15 @@ def meet(
     margin: float = 0.0,
     sides: Mapping[str, Any] | None = None,
     facing: Mapping[tuple[str, str], IntArray] | None = None,
+    pairs: Sequence[tuple[str, str]] | None = None,
 ) -> dict[str, DeformationResult]:
     """Muscles solved on their own (``finish=False``) taken out of each other, then finished.
 
     ``frames[name]``: the transform from the muscle's frame into one common to
     all in this pose (default: they share one). ``obstacles``, ``sides``: per
     muscle, as `Deformer.deform` takes them. ``facing``: `facing_at_rest`
-    (computed here when None). Returns each muscle's finished result with
+    (computed here when None). ``pairs``: the pairs of muscles kept apart
+    (default: every pair); the exact depth reported is over every pair. Returns each muscle's finished result with
     ``muscle_overlap`` and ``muscle_rounds``.
     """
     names = sorted(deformers)
@@ -94,7 +140,10 @@ def meet(
     edge = {n: float(deformers[n]._fine_edge) for n in names}
     state = {n: (results[n].cage, results[n].V) for n in names}
     live = [n for n in names if np.isfinite(state[n][1]).all()]
-    pairs = [(a, b) for i, a in enumerate(live) for b in live[i + 1 :]]
+    if pairs is None:
+        pairs = [(a, b) for i, a in enumerate(live) for b in live[i + 1 :]]
+    else:
+        pairs = sorted({tuple(sorted(p)) for p in pairs if p[0] in live and p[1] in live})
     nears: dict[str, Near] = {}
     rounds = 0
     surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
@@ -126,19 +175,25 @@ def meet(
             rows = np.concatenate([o.rows for o in found[n]] + [np.zeros(0, np.int64)])
             need = share * np.concatenate([o.depth for o in found[n]] + [np.zeros(0)])
             out = np.vstack([o.out for o in found[n]] + [np.zeros((0, 3))])
-            points = None
-            if given[n]:
-                Wp = deformers[n].surface_rows(
-                    np.vstack([o.point for o in given[n]]),
-                    np.concatenate([o.face for o in given[n]]),
-                    surf[n][0],
-                )
-                back = -np.vstack([o.out for o in given[n]])
-                if R is not None:
-                    back = back @ R
-                points = (Wp, (1.0 - share) * np.concatenate([o.depth for o in given[n]]), back)
             if R is not None:
                 out = out @ R  # into the muscle's frame
+            back = -np.vstack([o.out for o in given[n]] + [np.zeros((0, 3))])
+            if R is not None:
+                back = back @ R
+            give = (1.0 - share) * np.concatenate([o.depth for o in given[n]] + [np.zeros(0)])
+            faces = np.concatenate([o.face for o in given[n]] + [np.zeros(0, np.int64)])
+            at = np.vstack([o.point for o in given[n]] + [np.zeros((0, 3))])
+            if max(deep[n], mine) <= defaults.muscle_fine_depth:
+                # a fraction of an edge: the fine vertices themselves (the cage cannot take
+                # a few vertices out without moving their whole region)
+                Vn = _nudge(deformers[n], V, surf[n][0], rows, need, out, faces, at, give, back)
+                if Vn is not None:
+                    new[n] = (state[n][0], Vn)
+                    continue
+            points = None
+            if len(faces):
+                Wp = deformers[n].surface_rows(at, faces, surf[n][0])
+                points = (Wp, give, back)
             obs = obstacles.get(n)
             if obs and n not in nears:
                 nears[n] = Near(V, obs, margin)
@@ -187,6 +242,7 @@ def deform_together(
     margin: float = 0.0,
     sides: Mapping[str, Any] | None = None,
     facing: Mapping[tuple[str, str], IntArray] | None = None,
+    pairs: Sequence[tuple[str, str]] | None = None,
     **kw: Any,
 ) -> dict[str, DeformationResult]:
     """Deform several muscles for one pose together: each follows its lines, none inside another.
@@ -207,6 +263,8 @@ def deform_together(
     facing : optional
         `facing_at_rest` (computed when None: the muscles' rest meshes must then
         share a frame).
+    pairs : sequence of (str, str), optional
+        The pairs kept apart (default: every pair).
     **kw
         ``method``, ``max_iterations``: passed to each solve.
 
@@ -232,5 +290,5 @@ def deform_together(
     }
     return meet(
         deformers, results, lines, frames=frames, reference_points=refs, obstacles=obstacles,
-        margin=margin, sides=sides, facing=facing,
+        margin=margin, sides=sides, facing=facing, pairs=pairs,
     )  # fmt: skip
