@@ -570,7 +570,9 @@ def nudge(
     pushes' rings). None where the volume cannot be restored.
     """
     n = len(V)
-    radius = int(min(np.ceil(defaults.contact_spread * np.linalg.norm(D, axis=1).max() / edge) + 1, 12))
+    radius = int(
+        min(np.ceil(defaults.contact_spread * np.linalg.norm(D, axis=1).max() / edge) + 1, 12)
+    )
     level = rings(A, hit, radius)
     region = np.flatnonzero((level > 0) & (level <= radius))
     Dall = np.zeros((n, 3))

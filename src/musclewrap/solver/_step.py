@@ -88,7 +88,9 @@ def cage_push(
         order = np.lexsort((gp, lead))
         start = np.ones(len(order), dtype=bool)
         start[1:] = lead[order[1:]] != lead[order[:-1]]
-        rank = np.arange(len(order)) - np.maximum.accumulate(np.where(start, np.arange(len(order)), 0))
+        rank = np.arange(len(order)) - np.maximum.accumulate(
+            np.where(start, np.arange(len(order)), 0)
+        )
         keep = order[rank < _PER_LEAD]
         Wp, gp, Np = Wp[keep], gp[keep], Np[keep]
         Wr = np.vstack([Wr, Wp])
