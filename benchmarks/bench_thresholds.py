@@ -1,6 +1,6 @@
 """The contact's thresholds on either side of their defaults, on the deep squat.
 
-    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing]
+    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine]
 
 Drives `examples/lhdl_squat.toml` (the OpenCap deep squat, hip flexion to 106 deg) and, per
 setting, runs the muscles it matters for with the setting replaced, checks the written meshes
@@ -17,7 +17,11 @@ muscle) and prints the largest shape change (and on how many frames it exceeds 0
 - ``facing`` (``muscle_facing_reach``, the faces of a muscle through which another's vertices
   leave it): 5, 10, 15 (default) and 25 mm, and 1000 mm (every face: the nearest way out), on
   `examples/gait2392_walk.toml`'s worst frames (50, 125, 200; the rectus femoris 14.9 mm into
-  the vastus lateralis without muscle contact), every muscle checked against the others.
+  the vastus lateralis without muscle contact), every muscle checked against the others;
+- ``fine`` (``muscle_fine_depth``, where the muscles' rounds hand over from cage steps to the
+  fine vertices, `musclewrap.contact.nudge`): 0 (cage steps only), 0.25 (default), 0.5 and 1
+  mean edges, on `examples/lhdl_walk.toml` every 5th frame, every one checked, with the
+  overlap searches per frame (each round one; the cost of the rounds goes with them).
 
 Every run is in this process, on one worker (a replaced default does not reach worker
 processes); no timing is taken.
@@ -79,7 +83,7 @@ def _print(label, muscles, rows, checked, others=False) -> None:  # noqa: ANN001
 
 def main() -> None:
     p = argparse.ArgumentParser()
-    p.add_argument("--only", choices=("path_step", "cage_depth", "cage_size", "facing"))
+    p.add_argument("--only", choices=("path_step", "cage_depth", "cage_size", "facing", "fine"))
     a = p.parse_args()
     from musclewrap.scene import load_scene
 
@@ -121,6 +125,30 @@ def main() -> None:
                 gait, names, "50:201:75", "50:201:75", cache, muscle_facing_reach=reach
             )
             _print(f"facing {reach:g} mm", names, rows, checked, others=True)
+    if a.only in (None, "fine"):
+        import musclewrap.solver._together as together
+
+        walk = load_scene(ROOT / "examples" / "lhdl_walk.toml")
+        names = tuple(m.name for m in walk.muscles)
+        calls = [0]
+        search = together.overlaps
+
+        def counted(*args):  # noqa: ANN002, ANN202
+            calls[0] += 1
+            return search(*args)
+
+        together.overlaps = counted
+        print("muscle_fine_depth (LHDL walk, frames 0:211:5, every frame checked)")
+        try:
+            for depth in (0.0, 0.25, 0.5, 1.0):
+                calls[0] = 0
+                rows, checked = _run(
+                    walk, names, "0:211:5", "0:211:5", cache, muscle_fine_depth=depth
+                )
+                print(f"  {calls[0] / (len(rows) / len(names)):.1f} overlap searches a frame")
+                _print(f"fine {depth:g} edges", names, rows, checked, others=True)
+        finally:
+            together.overlaps = search
 
 
 if __name__ == "__main__":

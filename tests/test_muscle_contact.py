@@ -110,6 +110,40 @@ def test_the_order_the_muscles_come_in_changes_nothing(pair):
         assert np.array_equal(one[n].cage, other[n].cage)
 
 
+def test_only_the_pairs_named_are_kept_apart(pair):
+    from musclewrap.solver import deform_together
+
+    lines = {"a": _axis(4.0), "b": _axis(20.0)}
+    apart = deform_together(pair, lines, pairs=[("b", "a")])
+    free = deform_together(pair, lines, pairs=[])
+    # no pair: each as on its own, and the overlap still measured (over every pair)
+    for n, d in pair.items():
+        assert np.array_equal(free[n].V, d.deform(lines[n]).V)
+        assert free[n].muscle_overlap > 3.0 and free[n].muscle_rounds == 0
+        assert apart[n].muscle_overlap <= 0.05 * d._fine_edge + 1e-9
+
+
+def test_nudge_moves_the_pushed_vertices_exactly_and_keeps_the_volume():
+    from musclewrap.contact import nudge, rings
+    from musclewrap.mesh import mean_edge_length, vertex_adjacency, volume
+
+    V, F = _sphere(10.0, [0.0, 0.0, 0.0])
+    A = vertex_adjacency(F, len(V))
+    edge = mean_edge_length(V, F)
+    hit = np.array([int(np.argmax(V[:, 0]))])  # the pole on +x, pushed in by a third of an edge
+    D = np.array([[-edge / 3, 0.0, 0.0]])
+    P = nudge(V, F, A, hit, D, volume_target=volume(V, F), edge=edge)
+    assert abs(volume(P, F) / volume(V, F) - 1) <= 1e-12
+    assert np.allclose(P[hit], V[hit] + D, atol=1e-12)
+    # smooth round it: the 1-ring moves less than the pushed vertex, along the push
+    level = rings(A, hit, 8)
+    ring = (P - V)[level == 1]
+    assert (ring[:, 0] < 0).all() and np.abs(ring[:, 0]).max() < edge / 3
+    # far from it, the volume is restored along the normals, evenly and by little
+    far = np.linalg.norm(P - V, axis=1)[level > 5]
+    assert far.max() <= 1e-2 * edge and far.min() >= 0.5 * far.max()
+
+
 def test_three_capsules_in_a_row():
     from musclewrap.mesh import mean_edge_length, volume
     from musclewrap.solver import deform_together
@@ -163,6 +197,29 @@ def test_muscles_that_cannot_be_kept_apart_are_refused(data_dir, tmp_path):
     # without muscle contact, neither is refused for it
     toml.write_text(_two_muscles(data_dir, str(psoas), "[collisions]\nmuscles = false\n"))
     assert not load_scene(toml).muscle_collisions
+
+
+@pytest.mark.realdata
+def test_collisions_pairs_name_muscles_of_the_scene(data_dir, tmp_path):
+    from musclewrap.scene import SceneError, load_scene
+
+    iliacus = data_dir / "lhdl" / "muscles" / "LHDL_R_Iliacus.vtk"
+    toml = tmp_path / "s.toml"
+    toml.write_text(
+        _two_muscles(data_dir, str(iliacus), "[collisions]\npairs = [['other', 'psoas']]\n")
+    )
+    assert load_scene(toml).muscle_pairs == (("other", "psoas"),)
+    toml.write_text(_two_muscles(data_dir, str(iliacus)))
+    assert load_scene(toml).muscle_pairs is None  # every pair
+    for bad, message in (
+        ("[['psoas', 'iliacus']]", "pairs names 'iliacus', not a muscle of the scene"),
+        ("[['psoas', 'psoas']]", "'psoas' paired with itself"),
+        ("[['psoas']]", "is not a pair"),
+        ("'psoas'", "must be a list of pairs of muscle names"),
+    ):
+        toml.write_text(_two_muscles(data_dir, str(iliacus), f"[collisions]\npairs = {bad}\n"))
+        with pytest.raises(SceneError, match=f"s.toml: .*{message}"):
+            load_scene(toml)
 
 
 def test_a_muscle_inside_another_at_rest_is_refused(tmp_path):

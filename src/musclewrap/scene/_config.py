@@ -40,7 +40,7 @@ _MUSCLE = {
     "mesh", "paths", "body", "reference", "cage_size", "cage_coarsening", "method",
     "max_iterations", "repair", "frame", "bones", "fibre_origin", "fibre_insertion",
 }  # fmt: skip
-_COLLISIONS = {"enabled", "margin", "rest_overlap", "muscles"}
+_COLLISIONS = {"enabled", "margin", "rest_overlap", "muscles", "pairs"}
 _FIBRES = {
     "count", "points", "moment_arms", "step", "voxels", "moment_arm_contact", "landmark_radius",
 }  # fmt: skip
@@ -150,6 +150,7 @@ class Scene:
     rest_overlap: str = "resolve"
     fibres: FibreSpec | None = None
     muscle_collisions: bool = False
+    muscle_pairs: tuple[tuple[str, str], ...] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -448,7 +449,34 @@ def load_scene(path: PathLike) -> Scene:
         rest_overlap=rest_overlap,
         fibres=_fibres(raw, src, osim),
         muscle_collisions=collisions and against and len(muscles) > 1,
+        muscle_pairs=_pairs(coll, [m.name for m in muscles], src),
     )
+
+
+def _pairs(
+    coll: Mapping[str, Any], names: list[str], src: Path
+) -> tuple[tuple[str, str], ...] | None:
+    """``[collisions] pairs``: the pairs of muscles kept apart (None: every pair)."""
+    if "pairs" not in coll:
+        return None
+    raw = coll["pairs"]
+    form = "a list of pairs of muscle names, e.g. [['psoas', 'iliacus']]"
+    if not isinstance(raw, list):
+        raise SceneError(f"{src}: [collisions] pairs must be {form}, got {raw!r}")
+    out = set()
+    for p in raw:
+        if not (isinstance(p, list) and len(p) == 2 and all(isinstance(x, str) for x in p)):
+            raise SceneError(f"{src}: [collisions] pairs must be {form}; {p!r} is not a pair")
+        for x in p:
+            if x not in names:
+                raise SceneError(
+                    f"{src}: [collisions] pairs names '{x}', not a muscle of the scene; "
+                    + suggest(x, sorted(names))
+                )
+        if p[0] == p[1]:
+            raise SceneError(f"{src}: [collisions] pairs: '{p[0]}' paired with itself")
+        out.add((min(p), max(p)))
+    return tuple(sorted(out))
 
 
 def _attachment(m: Mapping[str, Any], key: str, where: str, src: Path) -> tuple[Any, ...] | None:

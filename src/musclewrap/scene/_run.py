@@ -407,7 +407,7 @@ class _SceneRun:
 
             def make(results: dict[Any, Any], part: tuple[Any, ...] = part) -> DeformGroup:
                 paths = tuple(None if k is None else results[k] for k in path_keys)
-                return DeformGroup(jobs, part, paths, to_common)
+                return DeformGroup(jobs, part, paths, to_common, self.scene.muscle_pairs)
 
             node = Node(
                 key,

@@ -531,13 +531,15 @@ class DeformGroup:
     on the chunks or the workers.
 
     ``to_common`` per muscle: the transform from its frame into the scene's, at rest
-    (where the faces that face each other are found).
+    (where the faces that face each other are found). ``pairs``: those kept apart
+    (``[collisions] pairs``; None: every pair).
     """
 
     jobs: tuple[MuscleJob, ...]
     spans: tuple[FrameSpan, ...]
     paths: tuple[PathStates | None, ...]
     to_common: tuple[FloatArray, ...]
+    pairs: tuple[tuple[str, str], ...] | None = None
 
     def run(self) -> dict[str, ChunkResult]:
         from ..solver import facing_at_rest, meet
@@ -570,6 +572,7 @@ class DeformGroup:
                 margin=margin,
                 sides={n: m.sides_of(k) for n, m in ms.items()},
                 facing=facing,
+                pairs=self.pairs,
             )
             for n, m in ms.items():
                 m.emit(k, final[n], final[n].muscle_overlap)
