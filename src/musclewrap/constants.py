@@ -168,6 +168,11 @@ class Defaults:
     contact_softness : float
         Regularisation of the cage's contact conditions, relative to the mean
         of their own diagonal (0: hard conditions).
+    contact_points_per_cage_vertex : int
+        Conditions on points of the surface (another muscle's vertices, or a bone's,
+        standing in the muscle) kept per cage vertex in a cage contact step: the
+        deepest of those whose coordinate rows that cage vertex leads (all of them
+        make dense systems of thousands).
     muscle_rounds : int
         Most rounds per frame in which muscles in contact take each other's
         vertices out (`musclewrap.contact.overlaps`): each takes half the depth.
@@ -217,6 +222,7 @@ class Defaults:
     contact_band: float = 2.0
     contact_softness: float = 0.1
     contact_cage_reach: float = 1.25
+    contact_points_per_cage_vertex: int = 3
     muscle_rounds: int = 12
     muscle_share: float = 0.5
     muscle_overlap_depth: float = 0.05

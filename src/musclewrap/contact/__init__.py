@@ -12,7 +12,15 @@ is given.
 """
 
 from ._find import contact_candidates
-from ._finish import ContactReport, nudge, push_out, rings, vertex_faces
+from ._finish import (
+    ContactReport,
+    longest_pushes,
+    nudge,
+    push_out,
+    rings,
+    triangle_pushes,
+    vertex_faces,
+)
 from ._inside import Inside, bone_vertices_inside, line_inside_depth
 from ._muscles import Overlap, facing_faces, overlap_depths, overlaps
 from ._near import Near
@@ -37,6 +45,7 @@ __all__ = [
     "facing_faces",
     "kept_allowance",
     "line_inside_depth",
+    "longest_pushes",
     "on_their_side",
     "overlap_depths",
     "overlaps",
@@ -46,6 +55,7 @@ __all__ = [
     "push_out",
     "rest_push_out",
     "rings",
+    "triangle_pushes",
     "signed_from_closest",
     "vertex_faces",
 ]

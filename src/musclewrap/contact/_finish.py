@@ -26,7 +26,15 @@ from ._near import Near
 from ._placed import Placed
 from ._sides import SideReference, on_their_side
 
-__all__ = ["ContactReport", "nudge", "push_out", "rings", "vertex_faces"]
+__all__ = [
+    "ContactReport",
+    "longest_pushes",
+    "nudge",
+    "push_out",
+    "rings",
+    "triangle_pushes",
+    "vertex_faces",
+]
 
 
 @dataclass(frozen=True)
@@ -126,6 +134,57 @@ def _smooth(indptr, indices, D, rows, sweeps, keep):  # noqa: ANN001, ANN202 # p
         for q in range(rows.shape[0]):
             v = rows[q]
             D[v, 0], D[v, 1], D[v, 2] = new[q, 0], new[q, 1], new[q, 2]
+
+
+def triangle_pushes(C: FloatArray, T: FloatArray, v: FloatArray) -> FloatArray:
+    """The least displacements of the corners of triangles that carry points of them by ``v``.
+
+    ``C`` (k, 3): points of the triangles ``T`` (k, 3, 3); ``v`` (k, 3). The corners
+    move by their (clipped) barycentric weights ``w`` over ``|w|^2``, which moves each
+    point by exactly ``v``. Returns (3 k, 3), the corners of each triangle in turn.
+    """
+    w = np.clip(barycentric(C, T), 0.0, None)
+    w = w / np.sum(w * w, axis=1)[:, None]
+    return (w[:, :, None] * v[:, None, :]).reshape(-1, 3)
+
+
+def longest_pushes(push: FloatArray, size: FloatArray, verts: IntArray, disp: FloatArray) -> None:
+    """Write the pushes ``disp`` of ``verts`` into ``push``, their lengths into ``size``.
+
+    A vertex pushed more than once keeps its longest push.
+    """
+    norm = np.linalg.norm(disp, axis=1)
+    order = np.argsort(norm)  # the longest push per vertex is written last
+    push[verts[order]] = disp[order]
+    size[verts[order]] = norm[order]
+
+
+def _spread(
+    A: sp.csr_matrix,
+    hit: IntArray,
+    D: FloatArray,
+    edge: float,
+    held: np.ndarray | None = None,
+    beyond: int = 0,
+) -> tuple[FloatArray, IntArray, int]:
+    """The pushes ``D`` of the vertices ``hit`` spread harmonically over the rings round them.
+
+    Jacobi sweeps of the 1-ring mean on the vertices within a radius that grows with
+    the longest push (``defaults.contact_spread`` mean edges per edge pushed, at most
+    12 rings), zero beyond it; the pushed vertices and the ``held`` ones stay.
+    Returns the displacement of every vertex, each vertex's ring distance from
+    ``hit`` (counted ``beyond`` rings past the radius), and the radius.
+    """
+    depth = float(np.linalg.norm(D, axis=1).max())
+    radius = int(min(np.ceil(defaults.contact_spread * depth / edge) + 1, 12))
+    level = rings(A, hit, radius + beyond)
+    free = (level > 0) & (level <= radius)
+    region = np.flatnonzero(free if held is None else free & ~held)
+    Dall = np.zeros((A.shape[0], 3))
+    Dall[hit] = D
+    if len(region):
+        _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
+    return Dall, level, radius
 
 
 def vertex_faces(F: IntArray, n: int) -> tuple[IntArray, IntArray]:
@@ -289,16 +348,7 @@ def _with_bone_vertices(
         # into the muscle from the bone vertex: the nearest surface point goes past it
         u = (B - C) / np.maximum(dist, 1e-300)[:, None]
         d = dist + margin + slack
-        # least-norm weights of the (clipped) barycentric coordinates: w / |w|^2 moves the
-        # nearest point by exactly d
-        w = np.clip(barycentric(C, P[F[fi]]), 0.0, None)
-        w = w / np.sum(w * w, axis=1)[:, None]
-        disp = (w[:, :, None] * (d[:, None] * u)[:, None, :]).reshape(-1, 3)
-        verts = F[fi].ravel()
-        norm = np.linalg.norm(disp, axis=1)
-        order = np.argsort(norm)  # the longest push per vertex is written last
-        push[verts[order]] = disp[order]
-        size[verts[order]] = norm[order]
+        longest_pushes(push, size, F[fi].ravel(), triangle_pushes(C, P[F[fi]], d[:, None] * u))
     extra = np.flatnonzero(size > slack)
     if not len(extra):
         return hit, target, gap
@@ -452,17 +502,8 @@ def push_out(
     rounds = 0
     while rounds < budget:
         rounds += 1
-        D = target - P[hit]
-        depth = float(np.linalg.norm(D, axis=1).max())
         # harmonic spread of the push over the rings around the contact (zero beyond)
-        radius = int(min(np.ceil(defaults.contact_spread * depth / edge) + 1, 12))
-        level = rings(A, hit, radius)
-        region = np.flatnonzero((level > 0) & (level <= radius) & ~held)
-        Dall = np.zeros((n, 3))
-        Dall[hit] = D
-        if len(region):
-            # Jacobi sweeps of the 1-ring mean on the free vertices (the pushed ones hold)
-            _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
+        Dall, level, radius = _spread(A, hit, target - P[hit], edge, held)
         if rounds <= relax_until:
             # Relax the pushed vertices too: neighbours projected onto different sheets of a
             # concave bone (or along converging normals) would cross; what the relaxation
@@ -569,20 +610,10 @@ def nudge(
     restored exactly along the vertex normals of the rest of the surface (zero over the
     pushes' rings). None where the volume cannot be restored.
     """
-    n = len(V)
-    radius = int(
-        min(np.ceil(defaults.contact_spread * np.linalg.norm(D, axis=1).max() / edge) + 1, 12)
-    )
-    level = rings(A, hit, radius)
-    region = np.flatnonzero((level > 0) & (level <= radius))
-    Dall = np.zeros((n, 3))
-    Dall[hit] = D
-    if len(region):
-        _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
+    Dall, level, radius = _spread(A, hit, D, edge, beyond=2)
     P = V + Dall
     # away from the pushes, over the whole surface beyond their rings (a ramp round them
     # would press the neighbouring rings into what was pushed away from)
-    level = rings(A, hit, radius + 2)
     Zm = vertex_normals(P, F) * np.clip((level - radius) / 2.0, 0.0, 1.0)[:, None]
     t = cubic_root_near(volume_cubic(P - mean_rows(P), Zm, F), volume_target, 0.0)
     if not np.isfinite(t):

@@ -9,10 +9,15 @@ from ..constants import defaults
 
 __all__ = ["cage_push"]
 
-# conditions on points of the surface kept per cage vertex that dominates them: the deepest
-# few (one leaves 0.49 mm of the gait2392 walk's overlaps, three 0.24 mm, all of them
-# 0.14 mm at 1.6 times the cost)
-_PER_LEAD = 3
+
+def _deepest_per_group(gap: FloatArray, group: IntArray, k: int) -> IntArray:
+    """The rows of the ``k`` smallest gaps in each group, by group (ties: the earlier row)."""
+    order = np.lexsort((gap, group))
+    start = np.ones(len(order), dtype=bool)
+    start[1:] = group[order[1:]] != group[order[:-1]]
+    at = np.arange(len(order))
+    rank = at - np.maximum.accumulate(np.where(start, at, 0))
+    return order[rank < k]
 
 
 def cage_push(
@@ -60,8 +65,8 @@ def cage_push(
         weighted by its barycentric coordinates), its gap and its direction:
         ``n . (Wp dx) >= slack - gap`` (where an obstacle's vertex stands inside
         the muscle, the muscle's nearest point goes past it). After the vertices'
-        one per group, the deepest three per cage vertex with the largest weight in
-        their rows.
+        one per group, the deepest ``defaults.contact_points_per_cage_vertex`` per
+        cage vertex with the largest weight in their rows.
 
     Returns
     -------
@@ -73,10 +78,7 @@ def cage_push(
     if (not len(idx) or gap.min() >= 0) and not extra:
         return np.zeros((m, 3))
     # one candidate per group: the nearest (most negative gap)
-    order = np.lexsort((gap, group[idx]))
-    first = np.ones(len(order), dtype=bool)
-    first[1:] = group[idx[order[1:]]] != group[idx[order[:-1]]]
-    pool = order[first]
+    pool = _deepest_per_group(gap, group[idx], 1)
     rows, r, Nn = idx[pool], slack - gap[pool], N[pool]
     Wr = W[rows]
     if extra:
@@ -84,14 +86,9 @@ def cage_push(
         Wp, gp, Np = points
         # the deepest few per cage vertex that dominates them (many of another muscle's
         # vertices can stand in this one: a dense system of thousands)
-        lead = np.argmax(np.abs(Wp), axis=1)
-        order = np.lexsort((gp, lead))
-        start = np.ones(len(order), dtype=bool)
-        start[1:] = lead[order[1:]] != lead[order[:-1]]
-        rank = np.arange(len(order)) - np.maximum.accumulate(
-            np.where(start, np.arange(len(order)), 0)
+        keep = _deepest_per_group(
+            gp, np.argmax(np.abs(Wp), axis=1), defaults.contact_points_per_cage_vertex
         )
-        keep = order[rank < _PER_LEAD]
         Wp, gp, Np = Wp[keep], gp[keep], Np[keep]
         Wr = np.vstack([Wr, Wp])
         r = np.concatenate([r, slack - gp])

@@ -23,8 +23,17 @@ import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..contact import Near, facing_faces, nudge, overlap_depths, overlaps
-from ..mesh import WindingGrid, barycentric
+from ..contact import (
+    Near,
+    Overlap,
+    facing_faces,
+    longest_pushes,
+    nudge,
+    overlap_depths,
+    overlaps,
+    triangle_pushes,
+)
+from ..mesh import WindingGrid
 from ._muscle import Deformer
 from ._result import DeformationResult
 
@@ -33,6 +42,18 @@ __all__ = ["deform_together", "facing_at_rest", "meet"]
 
 def _apply(T: FloatArray | None, P: FloatArray) -> FloatArray:
     return P if T is None else P @ T[:3, :3].T + T[:3, 3]
+
+
+def _cat(found: Sequence[Overlap], field: str, shape: tuple[int, ...]) -> npt.NDArray[Any]:
+    """One field of several overlaps, end to end (empty of ``shape`` where there are none)."""
+    if not found:
+        return np.zeros(shape, dtype=np.int64 if field in ("rows", "face") else np.float64)
+    return np.concatenate([getattr(o, field) for o in found])
+
+
+def _deepest(found: Sequence[Overlap]) -> float:
+    """The deepest of several overlaps' vertices (0 where there are none)."""
+    return max((float(o.depth.max()) for o in found), default=0.0)
 
 
 def _nudge(
@@ -51,32 +72,27 @@ def _nudge(
 
     ``faces, at, give, back``: where another muscle's vertex stands inside this one,
     the point ``at`` of its triangle ``faces`` (``S``: this muscle's positions in the
-    frame of ``at``) moves by ``give`` along ``back``: the triangle's vertices by the
-    least displacement that carries it there (barycentric weights). A vertex pushed
-    twice takes the longer push. `musclewrap.contact.nudge` spreads them and keeps
-    the volume.
+    frame of ``at``) moves by ``give`` along ``back`` (`musclewrap.contact.triangle_pushes`).
+    A vertex pushed twice takes the longer push. `musclewrap.contact.nudge` spreads
+    them and keeps the volume.
     """
     mu = d.muscle
     slack = tol.contact * d._fine_edge
-    hit = [rows]
-    D = [(need + slack)[:, None] * out]
-    if len(faces):
-        tri = mu.F[faces]
-        w = np.clip(barycentric(at, S[tri]), 0.0, None)
-        w = w / np.maximum(np.sum(w * w, axis=1), 1e-300)[:, None]
-        hit.append(tri.ravel())
-        D.append((w[:, :, None] * ((give + slack)[:, None] * back)[:, None, :]).reshape(-1, 3))
-    idx, push = np.concatenate(hit), np.vstack(D)
-    if not len(idx):
+    push, size = np.zeros((len(V), 3)), np.zeros(len(V))
+    verts = np.concatenate([rows, mu.F[faces].ravel()])
+    disp = np.vstack(
+        [
+            (need + slack)[:, None] * out,
+            triangle_pushes(at, S[mu.F[faces]], (give + slack)[:, None] * back),
+        ]
+    )
+    if not len(verts):
         return None
-    order = np.argsort(np.linalg.norm(push, axis=1), kind="stable")  # the longest last
-    full = np.zeros((len(V), 3))
-    full[idx[order]] = push[order]
-    hit_rows = np.unique(idx)
+    longest_pushes(push, size, verts, disp)
+    hit = np.unique(verts)
     return nudge(
-        V, mu.F, mu.adjacency, hit_rows, full[hit_rows], volume_target=mu.volume_rest,
-        edge=d._fine_edge,
-    )  # fmt: skip
+        V, mu.F, mu.adjacency, hit, push[hit], volume_target=mu.volume_rest, edge=d._fine_edge
+    )
 
 
 def facing_at_rest(
@@ -151,9 +167,7 @@ def meet(
     for _ in range(defaults.muscle_rounds if pairs else 0):
         found = overlaps(surf, pairs, facing, memo)
         # per muscle its deepest vertex inside another, in its mean edges
-        deep = {
-            n: max((float(o.depth.max()) for o in found[n]), default=0.0) / edge[n] for n in live
-        }
+        deep = {n: _deepest(found[n]) / edge[n] for n in live}
         if max(deep.values()) <= defaults.muscle_overlap_depth:
             break  # all out, to the tolerance
         rounds += 1
@@ -161,28 +175,23 @@ def meet(
         # where another muscle's vertex stands inside this one: its surface gives the other
         # share there (a muscle held by a bone cannot take its own; and where only one
         # surface has vertices inside the other, both still move)
-        given: dict[str, list[Any]] = {n: [] for n in live}
+        given: dict[str, list[Overlap]] = {n: [] for n in live}
         for m in live:
             for o in found[m]:
                 given[o.other].append(o)
         new = {}
         for n in live:
-            mine = max((float(o.depth.max()) for o in given[n]), default=0.0) / edge[n]
+            mine = _deepest(given[n]) / edge[n]
             if max(deep[n], mine) <= defaults.muscle_overlap_depth:
                 continue  # out already (to the tolerance): no step
-            R = None if frames.get(n) is None else frames[n][:3, :3]
             V = state[n][1]
-            rows = np.concatenate([o.rows for o in found[n]] + [np.zeros(0, np.int64)])
-            need = share * np.concatenate([o.depth for o in found[n]] + [np.zeros(0)])
-            out = np.vstack([o.out for o in found[n]] + [np.zeros((0, 3))])
-            if R is not None:
-                out = out @ R  # into the muscle's frame
-            back = -np.vstack([o.out for o in given[n]] + [np.zeros((0, 3))])
-            if R is not None:
-                back = back @ R
-            give = (1.0 - share) * np.concatenate([o.depth for o in given[n]] + [np.zeros(0)])
-            faces = np.concatenate([o.face for o in given[n]] + [np.zeros(0, np.int64)])
-            at = np.vstack([o.point for o in given[n]] + [np.zeros((0, 3))])
+            rows, need = _cat(found[n], "rows", (0,)), share * _cat(found[n], "depth", (0,))
+            give = (1.0 - share) * _cat(given[n], "depth", (0,))
+            faces, at = _cat(given[n], "face", (0,)), _cat(given[n], "point", (0, 3))
+            # the ways out, and the other's surface's way in, in the muscle's frame
+            out, back = _cat(found[n], "out", (0, 3)), -_cat(given[n], "out", (0, 3))
+            if frames.get(n) is not None:
+                out, back = out @ frames[n][:3, :3], back @ frames[n][:3, :3]
             if max(deep[n], mine) <= defaults.muscle_fine_depth:
                 # a fraction of an edge: the fine vertices themselves (the cage cannot take
                 # a few vertices out without moving their whole region)
