@@ -1,6 +1,6 @@
 """The contact's thresholds on either side of their defaults, on the deep squat.
 
-    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine]
+    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine|points]
 
 Drives `examples/lhdl_squat.toml` (the OpenCap deep squat, hip flexion to 106 deg) and, per
 setting, runs the muscles it matters for with the setting replaced, checks the written meshes
@@ -21,10 +21,14 @@ muscle) and prints the largest shape change (and on how many frames it exceeds 0
 - ``fine`` (``muscle_fine_depth``, where the muscles' rounds hand over from cage steps to the
   fine vertices, `musclewrap.contact.nudge`): 0 (cage steps only), 0.25 (default), 0.5 and 1
   mean edges, on `examples/lhdl_walk.toml` every 5th frame, every one checked, with the
-  overlap searches per frame (each round one; the cost of the rounds goes with them).
+  overlap searches per frame (each round one; the cost of the rounds goes with them);
+- ``points`` (``contact_points_per_cage_vertex``, another muscle's vertices standing in a muscle
+  kept as conditions of its cage step per cage vertex): 1, 3 (default) and every one, on
+  `examples/gait2392_walk.toml` every 5th frame, every one checked, with the run's seconds
+  (one run each in this process: a rough figure, no repeats).
 
 Every run is in this process, on one worker (a replaced default does not reach worker
-processes); no timing is taken.
+processes); no timing is taken but for ``points``.
 """
 
 from __future__ import annotations
@@ -83,7 +87,7 @@ def _print(label, muscles, rows, checked, others=False) -> None:  # noqa: ANN001
 
 def main() -> None:
     p = argparse.ArgumentParser()
-    p.add_argument("--only", choices=("path_step", "cage_depth", "cage_size", "facing", "fine"))
+    p.add_argument("--only", choices=("path_step", "cage_depth", "cage_size", "facing", "fine", "points"))
     a = p.parse_args()
     from musclewrap.scene import load_scene
 
@@ -149,6 +153,20 @@ def main() -> None:
                 _print(f"fine {depth:g} edges", names, rows, checked, others=True)
         finally:
             together.overlaps = search
+    if a.only in (None, "points"):
+        import time
+
+        gait = load_scene(ROOT / "examples" / "gait2392_walk.toml")
+        names = tuple(m.name for m in gait.muscles)
+        print("contact_points_per_cage_vertex (gait2392 walk, frames 0:211:5, every one checked)")
+        _run(gait, names, "0:10:5", "0:10:5", cache)  # the preparations, cached
+        for k in (1, 3, 10**9):
+            t0 = time.perf_counter()
+            rows, checked = _run(
+                gait, names, "0:211:5", "0:211:5", cache, contact_points_per_cage_vertex=k
+            )
+            print(f"  {time.perf_counter() - t0:.1f} s (run and check)")
+            _print(f"points {k if k < 10**9 else 'all'}", names, rows, checked, others=True)
 
 
 if __name__ == "__main__":

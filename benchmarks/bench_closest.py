@@ -1,0 +1,66 @@
+"""Closest points on another muscle's faces: the compiled search against libigl's tree.
+
+    python benchmarks/bench_closest.py [--repeats 7]
+
+`musclewrap.contact._muscles._closest` takes, per point, the triangles whose bounding spheres
+come within the best distance so far (no tree to build) for up to 200 points, and libigl's AABB
+tree (`igl.point_mesh_squared_distance`, built per call: the surface moves every round) from
+there on. Prints, for capsules of about 2,000, 8,000 and 40,000 triangles (a muscle's facing
+faces, an LHDL muscle, the VHF vastus lateralis) and 10 to 1,000 points within the capsule's
+wall, the median time of each and the largest difference of their distances: where the
+threshold of 200 points comes from.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def _median(f, repeats: int) -> float:  # noqa: ANN001
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        f()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--repeats", type=int, default=7)
+    a = p.parse_args()
+    import igl
+
+    from musclewrap.contact._muscles import _closest_kernel
+    from musclewrap.synthetic import capsule
+
+    rng = np.random.default_rng(0)
+    print("triangles points  spheres ms  libigl ms  ratio  largest difference")
+    for n_around, segments in ((32, 24), (64, 56), (128, 150)):
+        V, F = capsule(radius=20.0, length=160.0, n_around=n_around, cap_rings=8, segments=segments)
+        F = np.ascontiguousarray(F, dtype=np.int64)
+        for k in (10, 30, 100, 200, 300, 1000):
+            # points inside the wall, within 3 of the surface (vertices of a neighbour inside)
+            u = rng.normal(size=(k, 2))
+            u /= np.linalg.norm(u, axis=1)[:, None]
+            P = np.column_stack(
+                [(20.0 - rng.uniform(0, 3, k))[:, None] * u, rng.uniform(0, 160, k)]
+            )
+            P = np.ascontiguousarray(P)
+            dist, C, face = np.empty(k), np.empty((k, 3)), np.empty(k, dtype=np.int64)
+            _closest_kernel(P[:1], V, F, dist[:1], C[:1], face[:1])  # compiled
+            mine = _median(lambda: _closest_kernel(P, V, F, dist, C, face), a.repeats)  # noqa: B023
+            tree = _median(lambda: igl.point_mesh_squared_distance(P, V, F), a.repeats)  # noqa: B023
+            sq = igl.point_mesh_squared_distance(P, V, F)[0]
+            diff = float(np.abs(dist - np.sqrt(sq)).max())
+            print(
+                f"{len(F):9d} {k:6d} {1e3 * mine:11.2f} {1e3 * tree:10.2f} {tree / mine:6.2f}"
+                f"  {diff:.1e}"
+            )
+
+
+if __name__ == "__main__":
+    main()
