@@ -191,6 +191,9 @@ class Defaults:
         A muscle's faces within this distance (mesh units) of another muscle at
         rest, or inside it, are where the other's vertices leave it
         (`musclewrap.contact.facing_faces`).
+    muscle_rest_rounds : int
+        Most rounds in which segmented muscles that overlap at rest are taken apart,
+        once per run (`musclewrap.contact.apart_at_rest`).
     """
 
     cage_size: int = 300
@@ -228,6 +231,7 @@ class Defaults:
     muscle_overlap_depth: float = 0.05
     muscle_fine_depth: float = 0.25
     muscle_facing_reach: float = 15.0
+    muscle_rest_rounds: int = 30
 
 
 tol = Tolerances()

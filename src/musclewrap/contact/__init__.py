@@ -6,8 +6,10 @@ vertices can be near it (`Near`); the contacts of a pose stated as linear condit
 on the fine vertices (`contact_candidates`); the fine finish that takes the last
 vertices out, volume-exact (`push_out`); and the rest pose's overlap, settled once
 (`rest_push_out`, `anchors_at_rest`). Muscles against each other: where each faces
-the other at rest (`facing_faces`), the vertices of each inside another with their way
-out (`overlaps`), the deepest (`overlap_depths`). The solver solves the conditions it
+the other at rest (`facing_faces`, `facing_pairs`), the vertices of each inside another
+with their way out (`overlaps`), each side's share (`meetings`, `push_apart`), the
+deepest (`overlap_depths`), and segmented muscles that overlap at rest taken apart once
+(`apart_at_rest`). The solver solves the conditions it
 is given.
 """
 
@@ -22,7 +24,18 @@ from ._finish import (
     vertex_faces,
 )
 from ._inside import Inside, bone_vertices_inside, line_inside_depth
-from ._muscles import Overlap, facing_faces, overlap_depths, overlaps
+from ._muscles import (
+    Meeting,
+    Overlap,
+    RestPair,
+    apart_at_rest,
+    facing_faces,
+    facing_pairs,
+    meetings,
+    overlap_depths,
+    overlaps,
+    push_apart,
+)
 from ._near import Near
 from ._obstacle import Obstacle, bone_surface, pseudo_normals, signed_from_closest
 from ._placed import Placed
@@ -32,26 +45,32 @@ from ._sides import SideReference, on_their_side, passed_through
 __all__ = [
     "ContactReport",
     "Inside",
+    "Meeting",
     "Near",
     "Obstacle",
     "Overlap",
     "Placed",
+    "RestPair",
     "SideReference",
     "anchors_at_rest",
+    "apart_at_rest",
     "attachment_patches",
     "bone_surface",
     "bone_vertices_inside",
     "contact_candidates",
     "facing_faces",
+    "facing_pairs",
     "kept_allowance",
     "line_inside_depth",
     "longest_pushes",
+    "meetings",
     "on_their_side",
     "overlap_depths",
     "overlaps",
     "passed_through",
     "pseudo_normals",
     "nudge",
+    "push_apart",
     "push_out",
     "rest_push_out",
     "rings",

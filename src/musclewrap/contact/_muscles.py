@@ -23,6 +23,7 @@ there (`musclewrap.solver.meet`), whatever order the muscles come in.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -31,10 +32,23 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..mesh import WindingGrid
+from ..constants import defaults, tol
+from ..mesh import WindingGrid, mean_edge_length, vertex_adjacency, volume
+from ._finish import longest_pushes, nudge, triangle_pushes
 from ._inside import _closest_on_triangle
 
-__all__ = ["Overlap", "facing_faces", "overlap_depths", "overlaps"]
+__all__ = [
+    "Meeting",
+    "Overlap",
+    "RestPair",
+    "apart_at_rest",
+    "facing_faces",
+    "facing_pairs",
+    "meetings",
+    "overlap_depths",
+    "overlaps",
+    "push_apart",
+]
 
 
 @dataclass(frozen=True)
@@ -232,3 +246,223 @@ def overlap_depths(
                 max(float(o.depth.max()) for o in found),
             )
     return out
+
+
+def facing_pairs(
+    meshes: Mapping[str, tuple[FloatArray, IntArray]], reach: float | None = None
+) -> dict[tuple[str, str], IntArray]:
+    """`facing_faces` for every ordered pair of ``meshes`` (at rest, in one frame).
+
+    ``reach`` (mesh units): default ``defaults.muscle_facing_reach``.
+    """
+    reach = defaults.muscle_facing_reach if reach is None else reach
+    names = sorted(meshes)
+    grids = {n: WindingGrid(*meshes[n]) for n in names}
+    return {
+        (a, b): facing_faces(*meshes[a], *meshes[b], reach, grids[a])
+        for a in names
+        for b in names
+        if a != b
+    }
+
+
+def _cat(found: Sequence[Overlap], field: str, shape: tuple[int, ...]) -> Any:
+    """One field of several overlaps, end to end (empty of ``shape`` where there are none)."""
+    if not found:
+        return np.zeros(shape, dtype=np.int64 if field in ("rows", "face") else np.float64)
+    return np.concatenate([getattr(o, field) for o in found])
+
+
+@dataclass(frozen=True)
+class Meeting:
+    """One muscle's side of its overlaps with the others in one round, each taking its share.
+
+    Attributes
+    ----------
+    rows, need, out
+        Its vertices inside other muscles, how far each goes out, along which unit
+        direction.
+    faces, at, give, back
+        Where another muscle's vertex stands inside it: its triangles, the points on
+        them that give way, how far, along which unit direction (into this muscle).
+    depth, given : float
+        Its deepest vertex inside another; the deepest of another's inside it.
+    """
+
+    rows: IntArray
+    need: FloatArray
+    out: FloatArray
+    faces: IntArray
+    at: FloatArray
+    give: FloatArray
+    back: FloatArray
+    depth: float
+    given: float
+
+    def rotated(self, T: FloatArray | None) -> Meeting:
+        """The directions taken from the common frame into the muscle's (``T``: muscle to common)."""
+        if T is None:
+            return self
+        R = T[:3, :3]
+        return dataclasses.replace(self, out=self.out @ R, back=self.back @ R)
+
+
+def meetings(found: Mapping[str, Sequence[Overlap]], share: float) -> dict[str, Meeting]:
+    """Every muscle's side of the overlaps ``found`` (`overlaps`), split ``share`` to ``1 - share``.
+
+    A vertex inside another muscle goes out by ``share`` of its depth; the other's
+    surface gives way by the rest where the vertex stands (so the two surfaces meet
+    between where they were, whichever muscle is named first).
+    """
+    given: dict[str, list[Overlap]] = {n: [] for n in found}
+    for m in sorted(found):
+        for o in found[m]:
+            given[o.other].append(o)
+    return {
+        n: Meeting(
+            _cat(found[n], "rows", (0,)),
+            share * _cat(found[n], "depth", (0,)),
+            _cat(found[n], "out", (0, 3)),
+            _cat(given[n], "face", (0,)),
+            _cat(given[n], "point", (0, 3)),
+            (1.0 - share) * _cat(given[n], "depth", (0,)),
+            -_cat(given[n], "out", (0, 3)),
+            max((float(o.depth.max()) for o in found[n]), default=0.0),
+            max((float(o.depth.max()) for o in given[n]), default=0.0),
+        )
+        for n in found
+    }
+
+
+def push_apart(
+    V: FloatArray,
+    F: IntArray,
+    A: Any,
+    m: Meeting,
+    S: FloatArray,
+    *,
+    volume_target: float,
+    edge: float,
+) -> FloatArray | None:
+    """A muscle's fine vertices out of the others, its surface giving way, volume exact.
+
+    ``m`` (in the muscle's frame: `Meeting.rotated`) moves each of its vertices
+    inside another by ``need`` along ``out`` and the corners of each triangle that
+    carries another's vertex by the least push that moves the point ``at`` by
+    ``give`` along ``back`` (`triangle_pushes`; ``S``: the muscle's positions in the
+    frame of ``at``), each a slack of ``tol.contact`` edges further; a vertex pushed
+    twice takes the longer push. `nudge` spreads them over the rings round them and
+    restores the volume. ``A``: the vertex adjacency. None where nothing moves or the
+    volume cannot be restored.
+    """
+    slack = tol.contact * edge
+    verts = np.concatenate([m.rows, F[m.faces].ravel()])
+    if not len(verts):
+        return None
+    disp = np.vstack(
+        [
+            (m.need + slack)[:, None] * m.out,
+            triangle_pushes(m.at, S[F[m.faces]], (m.give + slack)[:, None] * m.back),
+        ]
+    )
+    push, size = np.zeros((len(V), 3)), np.zeros(len(V))
+    longest_pushes(push, size, verts, disp)
+    hit = np.unique(verts)
+    return nudge(V, F, A, hit, push[hit], volume_target=volume_target, edge=edge)
+
+
+@dataclass(frozen=True)
+class RestPair:
+    """Two muscles that overlapped at rest, and how far.
+
+    ``inside``: how many vertices of each lay inside the other; ``depth``: the
+    deepest of each (mesh units); ``moved``: how far each muscle's vertices were
+    moved at most by the resolution (0 where it was not resolved).
+    """
+
+    pair: tuple[str, str]
+    inside: tuple[int, int]
+    depth: tuple[float, float]
+    moved: tuple[float, float] = (0.0, 0.0)
+
+
+def apart_at_rest(
+    meshes: Mapping[str, tuple[FloatArray, IntArray]],
+    pairs: Sequence[tuple[str, str]] | None = None,
+    facing: Mapping[tuple[str, str], IntArray] | None = None,
+    *,
+    resolve: bool = True,
+) -> tuple[dict[str, FloatArray], list[RestPair], float]:
+    """Segmented muscles that overlap at rest taken apart once: both sides, volumes exact.
+
+    Jacobi rounds on the fine vertices, as the last of each frame's rounds
+    (`musclewrap.solver.meet`): every vertex inside another muscle goes out by half
+    its depth and the other's surface gives way by the other half
+    (`push_apart`), until no vertex is deeper than ``defaults.muscle_overlap_depth``
+    of its mean edges (at most ``defaults.muscle_rest_rounds`` rounds). ``meshes``
+    (name -> ``V, F``, one frame), ``pairs`` (default every pair), ``facing``
+    (`facing_pairs`, computed when None). ``resolve=False`` measures only.
+
+    Returns
+    -------
+    V : dict of name to (n, 3) array
+        The positions (the given arrays where a muscle did not move).
+    overlapped : list of RestPair
+        Each pair that overlapped, in the order of the names.
+    left : float
+        The deepest vertex still inside another muscle (exact; mesh units).
+    """
+    names = sorted(meshes)
+    pairs = (
+        [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
+        if pairs is None
+        else sorted({tuple(sorted(p)) for p in pairs})
+    )
+    facing = facing_pairs(meshes) if facing is None else facing
+    V = {n: np.asarray(meshes[n][0], dtype=np.float64) for n in names}
+    F = {n: meshes[n][1] for n in names}
+    surf = {n: (V[n], F[n]) for n in names}
+    memo: dict[Any, Any] = {}
+    found = overlaps(surf, pairs, facing, memo)
+    first = {(n, o.other): o for n in names for o in found[n]}
+    if resolve and first:
+        edge = {n: mean_edge_length(V[n], F[n]) for n in names}
+        target = {n: volume(V[n], F[n]) for n in names}
+        adjacency: dict[str, Any] = {}
+        for _ in range(defaults.muscle_rest_rounds):
+            meet = meetings(found, defaults.muscle_share)
+            if max(max(m.depth, m.given) / edge[n] for n, m in meet.items()) <= (
+                defaults.muscle_overlap_depth
+            ):
+                break
+            for n, m in meet.items():
+                if max(m.depth, m.given) / edge[n] <= defaults.muscle_overlap_depth:
+                    continue
+                if n not in adjacency:
+                    adjacency[n] = vertex_adjacency(F[n], len(V[n]))
+                P = push_apart(
+                    V[n], F[n], adjacency[n], m, V[n], volume_target=target[n], edge=edge[n]
+                )
+                if P is not None:
+                    V[n] = P
+            surf = {n: (V[n], F[n]) for n in names}
+            found = overlaps(surf, pairs, facing, memo)
+    rest = []
+    for a, b in pairs:
+        oa, ob = first.get((a, b)), first.get((b, a))
+        if oa is None and ob is None:
+            continue
+        moved = tuple(
+            float(np.linalg.norm(V[n] - np.asarray(meshes[n][0]), axis=1).max()) for n in (a, b)
+        )
+        rest.append(
+            RestPair(
+                (a, b),
+                (0 if oa is None else len(oa.rows), 0 if ob is None else len(ob.rows)),
+                (0.0 if oa is None else float(oa.depth.max()),
+                 0.0 if ob is None else float(ob.depth.max())),
+                moved if resolve else (0.0, 0.0),
+            )
+        )  # fmt: skip
+    left = max(overlap_depths(surf, pairs).values(), key=lambda x: x[1], default=(0, 0.0))[1]
+    return V, rest, left

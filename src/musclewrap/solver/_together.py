@@ -22,18 +22,8 @@ import numpy as np
 import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
-from ..constants import defaults, tol
-from ..contact import (
-    Near,
-    Overlap,
-    facing_faces,
-    longest_pushes,
-    nudge,
-    overlap_depths,
-    overlaps,
-    triangle_pushes,
-)
-from ..mesh import WindingGrid
+from ..constants import defaults
+from ..contact import Near, facing_pairs, meetings, overlap_depths, overlaps, push_apart
 from ._muscle import Deformer
 from ._result import DeformationResult
 
@@ -42,57 +32,6 @@ __all__ = ["deform_together", "facing_at_rest", "meet"]
 
 def _apply(T: FloatArray | None, P: FloatArray) -> FloatArray:
     return P if T is None else P @ T[:3, :3].T + T[:3, 3]
-
-
-def _cat(found: Sequence[Overlap], field: str, shape: tuple[int, ...]) -> npt.NDArray[Any]:
-    """One field of several overlaps, end to end (empty of ``shape`` where there are none)."""
-    if not found:
-        return np.zeros(shape, dtype=np.int64 if field in ("rows", "face") else np.float64)
-    return np.concatenate([getattr(o, field) for o in found])
-
-
-def _deepest(found: Sequence[Overlap]) -> float:
-    """The deepest of several overlaps' vertices (0 where there are none)."""
-    return max((float(o.depth.max()) for o in found), default=0.0)
-
-
-def _nudge(
-    d: Deformer,
-    V: FloatArray,
-    S: FloatArray,
-    rows: IntArray,
-    need: FloatArray,
-    out: FloatArray,
-    faces: IntArray,
-    at: FloatArray,
-    give: FloatArray,
-    back: FloatArray,
-) -> FloatArray | None:
-    """A muscle's fine vertices out of the others by ``need`` along ``out``, its surface giving way.
-
-    ``faces, at, give, back``: where another muscle's vertex stands inside this one,
-    the point ``at`` of its triangle ``faces`` (``S``: this muscle's positions in the
-    frame of ``at``) moves by ``give`` along ``back`` (`musclewrap.contact.triangle_pushes`).
-    A vertex pushed twice takes the longer push. `musclewrap.contact.nudge` spreads
-    them and keeps the volume.
-    """
-    mu = d.muscle
-    slack = tol.contact * d._fine_edge
-    push, size = np.zeros((len(V), 3)), np.zeros(len(V))
-    verts = np.concatenate([rows, mu.F[faces].ravel()])
-    disp = np.vstack(
-        [
-            (need + slack)[:, None] * out,
-            triangle_pushes(at, S[mu.F[faces]], (give + slack)[:, None] * back),
-        ]
-    )
-    if not len(verts):
-        return None
-    longest_pushes(push, size, verts, disp)
-    hit = np.unique(verts)
-    return nudge(
-        V, mu.F, mu.adjacency, hit, push[hit], volume_target=mu.volume_rest, edge=d._fine_edge
-    )
 
 
 def facing_at_rest(
@@ -106,7 +45,6 @@ def facing_at_rest(
     at rest (default: they share one). ``reach`` (mesh units): default
     ``defaults.muscle_facing_reach``.
     """
-    reach = defaults.muscle_facing_reach if reach is None else reach
     names = sorted(deformers)
     rest = {
         n: (
@@ -115,13 +53,7 @@ def facing_at_rest(
         )
         for n in names
     }
-    grids = {n: WindingGrid(*rest[n]) for n in names}
-    return {
-        (a, b): facing_faces(*rest[a], *rest[b], reach, grids[a])
-        for a in names
-        for b in names
-        if a != b
-    }
+    return facing_pairs(rest, reach)
 
 
 def meet(
@@ -165,50 +97,41 @@ def meet(
     surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
     memo: dict[Any, Any] = {}  # what stays over the rounds for the muscles that stay
     for _ in range(defaults.muscle_rounds if pairs else 0):
-        found = overlaps(surf, pairs, facing, memo)
-        # per muscle its deepest vertex inside another, in its mean edges
-        deep = {n: _deepest(found[n]) / edge[n] for n in live}
-        if max(deep.values()) <= defaults.muscle_overlap_depth:
+        # each muscle's side: its vertices inside others go out by its share, and where
+        # another's vertex stands inside it, its surface gives the other share (a muscle
+        # held by a bone cannot take its own; where only one surface has vertices inside
+        # the other, both still move)
+        met = meetings(overlaps(surf, pairs, facing, memo), defaults.muscle_share)
+        # per muscle the deepest of its vertices in another or another's in it, in its edges
+        worst = {n: max(m.depth, m.given) / edge[n] for n, m in met.items()}
+        if max(worst.values()) <= defaults.muscle_overlap_depth:
             break  # all out, to the tolerance
         rounds += 1
-        share = defaults.muscle_share
-        # where another muscle's vertex stands inside this one: its surface gives the other
-        # share there (a muscle held by a bone cannot take its own; and where only one
-        # surface has vertices inside the other, both still move)
-        given: dict[str, list[Overlap]] = {n: [] for n in live}
-        for m in live:
-            for o in found[m]:
-                given[o.other].append(o)
         new = {}
         for n in live:
-            mine = _deepest(given[n]) / edge[n]
-            if max(deep[n], mine) <= defaults.muscle_overlap_depth:
+            d, m = deformers[n], met[n]
+            if worst[n] <= defaults.muscle_overlap_depth:
                 continue  # out already (to the tolerance): no step
-            V = state[n][1]
-            rows, need = _cat(found[n], "rows", (0,)), share * _cat(found[n], "depth", (0,))
-            give = (1.0 - share) * _cat(given[n], "depth", (0,))
-            faces, at = _cat(given[n], "face", (0,)), _cat(given[n], "point", (0, 3))
-            # the ways out, and the other's surface's way in, in the muscle's frame
-            out, back = _cat(found[n], "out", (0, 3)), -_cat(given[n], "out", (0, 3))
-            if frames.get(n) is not None:
-                out, back = out @ frames[n][:3, :3], back @ frames[n][:3, :3]
-            if max(deep[n], mine) <= defaults.muscle_fine_depth:
+            m = m.rotated(frames.get(n))  # the ways out in the muscle's frame
+            if worst[n] <= defaults.muscle_fine_depth:
                 # a fraction of an edge: the fine vertices themselves (the cage cannot take
                 # a few vertices out without moving their whole region)
-                Vn = _nudge(deformers[n], V, surf[n][0], rows, need, out, faces, at, give, back)
+                Vn = push_apart(
+                    state[n][1], d.muscle.F, d.muscle.adjacency, m, surf[n][0],
+                    volume_target=d.muscle.volume_rest, edge=d._fine_edge,
+                )  # fmt: skip
                 if Vn is not None:
                     new[n] = (state[n][0], Vn)
                     continue
             points = None
-            if len(faces):
-                Wp = deformers[n].surface_rows(at, faces, surf[n][0])
-                points = (Wp, give, back)
+            if len(m.faces):
+                points = (d.surface_rows(m.at, m.faces, surf[n][0]), m.give, m.back)
             obs = obstacles.get(n)
             if obs and n not in nears:
-                nears[n] = Near(V, obs, margin)
-            new[n] = deformers[n].contact_round(
-                *state[n], rows, need, out, obstacles=obs, margin=margin, sides=sides.get(n),
-                near=nears.get(n), points=points,
+                nears[n] = Near(state[n][1], obs, margin)
+            new[n] = d.contact_round(
+                *state[n], m.rows, m.need, m.out, obstacles=obs, margin=margin,
+                sides=sides.get(n), near=nears.get(n), points=points,
             )  # fmt: skip
         for n, (x, V) in new.items():
             if V is not state[n][1]:  # moved: its surface anew (the others' stay, memo too)
