@@ -167,6 +167,64 @@ def test_three_capsules_in_a_row():
     assert np.ptp(res["b"].V[:, 1]) > 20.5
 
 
+# ------------------------------------------------------------------ at rest, once
+def test_muscles_that_overlap_at_rest_are_taken_apart_both_sides_volumes_exact():
+    from musclewrap.contact import apart_at_rest, overlap_depths
+    from musclewrap.mesh import mean_edge_length, volume
+
+    # spheres of radius 10, centres 17 apart: each reaches 3 into the other; a third
+    # far away is left as it is (the same array)
+    a, b, c = _sphere(10.0, [0, 0, 0]), _sphere(10.0, [17, 0, 0]), _sphere(4.0, [0, 30, 0])
+    meshes = {"a": a, "b": b, "c": c}
+    V, found, rounds = apart_at_rest(meshes)
+    assert V["c"] is c[0]
+    assert [p.pair for p in found] == [("a", "b")] and 1 <= rounds < 30
+    p = found[0]
+    assert p.inside[0] > 0 and p.inside[1] > 0
+    assert 2.9 <= p.depth[0] <= 3.05 and 2.9 <= p.depth[1] <= 3.05
+    # each moved about half the depth (and its slack), not the whole
+    assert 1.3 <= p.moved[0] <= 2.2 and 1.3 <= p.moved[1] <= 2.2
+    edge = mean_edge_length(*a)
+    after = overlap_depths({n: (V[n], meshes[n][1]) for n in meshes}, [("a", "b")])
+    assert after["a"][1] <= 0.05 * edge and after["b"][1] <= 0.05 * edge
+    assert p.left == pytest.approx(max(after["a"][1], after["b"][1]))
+    for n in "ab":
+        assert abs(volume(V[n], meshes[n][1]) / volume(*meshes[n]) - 1.0) <= 1e-9
+    # they meet about the plane half way, by symmetry: a's far side and b's stay put
+    assert V["a"][:, 0].max() == pytest.approx(8.5, abs=0.3)
+    assert V["b"][:, 0].min() == pytest.approx(8.5, abs=0.3)
+    # (the lens's volume comes back over the rest of each surface, a tenth outwards)
+    assert -10.25 <= V["a"][:, 0].min() < -10.0
+    # their names the other way round: the same positions
+    W, found2, _ = apart_at_rest({"b": a, "a": b, "c": c})
+    assert np.allclose(W["b"], V["a"], rtol=0, atol=1e-12)
+    assert np.allclose(W["a"], V["b"], rtol=0, atol=1e-12)
+    assert found2[0].depth == p.depth[::-1]
+    # measured only: nothing moves, the pair is said
+    U, found3, rounds3 = apart_at_rest(meshes, resolve=False)
+    assert rounds3 == 0 and all(U[n] is meshes[n][0] for n in meshes)
+    assert found3[0].depth == p.depth and found3[0].moved == (0.0, 0.0)
+    # a pair left out is not taken apart
+    Z, found4, _ = apart_at_rest(meshes, pairs=[("a", "c")])
+    assert not found4 and Z["a"] is a[0]
+
+
+def test_a_muscle_taken_apart_keeps_the_cage_of_its_mesh_as_segmented():
+    from musclewrap.solver import Muscle
+
+    V, F = capsule(radius=10.0, length=40.0, n_around=32, cap_rings=8, segments=24)
+    moved = V + 0.3 * np.sin(V[:, [2, 0, 1]] / 7.0)  # a millimetre's worth of change
+    m0 = Muscle.from_mesh(V, F, cage_size=150, cleaned=True)
+    m = Muscle.from_mesh(moved, F, cage_size=150, cleaned=True, cage_around=V)
+    assert np.array_equal(m.cage.C, m0.cage.C) and np.array_equal(m.cage.CF, m0.cage.CF)
+    assert np.abs(m.W @ m.cage.C - moved).max() <= 1e-9  # its own positions, exactly
+    assert not np.array_equal(Muscle.from_mesh(moved, F, cage_size=150).cage.C, m0.cage.C)
+    with pytest.raises(ValueError, match="cage_around has shape"):
+        Muscle.from_mesh(moved, F, cleaned=True, cage_around=V[:-1])
+    with pytest.raises(ValueError, match="cage_around needs cleaned=True"):
+        Muscle.from_mesh(moved, F, cage_around=V)
+
+
 # ------------------------------------------------------------------ scenes
 def _two_muscles(data_dir, second: str, extra: str = "") -> str:
     """test_contact's LHDL psoas scene with a second muscle, ``second``, on the iliacus's path."""
@@ -220,6 +278,32 @@ def test_collisions_pairs_name_muscles_of_the_scene(data_dir, tmp_path):
         toml.write_text(_two_muscles(data_dir, str(iliacus), f"[collisions]\npairs = {bad}\n"))
         with pytest.raises(SceneError, match=f"s.toml: .*{message}"):
             load_scene(toml)
+
+
+@pytest.mark.realdata
+def test_a_scene_takes_its_muscles_apart_at_rest_once_and_says_so(data_dir, tmp_path):
+    """The LHDL psoas and iliacus overlap by up to 2.5 mm as segmented."""
+    from musclewrap.scene import load_scene, run_scene
+    from musclewrap.scene._read import read_inputs
+
+    iliacus = data_dir / "lhdl" / "muscles" / "LHDL_R_Iliacus.vtk"
+    toml = tmp_path / "s.toml"
+    toml.write_text(_two_muscles(data_dir, str(iliacus)))
+    s = run_scene(load_scene(toml), tmp_path / "o", frames="0:1", cache_dir=False, progress=None)
+    said = [n for n in s.notes if n.startswith("other and psoas overlap at rest")]
+    assert len(said) == 1 and "taken apart, both sides" in said[0], s.notes
+    assert all(r["muscle_overlap_max"] <= 0.5 for r in s.rows), s.rows
+    # kept as segmented: said, the meshes prepared as read (and pushed out of the bones)
+    keep = "[collisions]\nrest_overlap = 'keep'\n"
+    toml.write_text(_two_muscles(data_dir, str(iliacus), keep))
+    scene, notes = load_scene(toml), []
+    inputs = {
+        apart: read_inputs(scene, "0:1", None, True, lambda _: None, notes, muscles_apart=apart)
+        for apart in (True, False)
+    }
+    assert any("kept as segmented (rest_overlap = 'keep')" in n for n in notes), notes
+    for m in ("other", "psoas"):
+        assert np.array_equal(inputs[True].muscles[m][0], inputs[False].muscles[m][0])
 
 
 def test_a_muscle_inside_another_at_rest_is_refused(tmp_path):

@@ -377,13 +377,15 @@ class RestPair:
 
     ``inside``: how many vertices of each lay inside the other; ``depth``: the
     deepest of each (mesh units); ``moved``: how far each muscle's vertices were
-    moved at most by the resolution (0 where it was not resolved).
+    moved at most by the resolution (0 where it was not resolved); ``left``: the
+    deepest vertex of either still inside the other after it (exact).
     """
 
     pair: tuple[str, str]
     inside: tuple[int, int]
     depth: tuple[float, float]
     moved: tuple[float, float] = (0.0, 0.0)
+    left: float = 0.0
 
 
 def apart_at_rest(
@@ -392,7 +394,7 @@ def apart_at_rest(
     facing: Mapping[tuple[str, str], IntArray] | None = None,
     *,
     resolve: bool = True,
-) -> tuple[dict[str, FloatArray], list[RestPair], float]:
+) -> tuple[dict[str, FloatArray], list[RestPair], int]:
     """Segmented muscles that overlap at rest taken apart once: both sides, volumes exact.
 
     Jacobi rounds on the fine vertices, as the last of each frame's rounds
@@ -409,8 +411,8 @@ def apart_at_rest(
         The positions (the given arrays where a muscle did not move).
     overlapped : list of RestPair
         Each pair that overlapped, in the order of the names.
-    left : float
-        The deepest vertex still inside another muscle (exact; mesh units).
+    rounds : int
+        The rounds taken.
     """
     names = sorted(meshes)
     pairs = (
@@ -425,6 +427,7 @@ def apart_at_rest(
     memo: dict[Any, Any] = {}
     found = overlaps(surf, pairs, facing, memo)
     first = {(n, o.other): o for n in names for o in found[n]}
+    rounds = 0
     if resolve and first:
         edge = {n: mean_edge_length(V[n], F[n]) for n in names}
         target = {n: volume(V[n], F[n]) for n in names}
@@ -445,8 +448,13 @@ def apart_at_rest(
                 )
                 if P is not None:
                     V[n] = P
+            rounds += 1
             surf = {n: (V[n], F[n]) for n in names}
             found = overlaps(surf, pairs, facing, memo)
+    # exact: winding numbers and distances to the whole surfaces
+    after = {
+        (n, o.other): float(o.depth.max()) for n, f in overlaps(surf, pairs, {}).items() for o in f
+    }
     rest = []
     for a, b in pairs:
         oa, ob = first.get((a, b)), first.get((b, a))
@@ -462,7 +470,7 @@ def apart_at_rest(
                 (0.0 if oa is None else float(oa.depth.max()),
                  0.0 if ob is None else float(ob.depth.max())),
                 moved if resolve else (0.0, 0.0),
+                max(after.get((a, b), 0.0), after.get((b, a), 0.0)),
             )
         )  # fmt: skip
-    left = max(overlap_depths(surf, pairs).values(), key=lambda x: x[1], default=(0, 0.0))[1]
-    return V, rest, left
+    return V, rest, rounds

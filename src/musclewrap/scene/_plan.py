@@ -110,6 +110,7 @@ class MuscleJob:
     cache_dir: str | None
     outdir: str
     run: str
+    cage_around: FloatArray | None = None
 
     @cached_property
     def cache_key(self) -> str:
@@ -120,6 +121,7 @@ class MuscleJob:
             np.asarray(self.V, dtype=np.float64),
             np.asarray(self.F, dtype=np.int64),
             np.asarray(self.input_id, dtype=np.int64),
+            *(() if self.cage_around is None else (np.asarray(self.cage_around),)),
             f"{self.cage_size}|{self.cage_coarsening}|{_FORMAT}|{__version__}",
         )[:32]
 
@@ -411,6 +413,7 @@ def muscle_jobs(inputs: Any, outdir: Path, run: str) -> list[MuscleJob]:
                 cache_dir=None if cache is None else str(cache),
                 outdir=str(outdir),
                 run=run,
+                cage_around=inputs.cage_around.get(spec.name),
             )
         )
     jobs.sort(key=lambda j: -len(j.V))

@@ -21,6 +21,7 @@ from .. import __version__
 from .._cache import cached_arrays, digest
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
+from ..constants import defaults
 from ..contact import Obstacle
 from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, vertex_origins
 from ._config import Scene
@@ -40,7 +41,8 @@ class Inputs:
 
     ``contact`` is None without collisions, else per muscle the bones it is kept
     out of with each one's allowance; ``anchors`` per muscle its vertices held at
-    the bone its body carries (see `_rest_overlap`).
+    the bone its body carries (see `_rest_overlap`); ``cage_around`` per muscle
+    taken apart from others at rest, its positions before (`_apart_at_rest`).
     """
 
     scene: Scene
@@ -52,6 +54,7 @@ class Inputs:
     anchors: dict[str, IntArray] | None
     cache: Path | None
     key: str
+    cage_around: dict[str, FloatArray] = dataclasses.field(default_factory=dict)
 
 
 def read_inputs(
@@ -62,10 +65,13 @@ def read_inputs(
     say: Callable[[str], None],
     notes: list[str],
     runner: Any = None,
+    muscles_apart: bool = False,
 ) -> Inputs:
     """Read every mesh of ``scene``, drive it over ``frames``, settle the rest overlap.
 
-    The per-mesh work (cleaning or repairing a muscle, reading and closing a bone,
+    ``collisions``: the muscles kept out of their bones; ``muscles_apart``: out of each
+    other (then muscles that cannot be are refused, `check_muscles_apart`, and those
+    that overlap at rest are taken apart once, `_apart_at_rest`). The per-mesh work (cleaning or repairing a muscle, reading and closing a bone,
     each muscle's rest overlap) runs as tasks through ``runner`` (a
     `._execute.Runner`: on the run's workers, while they deform the scenes read
     before), or here when it is None; the motion is driven here.
@@ -109,6 +115,13 @@ def read_inputs(
         muscles, contact, anchors = _rest_overlap(
             scene, drive, muscles, meshes, cache, say, notes, runner
         )
+    around = {}
+    if muscles_apart:
+        check_muscles_apart(scene, drive, muscles)
+        apart = _apart_at_rest(scene, drive, muscles, say, notes)
+        # the cage of the mesh as segmented (and pushed out of its bones)
+        around = {m: muscles[m][0] for m in muscles if apart[m][0] is not muscles[m][0]}
+        muscles = apart
     return Inputs(
         scene,
         drive,
@@ -119,6 +132,7 @@ def read_inputs(
         anchors,
         cache,
         run_key(scene, drive, collisions),
+        around,
     )
 
 
@@ -393,6 +407,52 @@ def _rest_overlap(
         out_muscles[spec.name] = (np.asarray(d["V"], dtype=np.float64), t.F)
         anchors[spec.name] = np.asarray(d["anchors"], dtype=np.int64)
     return out_muscles, contact, anchors
+
+
+def _apart_at_rest(
+    scene: Scene,
+    drive: Drive,
+    muscles: dict[str, tuple[FloatArray, IntArray]],
+    say: Callable[[str], None],
+    notes: list[str],
+) -> dict[str, tuple[FloatArray, IntArray]]:
+    """Segmented muscles that overlap at rest taken apart once (`musclewrap.contact.apart_at_rest`).
+
+    Both sides of each pair in ``[collisions] pairs`` (default every pair) move,
+    volumes exact, after each was pushed out of its bones; each pair is said in the
+    notes. A muscle moved keeps the cage of its mesh as segmented (`read_inputs`). With ``rest_overlap = "keep"`` the meshes stay as segmented and the pairs
+    are only said (each frame's rounds still take them apart). Meshes in their
+    bodies' frames, as prepared.
+    """
+    from ..contact import apart_at_rest
+
+    names = sorted(muscles)
+    rest = {
+        n: (apply(np.linalg.inv(drive.to_body[n]), muscles[n][0]), muscles[n][1]) for n in names
+    }
+    keep = scene.rest_overlap == "keep"
+    V, found, rounds = apart_at_rest(rest, scene.muscle_pairs, resolve=not keep)
+    unit = scene.mesh_unit
+    for p in found:
+        (a, b), (na, nb), (da, db) = p.pair, p.inside, p.depth
+        msg = (
+            f"{a} and {b} overlap at rest: {na} vertices of {a} inside {b} (up to {da:.3g} "
+            f"{unit}), {nb} of {b} inside {a} (up to {db:.3g} {unit}); "
+            + (
+                "kept as segmented (rest_overlap = 'keep'): each frame takes them apart"
+                if keep
+                else f"taken apart, both sides, in {rounds} rounds (moved up to "
+                f"{p.moved[0]:.3g} and {p.moved[1]:.3g} {unit}; {p.left:.2g} {unit} left, "
+                f"the rounds stop at {defaults.muscle_overlap_depth:g} mean edges), volumes kept"
+            )
+        )
+        notes.append(msg)
+        say(msg)
+    out = dict(muscles)
+    for n in names:
+        if V[n] is not rest[n][0]:
+            out[n] = (apply(drive.to_body[n], V[n]), muscles[n][1])
+    return out
 
 
 def check_muscles_apart(

@@ -46,7 +46,6 @@ from ._plan import (
 )
 from ._read import (
     Inputs,
-    check_muscles_apart,
     check_outputs_spare_inputs,
     default_cache_dir,
     read_inputs,
@@ -286,20 +285,20 @@ class _SceneRun:
         scene = self.scene
         self.cache = cache
         on = scene.collisions if self.collisions is None else bool(self.collisions and scene.bones)
-        self.inputs = read_inputs(scene, frames, cache, on, say, self.notes, runner)
+        # muscles against each other: the muscles of a frame are solved together, in one
+        # task per chunk of frames
+        self.grouped = (
+            self.collisions is not False and scene.muscle_collisions and len(scene.muscles) > 1
+        )
+        self.inputs = read_inputs(
+            scene, frames, cache, on, say, self.notes, runner, muscles_apart=self.grouped
+        )
         drive = self.inputs.drive
         self.outdir.mkdir(parents=True, exist_ok=True)
         n = len(drive.frames)
         run = os.urandom(8).hex()  # tells a worker's kept muscle from another run's
         self.jobs = muscle_jobs(self.inputs, self.outdir, run)
         spans = {j.name: frame_span(self.inputs, j.name) for j in self.jobs}
-        # muscles against each other: the muscles of a frame are solved together, in one
-        # task per chunk of frames
-        self.grouped = (
-            self.collisions is not False and scene.muscle_collisions and len(self.jobs) > 1
-        )
-        if self.grouped:
-            check_muscles_apart(scene, drive, self.inputs.muscles)
         parts = chunks(n, 1 if self.grouped else len(self.jobs), ex.workers)
         journal = Journal(self.outdir, self.inputs.key, [(c.start, c.stop) for c in parts], resume)
         self.journal = journal

@@ -88,6 +88,7 @@ def _prepare(job: MuscleJob) -> tuple[Any, bool, str | None]:
         source=job.source,
         cleaned=True,  # by the reading, and only moved rigidly since
         input_id=job.input_id,
+        cage_around=job.cage_around,
     )
     if path is not None:
         try:

@@ -248,6 +248,7 @@ class Muscle:
         source: str = "mesh",
         cleaned: bool = False,
         input_id: npt.ArrayLike | None = None,
+        cage_around: npt.ArrayLike | None = None,
     ) -> Muscle:
         """Prepare a muscle from its rest-pose surface.
 
@@ -295,7 +296,14 @@ class Muscle:
             V_in = V
             V, F, notes = clean_mesh(V, F, source=source)  # checks the memory first
             input_id = vertex_origins(V_in, V)
-        cage = build_cage(V, F, size=cage_size, offset=cage_offset, coarsening=cage_coarsening)
+        around = V
+        if cage_around is not None:
+            if not cleaned:
+                raise ValueError("cage_around needs cleaned=True (the vertices as given)")
+            around = as_vertices(cage_around, "cage_around")
+            if around.shape != V.shape:
+                raise ValueError(f"cage_around has shape {around.shape}, V has {V.shape}")
+        cage = build_cage(around, F, size=cage_size, offset=cage_offset, coarsening=cage_coarsening)
         W = mean_value_coordinates(V, cage.C, cage.CF)
         L = cotangent_laplacian(cage.C, cage.CF)
         if len(F) > 2 * defaults.proxy_size:
