@@ -1,6 +1,7 @@
 """Contact with bones on a whole scene: time with and without, and the independent check.
 
     python benchmarks/bench_contact.py [SCENE] [--frames 0:211:1] [--check-every 10] [--no-timing]
+        [--motion MOT [--negate COORDINATE ...]]
 
 Runs the scene warm (preparations cached by a first run) with contact on and with
 ``--no-collisions``, alternately, three times each, and prints the medians and their ratio;
@@ -8,6 +9,10 @@ then checks the written meshes of the contact run against the full-resolution bo
 (`musclewrap.scene._verify.verify_run`: exact winding numbers and distances) on every
 ``--check-every``-th frame. ``--no-timing``: one run with contact, then the check (a scene
 with several motions, such as the sweeps, is checked motion by motion over all its frames).
+``--motion``: the scene driven by another motion instead (with ``--no-timing``; run here on
+2 workers); ``--negate``: coordinates of it negated first, for a motion recorded on a model
+whose sign for them is the other (OpenCap's knee_angle_r is flexion positive, gait2392's
+negative).
 """
 
 from __future__ import annotations
@@ -48,6 +53,8 @@ def main() -> None:
     p.add_argument("--check-every", type=int, default=10)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--no-timing", action="store_true")
+    p.add_argument("--motion", default=None)
+    p.add_argument("--negate", nargs="*", default=[])
     a = p.parse_args()
     import dataclasses
 
@@ -58,10 +65,20 @@ def main() -> None:
         scene = load_scene(a.scene)
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "on"
-            cmd = [sys.executable, "-m", "musclewrap.cli", "run", a.scene, "-o", str(out)]
-            subprocess.run(
-                [*cmd, "--no-gif", "--allow-unconverged"], check=True, capture_output=True
-            )
+            if a.motion is not None:
+                from musclewrap.scene import run_scene, write_motion
+
+                mot = read_motion(a.motion)
+                cols = {k: (-v if k in a.negate else v) for k, v in mot.columns.items()}
+                path = Path(tmp) / Path(a.motion).name
+                write_motion(path, mot.time, cols, in_degrees=mot.in_degrees)
+                scene = dataclasses.replace(scene, motions=(path,), gif=False)
+                run_scene(scene, out, workers=2, progress=None)
+            else:
+                cmd = [sys.executable, "-m", "musclewrap.cli", "run", a.scene, "-o", str(out)]
+                subprocess.run(
+                    [*cmd, "--no-gif", "--allow-unconverged"], check=True, capture_output=True
+                )
             for m in scene.motions:
                 sc = dataclasses.replace(scene, motions=(m,))
                 folder = out if len(scene.motions) == 1 else out / m.stem
@@ -80,7 +97,7 @@ def main() -> None:
                         f"{_other(r)}; all frames: in another muscle <= "
                         f"{max(float(x.get('muscle_overlap_max') or 'nan') for x in q):.3f}, "
                         "shape change <= "
-                        f"{max(float(x['shape_change_max']) for x in q):.2f}, fit <= "
+                        f"{max(float(x['shape_change_max']) for x in q):.3f}, fit <= "
                         f"{max(float(x['skeleton_fit_mean']) for x in q):.2f}, unconverged "
                         f"{sum(x['converged'] != 'True' for x in q)}"
                     )
