@@ -194,7 +194,7 @@ def overlaps(
             if kept is not None and kept[0] is P and kept[1] is Vo:
                 found = kept[2]  # neither has moved since
             else:
-                found = _inside_other(P, Vo, Fo, boxes[other], facing.get((me, other)), other, memo)
+                found = _inside_other(P, Vo, Fo, boxes[other], facing, (me, other), memo)
                 memo[me, other] = (P, Vo, found)
             if found is not None:
                 out[me].append(found)
@@ -208,11 +208,16 @@ def _inside_other(
     Vo: FloatArray,
     Fo: IntArray,
     box: tuple[FloatArray, FloatArray],
-    f: IntArray | None,
-    other: str,
+    facing: Mapping[tuple[str, str], IntArray],
+    pair: tuple[str, str],
     memo: dict[Any, Any],
 ) -> Overlap | None:
-    """The points ``P`` inside the surface ``Vo, Fo`` (named ``other``), their way out."""
+    """The points ``P`` of ``pair[0]`` inside the surface ``Vo, Fo`` of ``pair[1]``, their way out.
+
+    ``facing[pair]`` is looked up only where some point is inside (a caller's mapping
+    may find it then: `_FacingOnDemand`).
+    """
+    other = pair[1]
     lo, hi = box
     cand = np.flatnonzero(((P >= lo) & (P <= hi)).all(axis=1))
     if not len(cand):
@@ -223,6 +228,7 @@ def _inside_other(
     rows = cand[grid[1](P[cand]) > 0]
     if not len(rows):
         return None
+    f = facing.get(pair)
     every = f is None or not len(f)
     depth, C, which = _closest(P[rows], Vo, Fo if every else Fo[f])
     d = (C - P[rows]) / np.maximum(depth, 1e-300)[:, None]
@@ -264,6 +270,34 @@ def facing_pairs(
         for b in names
         if a != b
     }
+
+
+class _FacingOnDemand(Mapping[tuple[str, str], IntArray]):
+    """`facing_pairs` of some meshes, each pair's faces found when first asked for.
+
+    Most pairs of a scene's muscles never overlap at rest: their facing faces are
+    not needed (18 muscles: 306 ordered pairs, 10 s to find them all).
+    """
+
+    def __init__(self, meshes: Mapping[str, tuple[FloatArray, IntArray]]) -> None:
+        self.meshes = meshes
+        self.found: dict[tuple[str, str], IntArray] = {}
+        self.grids: dict[str, WindingGrid] = {}
+
+    def __getitem__(self, pair: tuple[str, str]) -> IntArray:
+        if pair not in self.found:
+            a, b = pair
+            if a not in self.grids:
+                self.grids[a] = WindingGrid(*self.meshes[a])
+            reach = defaults.muscle_facing_reach
+            self.found[pair] = facing_faces(*self.meshes[a], *self.meshes[b], reach, self.grids[a])
+        return self.found[pair]
+
+    def __iter__(self) -> Any:
+        return (p for p in ((a, b) for a in self.meshes for b in self.meshes) if p[0] != p[1])
+
+    def __len__(self) -> int:
+        return len(self.meshes) * (len(self.meshes) - 1)
 
 
 def _cat(found: Sequence[Overlap], field: str, shape: tuple[int, ...]) -> Any:
@@ -403,7 +437,8 @@ def apart_at_rest(
     (`push_apart`), until no vertex is deeper than ``defaults.muscle_overlap_depth``
     of its mean edges (at most ``defaults.muscle_rest_rounds`` rounds). ``meshes``
     (name -> ``V, F``, one frame), ``pairs`` (default every pair), ``facing``
-    (`facing_pairs`, computed when None). ``resolve=False`` measures only.
+    (`facing_pairs`; default: each pair's found where it overlaps). ``resolve=False``
+    measures only.
 
     Returns
     -------
@@ -420,8 +455,8 @@ def apart_at_rest(
         if pairs is None
         else sorted({tuple(sorted(p)) for p in pairs})
     )
-    facing = facing_pairs(meshes) if facing is None else facing
     V = {n: np.asarray(meshes[n][0], dtype=np.float64) for n in names}
+    facing = _FacingOnDemand({n: (V[n], meshes[n][1]) for n in names}) if facing is None else facing
     F = {n: meshes[n][1] for n in names}
     surf = {n: (V[n], F[n]) for n in names}
     memo: dict[Any, Any] = {}
