@@ -209,6 +209,22 @@ def test_muscles_that_overlap_at_rest_are_taken_apart_both_sides_volumes_exact()
     assert not found4 and Z["a"] is a[0]
 
 
+def test_facing_pairs_finds_each_pairs_faces_when_asked_the_same_as_facing_faces():
+    from musclewrap.constants import defaults
+    from musclewrap.contact import every_pair, facing_faces, facing_pairs
+
+    meshes = {"b": _sphere(10.0, [17, 0, 0]), "a": _sphere(10.0, [0, 0, 0])}
+    facing = facing_pairs(meshes)
+    assert list(facing) == [("a", "b"), ("b", "a")] and len(facing) == 2
+    assert not facing.found  # nothing found before it is asked for
+    for x, y in facing:
+        want = facing_faces(*meshes[x], *meshes[y], defaults.muscle_facing_reach)
+        assert np.array_equal(facing[x, y], want) and len(want)
+    assert facing.get(("a", "a")) is None and facing.get(("a", "c")) is None
+    assert every_pair(["c", "a", "b"]) == [("a", "b"), ("a", "c"), ("b", "c")]
+    assert every_pair(["a", "b"], [("b", "a"), ("a", "c")]) == [("a", "b")]
+
+
 def test_a_muscle_taken_apart_keeps_the_cage_of_its_mesh_as_segmented():
     from musclewrap.solver import Muscle
 

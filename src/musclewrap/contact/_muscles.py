@@ -24,7 +24,7 @@ there (`musclewrap.solver.meet`), whatever order the muscles come in.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,6 +42,7 @@ __all__ = [
     "Overlap",
     "RestPair",
     "apart_at_rest",
+    "every_pair",
     "facing_faces",
     "facing_pairs",
     "meetings",
@@ -214,8 +215,8 @@ def _inside_other(
 ) -> Overlap | None:
     """The points ``P`` of ``pair[0]`` inside the surface ``Vo, Fo`` of ``pair[1]``, their way out.
 
-    ``facing[pair]`` is looked up only where some point is inside (a caller's mapping
-    may find it then: `_FacingOnDemand`).
+    ``facing[pair]`` is looked up only where some point is inside (`facing_pairs`
+    finds a pair's faces when first looked up).
     """
     other = pair[1]
     lo, hi = box
@@ -256,48 +257,56 @@ def overlap_depths(
 
 def facing_pairs(
     meshes: Mapping[str, tuple[FloatArray, IntArray]], reach: float | None = None
-) -> dict[tuple[str, str], IntArray]:
+) -> Mapping[tuple[str, str], IntArray]:
     """`facing_faces` for every ordered pair of ``meshes`` (at rest, in one frame).
 
-    ``reach`` (mesh units): default ``defaults.muscle_facing_reach``.
+    Each pair's faces are found when first looked up, and kept: most pairs of a
+    scene's muscles never overlap, and finding them all is most of the cost of a
+    large scene (18 muscles: 306 ordered pairs, about 10 s). ``reach`` (mesh units):
+    default ``defaults.muscle_facing_reach``.
     """
-    reach = defaults.muscle_facing_reach if reach is None else reach
-    names = sorted(meshes)
-    grids = {n: WindingGrid(*meshes[n]) for n in names}
-    return {
-        (a, b): facing_faces(*meshes[a], *meshes[b], reach, grids[a])
-        for a in names
-        for b in names
-        if a != b
-    }
+    return _FacingOnDemand(meshes, defaults.muscle_facing_reach if reach is None else reach)
 
 
 class _FacingOnDemand(Mapping[tuple[str, str], IntArray]):
-    """`facing_pairs` of some meshes, each pair's faces found when first asked for.
+    """`facing_pairs`: each pair's facing faces found when first asked for."""
 
-    Most pairs of a scene's muscles never overlap at rest: their facing faces are
-    not needed (18 muscles: 306 ordered pairs, 10 s to find them all).
-    """
-
-    def __init__(self, meshes: Mapping[str, tuple[FloatArray, IntArray]]) -> None:
-        self.meshes = meshes
+    def __init__(self, meshes: Mapping[str, tuple[FloatArray, IntArray]], reach: float) -> None:
+        self.meshes, self.reach = meshes, reach
         self.found: dict[tuple[str, str], IntArray] = {}
         self.grids: dict[str, WindingGrid] = {}
 
     def __getitem__(self, pair: tuple[str, str]) -> IntArray:
         if pair not in self.found:
             a, b = pair
+            if a == b or a not in self.meshes or b not in self.meshes:
+                raise KeyError(pair)
             if a not in self.grids:
                 self.grids[a] = WindingGrid(*self.meshes[a])
-            reach = defaults.muscle_facing_reach
-            self.found[pair] = facing_faces(*self.meshes[a], *self.meshes[b], reach, self.grids[a])
+            Va, Fa = self.meshes[a]
+            self.found[pair] = facing_faces(Va, Fa, *self.meshes[b], self.reach, self.grids[a])
         return self.found[pair]
 
-    def __iter__(self) -> Any:
-        return (p for p in ((a, b) for a in self.meshes for b in self.meshes) if p[0] != p[1])
+    def __iter__(self) -> Iterator[tuple[str, str]]:
+        names = sorted(self.meshes)
+        return ((a, b) for a in names for b in names if a != b)
 
     def __len__(self) -> int:
         return len(self.meshes) * (len(self.meshes) - 1)
+
+
+def every_pair(
+    names: Sequence[str], pairs: Sequence[tuple[str, str]] | None = None
+) -> list[tuple[str, str]]:
+    """The pairs of ``names`` that may meet, each in name order, sorted.
+
+    Every pair (``pairs`` None), or those of ``pairs`` whose muscles are both in
+    ``names`` (the scene's ``[collisions] pairs``).
+    """
+    if pairs is None:
+        names = sorted(names)
+        return [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
+    return sorted({(min(p), max(p)) for p in pairs if p[0] in names and p[1] in names})
 
 
 def _cat(found: Sequence[Overlap], field: str, shape: tuple[int, ...]) -> Any:
@@ -437,8 +446,7 @@ def apart_at_rest(
     (`push_apart`), until no vertex is deeper than ``defaults.muscle_overlap_depth``
     of its mean edges (at most ``defaults.muscle_rest_rounds`` rounds). ``meshes``
     (name -> ``V, F``, one frame), ``pairs`` (default every pair), ``facing``
-    (`facing_pairs`; default: each pair's found where it overlaps). ``resolve=False``
-    measures only.
+    (`facing_pairs`, made here when None). ``resolve=False`` measures only.
 
     Returns
     -------
@@ -450,13 +458,9 @@ def apart_at_rest(
         The rounds taken.
     """
     names = sorted(meshes)
-    pairs = (
-        [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
-        if pairs is None
-        else sorted({tuple(sorted(p)) for p in pairs})
-    )
+    pairs = every_pair(names, pairs)
     V = {n: np.asarray(meshes[n][0], dtype=np.float64) for n in names}
-    facing = _FacingOnDemand({n: (V[n], meshes[n][1]) for n in names}) if facing is None else facing
+    facing = facing_pairs({n: (V[n], meshes[n][1]) for n in names}) if facing is None else facing
     F = {n: meshes[n][1] for n in names}
     surf = {n: (V[n], F[n]) for n in names}
     memo: dict[Any, Any] = {}

@@ -71,8 +71,9 @@ def read_inputs(
 
     ``collisions``: the muscles kept out of their bones; ``muscles_apart``: out of each
     other (then muscles that cannot be are refused, `check_muscles_apart`, and those
-    that overlap at rest are taken apart once, `_apart_at_rest`). The per-mesh work (cleaning or repairing a muscle, reading and closing a bone,
-    each muscle's rest overlap) runs as tasks through ``runner`` (a
+    that overlap at rest are taken apart once, `_apart_at_rest`). The per-mesh work
+    (cleaning or repairing a muscle, reading and closing a bone, each muscle's rest
+    overlap) runs as tasks through ``runner`` (a
     `._execute.Runner`: on the run's workers, while they deform the scenes read
     before), or here when it is None; the motion is driven here.
     """
@@ -420,9 +421,10 @@ def _apart_at_rest(
 
     Both sides of each pair in ``[collisions] pairs`` (default every pair) move,
     volumes exact, after each was pushed out of its bones; each pair is said in the
-    notes. A muscle moved keeps the cage of its mesh as segmented (`read_inputs`). With ``rest_overlap = "keep"`` the meshes stay as segmented and the pairs
-    are only said (each frame's rounds still take them apart). Meshes in their
-    bodies' frames, as prepared.
+    notes. A muscle moved keeps the cage of its mesh as segmented (`read_inputs`).
+    With ``rest_overlap = "keep"`` the meshes stay as segmented and the pairs are
+    only said (each frame's rounds still take them apart). Meshes in their bodies'
+    frames, as prepared.
     """
     from ..contact import apart_at_rest
 

@@ -23,7 +23,15 @@ import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults
-from ..contact import Near, facing_pairs, meetings, overlap_depths, overlaps, push_apart
+from ..contact import (
+    Near,
+    every_pair,
+    facing_pairs,
+    meetings,
+    overlap_depths,
+    overlaps,
+    push_apart,
+)
 from ._muscle import Deformer
 from ._result import DeformationResult
 
@@ -75,8 +83,8 @@ def meet(
     all in this pose (default: they share one). ``obstacles``, ``sides``: per
     muscle, as `Deformer.deform` takes them. ``facing``: `facing_at_rest`
     (computed here when None). ``pairs``: the pairs of muscles kept apart
-    (default: every pair); the exact depth reported is over every pair. Returns each muscle's finished result with
-    ``muscle_overlap`` and ``muscle_rounds``.
+    (default: every pair); the exact depth reported is over every pair. Returns
+    each muscle's finished result with ``muscle_overlap`` and ``muscle_rounds``.
     """
     names = sorted(deformers)
     frames = frames or {}
@@ -88,10 +96,7 @@ def meet(
     edge = {n: float(deformers[n]._fine_edge) for n in names}
     state = {n: (results[n].cage, results[n].V) for n in names}
     live = [n for n in names if np.isfinite(state[n][1]).all()]
-    if pairs is None:
-        pairs = [(a, b) for i, a in enumerate(live) for b in live[i + 1 :]]
-    else:
-        pairs = sorted({tuple(sorted(p)) for p in pairs if p[0] in live and p[1] in live})
+    pairs = every_pair(live, pairs)
     nears: dict[str, Near] = {}
     rounds = 0
     surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
@@ -152,7 +157,7 @@ def meet(
     ok = [n for n in names if np.isfinite(final[n].V).all()]
     depth = overlap_depths(
         {n: (_apply(frames.get(n), final[n].V), deformers[n].muscle.F) for n in ok},
-        [(a, b) for i, a in enumerate(ok) for b in ok[i + 1 :]],
+        every_pair(ok),
     )
     return {
         n: dataclasses.replace(
