@@ -322,6 +322,28 @@ def test_a_scene_takes_its_muscles_apart_at_rest_once_and_says_so(data_dir, tmp_
         assert np.array_equal(inputs[True].muscles[m][0], inputs[False].muscles[m][0])
 
 
+@pytest.mark.realdata
+def test_muscles_taken_apart_at_rest_give_the_same_files_from_a_cold_and_a_warm_cache(
+    data_dir, tmp_path
+):
+    """The moved meshes' preparations (their cage round the mesh as segmented) built, then
+    read back: the same bytes."""
+    from musclewrap.scene import load_scene, run_scene
+
+    iliacus = data_dir / "lhdl" / "muscles" / "LHDL_R_Iliacus.vtk"
+    toml = tmp_path / "s.toml"
+    toml.write_text(_two_muscles(data_dir, str(iliacus)))
+    for o in ("cold", "warm"):
+        run_scene(
+            load_scene(toml), tmp_path / o, frames="0:211:105", workers=2,
+            cache_dir=tmp_path / "c", progress=None, render=False,
+        )  # fmt: skip
+    files = sorted((tmp_path / "cold").glob("*/*.vtp"))
+    assert len(files) >= 6
+    for f in files:
+        assert f.read_bytes() == (tmp_path / "warm" / f.parent.name / f.name).read_bytes(), f
+
+
 def test_a_muscle_inside_another_at_rest_is_refused(tmp_path):
     from types import SimpleNamespace
 
