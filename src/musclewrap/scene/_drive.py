@@ -218,22 +218,59 @@ def lattice_paths(
     return nodes, parent, np.array([at(p) for p in first], dtype=np.int64)
 
 
+#: the central difference ``dL/dq ~ sum(w L(q + o h)) / h``: offsets ``o`` and weights ``w``
+CENTRAL = ((-1.0, 1.0), (-0.5, 0.5))
+
+
+def one_sided(sign: int, second_order: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Offsets and weights of the one-sided difference towards ``sign`` (-1 or +1).
+
+    Second order: ``(-3 L(q) + 4 L(q + s h) - L(q + 2 s h)) / (2 s h)``; first order
+    where the path changes again within ``2 h``.
+    """
+    if second_order:
+        return (0.0, sign, 2.0 * sign), (-1.5 * sign, 2.0 * sign, -0.5 * sign)
+    return (0.0, float(sign)), (-1.0 * sign, 1.0 * sign)
+
+
+@dataclass(frozen=True)
+class Stencil:
+    """The poses of one frame's moment arm about one coordinate where it is one-sided.
+
+    ``offsets`` are multiples of the step, ``weights`` those of the difference
+    (`one_sided`); per pose the muscle's ``lines`` and ``references`` (as in `Drive`)
+    and ``to_output[body]`` (P, 4, 4).
+    """
+
+    offsets: tuple[float, ...]
+    weights: tuple[float, ...]
+    lines: tuple[dict[str, FloatArray], ...]
+    references: tuple[FloatArray | None, ...]
+    to_output: dict[str, FloatArray]
+
+
 @dataclass
 class MomentArmPoses:
-    """The poses on either side of each frame for moment arms by central differences.
+    """The poses on either side of each frame for moment arms by differences.
 
     For frame position ``k`` and moment-arm coordinate ``c``, the pose is the frame's
     with ``c`` moved by ``-steps[c]`` (side 0) and ``+steps[c]`` (side 1), in model
     units. ``lines[muscle][k][c][side]`` and ``references`` are as in `Drive`;
     ``to_output[body]`` is (n, C, 2, 4, 4). ``line[path]`` is (n, C): the moment arm
-    ``-dL/dq`` of the action line (its poly-line's length ``L``) by the same central
-    difference, and ``opensim[path]`` (n, C) OpenSim's ``computeMomentArm`` in the
-    frame's pose; both in mesh units for a rotational coordinate, and without units
-    for a translational one. ``switch[path]`` (n, C) marks where the path's points
-    differ in number between the three poses (a conditional via point switched, or
-    a wrap began or ended: the length has a kink there and the central difference
-    straddles it). ``per_q[c]`` turns a length difference (mesh units)
-    over ``2 * steps[c]`` into those units.
+    ``-dL/dq`` of the action line (its poly-line's length ``L``), and ``opensim[path]``
+    (n, C) OpenSim's ``computeMomentArm`` in the frame's pose; both in mesh units for a
+    rotational coordinate, and without units for a translational one. ``per_q[c]``
+    turns a length difference (mesh units) over ``steps[c]`` into those units.
+
+    ``switch[path]`` (n, C) marks where the path's points differ in number between
+    the frame and a side pose (a conditional via point switched, or a wrap began or
+    ended: the length has a kink, or a step, between them). There the path's moment
+    arm is the one-sided difference on the side whose points are the frame's
+    (`one_sided`: the path OpenSim's moment arm is taken on), and so is a muscle's,
+    its fibres' included, when all its switching paths agree on the side:
+    ``one_sided[muscle][(k, c)]`` is its `Stencil`. ``both_sides[path]`` marks where
+    the path's points change on both sides, so that no side is free of the change
+    (the central difference is kept there).
     """
 
     coordinates: tuple[str, ...]
@@ -245,6 +282,8 @@ class MomentArmPoses:
     line: dict[str, FloatArray]
     opensim: dict[str, FloatArray]
     switch: dict[str, npt.NDArray[np.bool_]]
+    both_sides: dict[str, npt.NDArray[np.bool_]] = field(default_factory=dict)
+    one_sided: dict[str, dict[tuple[int, int], Stencil]] = field(default_factory=dict)
 
 
 def polyline_length(P: FloatArray) -> float:
@@ -456,21 +495,9 @@ def _drive_opensim(
             ma.lines[m.name].append([])
             ma.references[m.name].append([])
         for j, c in enumerate(ma.coordinates):
-            sides = []
-            for side, sign in enumerate((-1.0, 1.0)):
-                model.set_pose({**pose, c: pose[c] + sign * ma.steps[j]})
-                sides.append(lines_now())
-                for b, T in output_transforms(sides[-1][2]).items():
-                    ma.to_output[b][k, j, side] = T
-            (Lm, Rm, _), (Lp, Rp, _) = sides
-            for m in scene.muscles:
-                ma.lines[m.name][k].append((Lm[m.name], Lp[m.name]))
-                ma.references[m.name][k].append((Rm[m.name], Rp[m.name]))
-                for p in m.paths:
-                    dL = polyline_length(Lp[m.name][p]) - polyline_length(Lm[m.name][p])
-                    ma.line[p][k, j] = -dL / (2 * ma.steps[j]) * ma.per_q[j]
-                    counts = {len(Lm[m.name][p]), len(L[m.name][p]), len(Lp[m.name][p])}
-                    ma.switch[p][k, j] = len(counts) > 1
+            _frame_moment_arms(
+                scene, model, ma, k, j, pose, (L, R, to_g), lines_now, output_transforms
+            )
         model.set_pose(pose)
     notes += _outside_ranges(model, coords, driven, pos, motion.time)
     path = None
@@ -490,6 +517,66 @@ def _drive_opensim(
         moment_arms=ma,
         waypoints=path,
     )
+
+
+def _frame_moment_arms(
+    scene: Scene,
+    model: OpenSimModel,
+    ma: MomentArmPoses,
+    k: int,
+    j: int,
+    pose: dict[str, float],
+    here: tuple[Any, Any, dict[str, FloatArray]],
+    lines_now: Any,
+    output_transforms: Any,
+) -> None:
+    """Frame ``k``'s poses, action-line moment arms and stencils about coordinate ``j``."""
+    c, h = ma.coordinates[j], ma.steps[j]
+    poses: dict[float, tuple[Any, Any, dict[str, FloatArray]]] = {0.0: here}
+
+    def at(o: float) -> tuple[Any, Any, dict[str, FloatArray]]:
+        if o not in poses:
+            model.set_pose({**pose, c: pose[c] + o * h})
+            poses[o] = lines_now()
+        return poses[o]
+
+    def count(m: str, p: str, o: float) -> int:
+        return len(at(o)[0][m][p])
+
+    (Lm, Rm, gm), (Lp, Rp, gp) = at(-1.0), at(1.0)
+    for side, g in enumerate((gm, gp)):
+        for b, T in output_transforms(g).items():
+            ma.to_output[b][k, j, side] = T
+    for m in scene.muscles:
+        name = m.name
+        ma.lines[name][k].append((Lm[name], Lp[name]))
+        ma.references[name][k].append((Rm[name], Rp[name]))
+        signs = set()
+        for p in m.paths:
+            n0 = count(name, p, 0.0)
+            moved = (count(name, p, -1.0) != n0, count(name, p, 1.0) != n0)
+            ma.switch[p][k, j] = any(moved)
+            ma.both_sides[p][k, j] = all(moved)
+            offsets, weights = CENTRAL
+            if any(moved) and not all(moved):
+                sign = 1 if moved[0] else -1
+                signs.add(sign)
+                offsets, weights = one_sided(sign, count(name, p, 2.0 * sign) == n0)
+            dL = sum(w * polyline_length(at(o)[0][name][p]) for o, w in zip(offsets, weights))
+            ma.line[p][k, j] = -dL / h * ma.per_q[j]
+        if len(signs) == 1:
+            (sign,) = signs
+            second = all(count(name, p, 2.0 * sign) == count(name, p, 0.0) for p in m.paths)
+            offsets, weights = one_sided(sign, second)
+            got = [at(o) for o in offsets]
+            to_out = [output_transforms(g) for _, _, g in got]
+            ma.one_sided[name][(k, j)] = Stencil(
+                offsets=offsets,
+                weights=weights,
+                lines=tuple(L[name] for L, _, _ in got),
+                references=tuple(R[name] for _, R, _ in got),
+                to_output={b: np.stack([T[b] for T in to_out]) for b in to_out[0]},
+            )
 
 
 def _outside_ranges(
@@ -600,6 +687,8 @@ def _moment_arm_poses(
         line={p: np.empty((n, len(coords))) for p in paths},
         opensim={p: np.empty((n, len(coords))) for p in paths},
         switch={p: np.zeros((n, len(coords)), dtype=bool) for p in paths},
+        both_sides={p: np.zeros((n, len(coords)), dtype=bool) for p in paths},
+        one_sided={m.name: {} for m in scene.muscles},
     )
 
 

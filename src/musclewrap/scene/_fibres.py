@@ -4,7 +4,11 @@ A worker builds (or reads from the cache) each muscle's fibres at rest
 (`musclewrap.fibres.fibres_at_rest`), carries them with every frame's cage and, where
 the scene asks for moment arms, deforms the muscle again at the poses on either side
 of the frame (``q -/+ h`` for each coordinate, each solved from the rest pose like any
-frame) for ``r = -dL/dq`` by central differences. The main process writes the rows
+frame) for ``r = -dL/dq`` by central differences. Where a path of the muscle changes its
+points between the frame and one side (a conditional via point, a wrap), the length has a
+kink or a step there: the difference is one-sided (second order, on the frame, ``q + h``
+and ``q + 2h`` of the side without the change), so the moment arm has the kink of the
+model's path and no spike. The main process writes the rows
 (``fibres.csv``, ``moment_arms.csv``) and the plot (``moment_arms.png``).
 """
 
@@ -171,22 +175,39 @@ def frame_fibres(
     out["points"] = P.reshape(fb.points.shape)
     out["lengths"] = fb.lengths(out["points"])
     for j in range(len(coords)):
-        L = []
-        for s in (0, 1):
-            r = solve(
-                side.lines[k][j][s],
-                side.references[k][j][s],
-                side.to_output[k, j, s],
-                {b: T[k, j, s] for b, T in side.bone_T.items()},
-                False,  # the fine finish moves no cage vertex: the fibres are the same
-                ma.contact,
-            )
+        st = side.one_sided.get((k, j))
+        if st is None:  # the central difference
+            poses = [
+                (
+                    side.lines[k][j][s],
+                    side.references[k][j][s],
+                    side.to_output[k, j, s],
+                    {b: T[k, j, s] for b, T in side.bone_T.items()},
+                )
+                for s in (0, 1)
+            ]
+            weights: Sequence[float] = (-0.5, 0.5)
+        else:  # a path switches on one side: the difference on the other
+            poses = [
+                (
+                    st.lines[i],
+                    st.references[i],
+                    st.to_output[i],
+                    {b: T[i] for b, T in st.bone_T.items()},
+                )
+                for i in range(len(st.offsets))
+            ]
+            weights = st.weights
+        dL = np.zeros(n)
+        for (lines, reference, T, bone_T), w in zip(poses, weights, strict=True):
+            # the fine finish moves no cage vertex: the fibres are the same without it
+            r = solve(lines, reference, T, bone_T, False, ma.contact)
             if not (r.converged and np.isfinite(r.cage).all()):
                 out["unconverged"] += 1
                 break
-            L.append(fb.lengths(fb.at(r.cage)))
-        if len(L) == 2:
-            out["moment_arms"][j] = -(L[1] - L[0]) / (2 * ma.steps[j]) * ma.per_q[j]
+            dL += w * fb.lengths(fb.at(r.cage))
+        else:
+            out["moment_arms"][j] = -dL / ma.steps[j] * ma.per_q[j]
     return out
 
 
@@ -270,8 +291,9 @@ def write_fibre_outputs(
     muscles : dict of str to tuple of str
         Each muscle's OpenSim paths (its action line's moment arm is their mean).
     notes : list of str
-        Gets a line per path whose central difference straddles a switch of its
-        points on some frames, and per muscle with unconverged moment-arm solves.
+        Gets a line per path whose points change between a frame and a side pose
+        (a one-sided difference there), and per muscle with unconverged moment-arm
+        solves.
     """
     from ..output import write_csv
 
@@ -298,16 +320,28 @@ def write_fibre_outputs(
     ma = drive.moment_arms
     if ma is None:
         return files
+
+    def frames_of(mask: Any) -> str:
+        return "; ".join(
+            f"{c} at frame(s) {', '.join(str(drive.frames[k]) for k in np.flatnonzero(mask[:, j]))}"
+            for j, c in enumerate(ma.coordinates)
+            if mask[:, j].any()
+        )
+
     for p, sw in ma.switch.items():
-        if sw.any():
-            where = ", ".join(
-                f"{c} at frame(s) {', '.join(str(drive.frames[k]) for k in np.flatnonzero(sw[:, j]))}"
-                for j, c in enumerate(ma.coordinates)
-                if sw[:, j].any()
-            )
+        both = ma.both_sides.get(p, np.zeros_like(sw))
+        if (sw & ~both).any():
             notes.append(
-                f"path {p}: the central difference straddles a change of its points ({where}): "
-                "a conditional via point or wrap switches there, and its moment arm has a jump"
+                f"path {p}: its points change between the frame and one side pose "
+                f"({frames_of(sw & ~both)}: a conditional via point or a wrap switches): "
+                "there its moment arm, and its muscle's fibres', is the one-sided difference "
+                "on the side without the change"
+            )
+        if both.any():
+            notes.append(
+                f"path {p}: its points change on both sides of the frame ({frames_of(both)}): "
+                "no side is free of the change, the central difference is kept and may jump; "
+                "a smaller [fibres] step separates the two changes"
             )
     files.append(write_csv(outdir / MOMENT_ARMS_CSV, arm_rows, MOMENT_ARM_FIELDS))
     from ..output import plot_moment_arms

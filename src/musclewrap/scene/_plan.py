@@ -51,6 +51,7 @@ __all__ = [
     "PathStates",
     "Prepared",
     "SidePoses",
+    "SideStencil",
 ]
 
 
@@ -141,13 +142,34 @@ class MuscleJob:
 
 
 @dataclass(frozen=True)
+class SideStencil:
+    """A frame's one-sided moment arm about one coordinate (`musclewrap.scene._drive.Stencil`).
+
+    Per pose (``offsets``, multiples of the step, with ``weights``): the lines, reference
+    point, the muscle body's transform ``to_output`` (P, 4, 4) and each bone's ``bone_T``.
+    """
+
+    offsets: tuple[float, ...]
+    weights: tuple[float, ...]
+    lines: tuple[dict[str, FloatArray], ...]
+    references: tuple[FloatArray | None, ...]
+    to_output: FloatArray
+    bone_T: dict[str, FloatArray]
+
+
+@dataclass(frozen=True)
 class SidePoses:
-    """The moment arms' side poses of some frames: ``[k][coordinate][side]`` (q -/+ h)."""
+    """The moment arms' side poses of some frames: ``[k][coordinate][side]`` (q -/+ h).
+
+    ``one_sided[(k, coordinate)]``: where a path of the muscle switches between the
+    frame and a side pose, the poses of the one-sided difference used instead.
+    """
 
     lines: list[list[tuple[dict[str, FloatArray], dict[str, FloatArray]]]]
     references: list[list[tuple[FloatArray | None, FloatArray | None]]]
     to_output: FloatArray  # (k, C, 2, 4, 4), the muscle's body
     bone_T: dict[str, FloatArray]  # bone -> (k, C, 2, 4, 4)
+    one_sided: dict[tuple[int, int], SideStencil] = field(default_factory=dict)
 
     def slice(self, a: int, b: int) -> SidePoses:
         return SidePoses(
@@ -155,6 +177,7 @@ class SidePoses:
             self.references[a:b],
             self.to_output[a:b],
             {n: T[a:b] for n, T in self.bone_T.items()},
+            {(k - a, j): st for (k, j), st in self.one_sided.items() if a <= k < b},
         )
 
 
@@ -432,6 +455,17 @@ def frame_span(inputs: Any, name: str) -> FrameSpan:
             ma.references[name],
             ma.to_output[spec.body],
             {b.name: ma.to_output[b.body] for b in scene.bones},
+            {
+                kj: SideStencil(
+                    st.offsets,
+                    st.weights,
+                    st.lines,
+                    st.references,
+                    st.to_output[spec.body],
+                    {b.name: st.to_output[b.body] for b in scene.bones},
+                )
+                for kj, st in ma.one_sided.get(name, {}).items()
+            },
         )
     wp = drive.waypoints
     return FrameSpan(
