@@ -227,7 +227,7 @@ def _minimal_rotation_one(a, b, out):  # pragma: no cover - compiled
 
 #: a reference direction within asin(TWIST_FADE[0]) of the tangent gives no twist, one
 #: past asin(TWIST_FADE[1]) its whole twist, smoothly between (BENCHMARKS.md, "Twist")
-TWIST_FADE = (np.sin(np.radians(10.0)), np.sin(np.radians(30.0)))
+TWIST_FADE = (np.sin(np.radians(20.0)), np.sin(np.radians(45.0)))
 
 
 @numba.njit(cache=True)
