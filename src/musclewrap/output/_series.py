@@ -285,17 +285,28 @@ def plot_moment_arms(
     rows: Sequence[Mapping[str, Any]],
     coordinates: Sequence[str],
     per_q: npt.ArrayLike,
+    *,
+    swept: str | None = None,
+    swept_values: Mapping[int, float] | None = None,
+    swept_unit: str = "deg",
+    unit: str = "mm",
 ) -> Path:
     """Per muscle (row) and coordinate (column): the fibres' range and mean over the motion.
 
-    Beside them the action line's moment arm (central differences) and OpenSim's.
+    Beside them the action line's moment arm (by differences of its length) and
+    OpenSim's ``computeMomentArm``. Against the swept coordinate (``swept_values``:
+    frame to its value in ``swept_unit``) where the motion sweeps one, against time
+    otherwise; lengths in mm (from the meshes' ``unit``).
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ..scene._config import UNITS
+
     per_q = np.asarray(per_q, dtype=np.float64)
+    to_mm = UNITS[unit] * 1e3
     names = list(dict.fromkeys(r["muscle"] for r in rows))
     nr, nc = max(1, len(names)), max(1, len(coordinates))
     fig, axes = plt.subplots(
@@ -303,13 +314,19 @@ def plot_moment_arms(
     )
     # fixed margins: tight_layout took half of this figure's time
     fig.subplots_adjust(left=0.09, right=0.98, bottom=0.07, top=0.93, wspace=0.25, hspace=0.15)
+    against = swept is not None and swept_values is not None
     for i, name in enumerate(names):
         for j, c in enumerate(coordinates):
             ax = axes[i, j]
             sel = [r for r in rows if r["muscle"] == name and r["coordinate"] == c]
-            t = np.array([r["time"] for r in sel])
+            x = np.array(
+                [swept_values[int(r["frame"])] if against else r["time"] for r in sel],  # type: ignore[index]
+                dtype=np.float64,
+            )
+            # a length per radian is mm; a translational coordinate's is without units
+            f = to_mm if per_q[j] == 1.0 else 1.0
             lo, mean, hi, line, osim = (
-                np.array([r[key] for r in sel], dtype=np.float64)
+                f * np.array([r[key] for r in sel], dtype=np.float64)
                 for key in (
                     "fibre_min",
                     "fibre_mean",
@@ -318,20 +335,23 @@ def plot_moment_arms(
                     "opensim_moment_arm",
                 )
             )
-            ax.fill_between(t, lo, hi, color="tab:red", alpha=0.25, lw=0, label="fibres (range)")
-            ax.plot(t, mean, color="tab:red", lw=1.5, label="fibres (mean)")
-            ax.plot(t, line, color="black", lw=1.2, ls="--", label="action line")
-            ax.plot(t, osim, color="tab:blue", lw=0.8, ls=":", label="OpenSim")
+            ax.fill_between(x, lo, hi, color="tab:red", alpha=0.25, lw=0, label="fibres (range)")
+            ax.plot(x, mean, color="tab:red", lw=1.5, label="fibres (mean)")
+            ax.plot(x, osim, color="tab:blue", lw=3.0, alpha=0.45, label="OpenSim")
+            ax.plot(x, line, color="black", lw=1.0, ls="--", label="action line")
             ax.axhline(0.0, color="0.6", lw=0.5)
             ax.grid(True, alpha=0.3)
             if i == 0:
-                ax.set_title(c, fontsize=9)
+                ax.set_title(f"about {c}", fontsize=9)
             if j == 0:
-                unit = "moment arm" if per_q[j] == 1.0 else "moment arm (-)"
-                ax.set_ylabel(f"{name}\n{unit}", fontsize=8)
+                what = "moment arm (mm)" if per_q[j] == 1.0 else "moment arm (-)"
+                ax.set_ylabel(f"{name}\n{what}", fontsize=8)
             if i == nr - 1:
-                ax.set_xlabel("time (s)", fontsize=8)
+                ax.set_xlabel(f"{swept} ({swept_unit})" if against else "time (s)", fontsize=8)
             ax.tick_params(labelsize=7)
     axes[0, 0].legend(fontsize=6, loc="best")
-    fig.suptitle("moment arms -dL/dq (mesh units per radian)", fontsize=9)
+    fig.suptitle(
+        "moment arms -dL/dq" + (f" through the {swept} sweep" if against else " over the motion"),
+        fontsize=9,
+    )
     return _save_png(fig, path, tight=False)

@@ -127,6 +127,13 @@ class Drive:
     notes: list[str] = field(default_factory=list)
     moment_arms: MomentArmPoses | None = None
     waypoints: Waypoints | None = None
+    #: each frame's value (n,) of the driven and moment-arm coordinates: degrees for a
+    #: rotational coordinate, mm for a translational one (empty without a model)
+    coordinate_values: dict[str, FloatArray] = field(default_factory=dict)
+    #: the coordinate the motion sweeps: the only one of them that changes over the frames
+    swept: str | None = None
+    #: the unit of each of ``coordinate_values``: "deg" or "mm"
+    coordinate_units: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -500,6 +507,14 @@ def _drive_opensim(
             )
         model.set_pose(pose)
     notes += _outside_ranges(model, coords, driven, pos, motion.time)
+    shown = list(dict.fromkeys([*coords, *(ma.coordinates if ma is not None else ())]))
+    shown_values = {}
+    for c in shown:
+        q = driven[:, list(coords).index(c)] if c in coords else np.full(len(pos), rest[c])
+        shown_values[c] = (
+            np.degrees(q) if model.is_rotational(c) else q * UNITS[scene.model_unit] * 1e3
+        )
+    moving = [c for c in coords if np.ptp(shown_values[c]) > 1e-9]
     path = None
     if waypoints:
         path = _waypoints(scene, model, coords, rest, driven, bodies, lines_now, output_transforms)
@@ -516,6 +531,9 @@ def _drive_opensim(
         notes=notes,
         moment_arms=ma,
         waypoints=path,
+        coordinate_values=shown_values,
+        swept=moving[0] if len(moving) == 1 else None,
+        coordinate_units={c: "deg" if model.is_rotational(c) else "mm" for c in shown},
     )
 
 

@@ -42,12 +42,22 @@ __all__ = [
 ]
 
 FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS = "fibres.csv", "moment_arms.csv", "moment_arms.png"
-FIBRE_FIELDS = ["frame", "time", "muscle", "fibre", "length", "coordinate", "moment_arm"]
+FIBRE_FIELDS = [
+    "frame",
+    "time",
+    "muscle",
+    "fibre",
+    "length",
+    "coordinate",
+    "coordinate_value",
+    "moment_arm",
+]
 MOMENT_ARM_FIELDS = [
     "frame",
     "time",
     "muscle",
     "coordinate",
+    "coordinate_value",
     "fibre_min",
     "fibre_mean",
     "fibre_max",
@@ -228,6 +238,12 @@ def write_frame_fibres(path: Path, fb: Any, points: FloatArray, T: FloatArray) -
     )
 
 
+def _value(drive: Drive, coordinate: str, k: int) -> float | str:
+    """The coordinate's value at frame position ``k`` (degrees or mm), or '' unknown."""
+    v = drive.coordinate_values.get(coordinate)
+    return "" if v is None else float(v[k])
+
+
 def _rows(
     drive: Drive, results: Sequence[MuscleOutcome], muscles: dict[str, tuple[str, ...]]
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
@@ -245,17 +261,26 @@ def _rows(
             base = {"frame": fr.frame, "time": fr.time, "muscle": name}
             if not coords:
                 fibre_rows += [
-                    {**base, "fibre": i, "length": float(x), "coordinate": "", "moment_arm": ""}
+                    {
+                        **base,
+                        "fibre": i,
+                        "length": float(x),
+                        "coordinate": "",
+                        "coordinate_value": "",
+                        "moment_arm": "",
+                    }
                     for i, x in enumerate(lengths)
                 ]
                 continue
             for j, c in enumerate(coords):
+                value = _value(drive, c, k)
                 fibre_rows += [
                     {
                         **base,
                         "fibre": i,
                         "length": float(x),
                         "coordinate": c,
+                        "coordinate_value": value,
                         "moment_arm": float(r),
                     }
                     for i, (x, r) in enumerate(zip(lengths, arms[j], strict=True))
@@ -266,6 +291,7 @@ def _rows(
                     {
                         **base,
                         "coordinate": c,
+                        "coordinate_value": value,
                         "fibre_min": float(arms[j].min()) if ok.all() else float("nan"),
                         "fibre_mean": float(arms[j].mean()) if ok.all() else float("nan"),
                         "fibre_max": float(arms[j].max()) if ok.all() else float("nan"),
@@ -283,6 +309,7 @@ def write_fibre_outputs(
     results: Sequence[MuscleOutcome],
     muscles: dict[str, tuple[str, ...]],
     notes: list[str],
+    unit: str = "mm",
 ) -> list[Path]:
     """``fibres.csv`` and, with moment arms, ``moment_arms.csv`` and ``moment_arms.png``.
 
@@ -290,6 +317,8 @@ def write_fibre_outputs(
     ----------
     muscles : dict of str to tuple of str
         Each muscle's OpenSim paths (its action line's moment arm is their mean).
+    unit : str
+        The meshes' length unit (the moment arms' in the plot are in mm).
     notes : list of str
         Gets a line per path whose points change between a frame and a side pose
         (a one-sided difference there), and per muscle with unconverged moment-arm
@@ -346,5 +375,20 @@ def write_fibre_outputs(
     files.append(write_csv(outdir / MOMENT_ARMS_CSV, arm_rows, MOMENT_ARM_FIELDS))
     from ..output import plot_moment_arms
 
-    files.append(plot_moment_arms(outdir / PLOT_MOMENT_ARMS, arm_rows, ma.coordinates, ma.per_q))
+    files.append(
+        plot_moment_arms(
+            outdir / PLOT_MOMENT_ARMS,
+            arm_rows,
+            ma.coordinates,
+            ma.per_q,
+            swept=drive.swept,
+            swept_values=(
+                None
+                if drive.swept is None
+                else dict(zip(drive.frames, drive.coordinate_values[drive.swept], strict=True))
+            ),
+            swept_unit=drive.coordinate_units.get(drive.swept or "", "deg"),
+            unit=unit,
+        )
+    )
     return files

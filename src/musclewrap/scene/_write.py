@@ -331,6 +331,6 @@ def write_outputs(
     ]
     if scene.fibres is not None:
         paths = {s.name: s.paths for s in scene.muscles}
-        files += write_fibre_outputs(outdir, drive, results, paths, notes)
+        files += write_fibre_outputs(outdir, drive, results, paths, notes, scene.mesh_unit)
     files += _plots(outdir, scene, results, collisions)
     return rows, files
