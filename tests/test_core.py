@@ -447,3 +447,27 @@ def test_newton_path_through_deform_reaches_the_same_mesh(small_muscle, monkeypa
     assert abs(newton.relative_volume_error) <= 1e-12
     size = np.linalg.norm(np.ptp(small_muscle.V, axis=0))
     assert np.abs(newton.V - plain.V).max() <= 1e-6 * size  # 1.9e-7 measured
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_sample_rotations_are_a_rigid_motions_rotation_whatever_the_reference(seed):
+    """Under a rigid motion every sample's rotation is the motion's: a straight skeleton
+    with a reference point beside it, and a bent one without a reference."""
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import sample_rotations
+
+    rng = np.random.default_rng(seed)
+    R = Rotation.random(random_state=seed).as_matrix()
+    t = rng.normal(size=3) * 10
+    bent = np.cumsum(rng.normal(size=(20, 3)), axis=0)
+    two = np.repeat([0, 1], 10)
+    straight = np.c_[np.zeros(20), np.zeros(20), np.linspace(0.0, 100.0, 20)]
+    cases = [
+        (straight, np.zeros(20, dtype=int), np.array([30.0, 5.0, 50.0])),
+        (bent, two, None),
+    ]
+    for S, line, ref in cases:
+        kw = {} if ref is None else {"reference_rest": ref, "reference_current": R @ ref + t}
+        got = sample_rotations(S, S @ R.T + t, line, **kw)
+        assert np.abs(got - R).max() < 1e-9

@@ -158,42 +158,26 @@ class SampleRotations:
         self.T0 = _tangents(self.rest, self.line)
         self._rest_centred = self.rest - self.rest.mean(axis=0)
         self.collinear = _collinear(self._rest_centred)
-        # per sample, a direction carried by the samples' best rigid fit: the one of the
-        # skeleton's two minor principal axes more across the sample's tangent, made normal
-        # to it (the twist where the reference point is near the line's direction, and the
-        # twist itself without a reference point)
+        # a reference direction perpendicular to the skeleton's principal axis
         _, _, vt = np.linalg.svd(self._rest_centred)
-        minor = vt[1:3]
-        pick = np.argmin(np.abs(self.T0 @ minor.T), axis=1)
-        B0 = minor[pick]
-        B0 = B0 - np.sum(B0 * self.T0, axis=1)[:, None] * self.T0
-        self._B0 = np.ascontiguousarray(B0 / np.linalg.norm(B0, axis=1)[:, None])
+        self._A0 = np.ascontiguousarray(np.tile(vt[1], (len(rest), 1)))
 
     def __call__(
         self, current: FloatArray, *, reference_current: FloatArray | None = None
     ) -> FloatArray:
         """(k, 3, 3) rotations of the samples for the current pose."""
         T1 = _tangents(current, self.line)
-        if self.collinear:  # no rigid fit: the minimal rotation where the reference fails
-            B0 = B1 = np.zeros_like(self.rest)
-        else:
-            R = _best_rotation(self._rest_centred, current - current.mean(axis=0))
-            B0, B1 = self._B0, self._B0 @ R.T
         if self.reference_rest is not None and reference_current is not None:
             A0 = self.reference_rest[None, :] - self.rest
             A1 = reference_current[None, :] - current
+        elif self.collinear:
+            return _minimal_rotation(self.T0, T1)
         else:
-            A0, A1 = B0, B1
+            R = _best_rotation(self._rest_centred, current - current.mean(axis=0))
+            A0 = self._A0
+            A1 = A0 @ R.T
         out = np.empty((len(self.rest), 3, 3))
-        _frame_rotations(
-            self.T0,
-            T1,
-            np.ascontiguousarray(A0),
-            np.ascontiguousarray(A1),
-            np.ascontiguousarray(B0),
-            np.ascontiguousarray(B1),
-            out,
-        )
+        _frame_rotations(self.T0, T1, np.ascontiguousarray(A0), np.ascontiguousarray(A1), out)
         return out
 
 
@@ -225,78 +209,35 @@ def _minimal_rotation_one(a, b, out):  # pragma: no cover - compiled
             out[i, j] += s * K[i][j] + (1.0 - c) * kk
 
 
-#: a reference direction within asin(TWIST_FADE[0]) of the tangent gives no twist, one
-#: past asin(TWIST_FADE[1]) its whole twist, smoothly between (BENCHMARKS.md, "Twist")
-TWIST_FADE = (np.sin(np.radians(20.0)), np.sin(np.radians(45.0)))
-
-
 @numba.njit(cache=True)
-def _twist(R, t0, t1, a0, a1, out):  # pragma: no cover - compiled
-    # the angle about t1 taking R n0 to n1 (n: a made normal to t), and the smaller sine
-    # of a's angle to the tangent in the two poses: out = (angle, sine)
-    d0 = a0[0] * t0[0] + a0[1] * t0[1] + a0[2] * t0[2]
-    d1 = a1[0] * t1[0] + a1[1] * t1[1] + a1[2] * t1[2]
-    n0 = (a0[0] - d0 * t0[0], a0[1] - d0 * t0[1], a0[2] - d0 * t0[2])
-    n1 = (a1[0] - d1 * t1[0], a1[1] - d1 * t1[1], a1[2] - d1 * t1[2])
-    l0 = np.sqrt(n0[0] ** 2 + n0[1] ** 2 + n0[2] ** 2)
-    l1 = np.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
-    r0 = np.sqrt(a0[0] ** 2 + a0[1] ** 2 + a0[2] ** 2)
-    r1 = np.sqrt(a1[0] ** 2 + a1[1] ** 2 + a1[2] ** 2)
-    out[0], out[1] = 0.0, 0.0
-    if r0 == 0.0 or r1 == 0.0 or l0 == 0.0 or l1 == 0.0:
-        return
-    m0 = R[0, 0] * n0[0] + R[0, 1] * n0[1] + R[0, 2] * n0[2]
-    m1 = R[1, 0] * n0[0] + R[1, 1] * n0[1] + R[1, 2] * n0[2]
-    m2 = R[2, 0] * n0[0] + R[2, 1] * n0[1] + R[2, 2] * n0[2]
-    c = m0 * n1[0] + m1 * n1[1] + m2 * n1[2]
-    x0, x1, x2 = m1 * n1[2] - m2 * n1[1], m2 * n1[0] - m0 * n1[2], m0 * n1[1] - m1 * n1[0]
-    out[0] = np.arctan2(x0 * t1[0] + x1 * t1[1] + x2 * t1[2], c)
-    out[1] = min(l0 / r0, l1 / r1)
-
-
-@numba.njit(cache=True)
-def _fade(s, lo, hi):  # pragma: no cover - compiled
-    # 0 below lo, 1 above hi, smoothstep between
-    u = min(max((s - lo) / (hi - lo), 0.0), 1.0)
-    return u * u * (3.0 - 2.0 * u)
-
-
-@numba.njit(cache=True)
-def _frame_rotations(T0, T1, A0, A1, B0, B1, out):  # pragma: no cover - compiled
-    # per sample: the minimal rotation taking the rest tangent to the current one, then a
-    # turn about the current tangent that takes the rest frame (tangent, reference
-    # direction A made normal, binormal) onto the current one (so the rotation F1 F0^T).
-    # Where A comes near the tangent that turn is ill-conditioned (it spins as the pose
-    # moves), so it fades into the turn of B (the fit's direction), and that one, where
-    # it fails, into none (the minimal rotation): continuous in the pose, and exact under
-    # a rigid motion wherever A or B keeps its distance to the tangent
+def _frame_rotations(T0, T1, A0, A1, out):  # pragma: no cover - compiled
+    # per sample: frames (tangent, reference direction made normal, binormal) in both
+    # poses and the rotation F1 F0^T; the minimal rotation where a frame is undefined
     # (scalar arithmetic only: array expressions compile slowly on a first run)
-    lo, hi = TWIST_FADE
-    Rm = np.empty((3, 3))
-    a = np.empty(2)
-    b = np.empty(2)
     for i in range(T0.shape[0]):
-        _minimal_rotation_one(T0[i], T1[i], Rm)
-        _twist(Rm, T0[i], T1[i], A0[i], A1[i], a)
-        _twist(Rm, T0[i], T1[i], B0[i], B1[i], b)
-        tb = _fade(b[1], lo, hi) * b[0]
-        d = a[0] - tb
-        d = (d + np.pi) % (2.0 * np.pi) - np.pi
-        # a turn of A more than a quarter turn from B's is no credible twist (near a half
-        # turn it is the reference point passing the line): it fades out by a half turn,
-        # so the twist stays continuous where that difference wraps round
-        th = tb + _fade(a[1], lo, hi) * _fade(np.pi - abs(d), 0.0, 0.5 * np.pi) * d
-        # out = (rotation by th about t1, Rodrigues: I + s K + (1 - c) K^2) times Rm
-        k = (T1[i, 0], T1[i, 1], T1[i, 2])
-        s, c = np.sin(th), np.cos(th)
-        K = ((0.0, -k[2], k[1]), (k[2], 0.0, -k[0]), (-k[1], k[0], 0.0))
-        for r in range(3):
-            Rt = (0.0, 0.0, 0.0)
-            for q in range(3):
-                e = 1.0 if r == q else 0.0
-                v = e + s * K[r][q] + (1.0 - c) * (k[r] * k[q] - e)
-                Rt = (Rt[0] + v * Rm[q, 0], Rt[1] + v * Rm[q, 1], Rt[2] + v * Rm[q, 2])
-            out[i, r, 0], out[i, r, 1], out[i, r, 2] = Rt
+        d0 = A0[i, 0] * T0[i, 0] + A0[i, 1] * T0[i, 1] + A0[i, 2] * T0[i, 2]
+        d1 = A1[i, 0] * T1[i, 0] + A1[i, 1] * T1[i, 1] + A1[i, 2] * T1[i, 2]
+        n00, n01, n02 = A0[i, 0] - d0 * T0[i, 0], A0[i, 1] - d0 * T0[i, 1], A0[i, 2] - d0 * T0[i, 2]
+        n10, n11, n12 = A1[i, 0] - d1 * T1[i, 0], A1[i, 1] - d1 * T1[i, 1], A1[i, 2] - d1 * T1[i, 2]
+        l0 = np.sqrt(n00 * n00 + n01 * n01 + n02 * n02)
+        l1 = np.sqrt(n10 * n10 + n11 * n11 + n12 * n12)
+        scale = max(np.sqrt(A0[i, 0] ** 2 + A0[i, 1] ** 2 + A0[i, 2] ** 2), 1e-300)
+        if l0 > 1e-6 * scale and l1 > 1e-6 * scale:
+            n00, n01, n02 = n00 / l0, n01 / l0, n02 / l0
+            n10, n11, n12 = n10 / l1, n11 / l1, n12 / l1
+            t00, t01, t02 = T0[i, 0], T0[i, 1], T0[i, 2]
+            t10, t11, t12 = T1[i, 0], T1[i, 1], T1[i, 2]
+            n0 = (n00, n01, n02)
+            n1 = (n10, n11, n12)
+            t0 = (t00, t01, t02)
+            t1 = (t10, t11, t12)
+            b0 = (t01 * n02 - t02 * n01, t02 * n00 - t00 * n02, t00 * n01 - t01 * n00)
+            b1 = (t11 * n12 - t12 * n11, t12 * n10 - t10 * n12, t10 * n11 - t11 * n10)
+            for r in range(3):
+                for c in range(3):
+                    out[i, r, c] = t1[r] * t0[c] + n1[r] * n0[c] + b1[r] * b0[c]
+        else:
+            _minimal_rotation_one(T0[i], T1[i], out[i])
 
 
 @numba.njit(cache=True)
