@@ -879,7 +879,7 @@ def test_a_renderer_that_hangs_is_stopped(tmp_path, monkeypatch):
     assert not r.alive
 
 
-def _via_capsule_scene(tmp_path):
+def _via_capsule_scene(tmp_path, via_range=(19.3, 90.0)):
     """A capsule from a ground origin to an insertion on a thigh hinged 30 mm behind it, and
     a conditional via point in front of the hinge, active from 19.3 deg of flexion: the path
     gains it halfway through a sweep of 0-40 deg in 2 deg frames (OpenSim built in the test)."""
@@ -900,8 +900,8 @@ def _via_capsule_scene(tmp_path):
     via = osim.ConditionalPathPoint()
     via.setName("via")
     via.set_location(osim.Vec3(0.004, 0.0, 0.10))
-    via.setRangeMin(math.radians(19.3))
-    via.setRangeMax(math.radians(90.0))
+    via.setRangeMin(math.radians(via_range[0]))
+    via.setRangeMax(math.radians(via_range[1]))
     via.updSocket("coordinate").setConnecteePath("/jointset/knee/flex")
     via.updSocket("parent_frame").setConnecteePath("/ground")
     gp.updPathPointSet().cloneAndAppend(via)
@@ -965,6 +965,28 @@ def test_a_via_point_gained_mid_sweep_gives_a_kink_not_a_spike(tmp_path, capsys)
     mean = np.array([float(a["fibre_mean"]) for a in arms])
     assert mean[9] - mean[10] > 3.0  # the fibres step with the path
     assert _outside_neighbours(mean).max() <= 3.0
+    # the one-sided frame alone, in a run of other frames and chunks: the same numbers
+    part = tmp_path / "part"
+    assert main(["run", str(toml), "-o", str(part), "--frames", "9:12", "--no-cache"]) == 0
+    got = {(r["frame"], r["fibre"]): r["moment_arm"] for r in _rows(part / "fibres.csv")}
+    assert ("10", "0") in got and all(
+        got[k] == r["moment_arm"] for r in fibres if (k := (r["frame"], r["fibre"])) in got
+    )
+
+
+def test_a_via_point_on_for_less_than_two_steps_keeps_the_central_difference(tmp_path):
+    """A via point on only between 19.5 and 20.5 deg: at 20 deg both side poses lack it, so
+    no side is free of the change; the central difference is kept there and said."""
+    from musclewrap.scene import drive_scene
+
+    toml, _ = _via_capsule_scene(tmp_path, via_range=(19.5, 20.5))
+    ma = drive_scene(load_scene(toml), None, {}).moment_arms
+    assert np.flatnonzero(ma.both_sides["line"][:, 0]).tolist() == [10]
+    assert np.flatnonzero(ma.switch["line"][:, 0]).tolist() == [10]
+    assert (10, 0) not in ma.one_sided["capsule"]
+    lm, lp = ma.lines["capsule"][10][0]
+    central = -(_length(lp["line"]) - _length(lm["line"])) / (2 * math.radians(1.0))
+    assert ma.line["line"][10, 0] == pytest.approx(central)
 
 
 def _outside_neighbours(r):
@@ -981,17 +1003,14 @@ def _length(P):
 def test_moment_arm_picture_is_drawn_against_the_swept_angle(tmp_path, monkeypatch):
     """A motion that sweeps one coordinate: moment_arms.png against it in degrees; another
     motion (two coordinates change): against time."""
-    import musclewrap.output._series as series
+    import musclewrap.output as output
 
     seen = []
-    real = series.plot_moment_arms
+    real = output.plot_moment_arms
 
     def spy(path, rows, coordinates, per_q, **kw):
         seen.append(kw)
         return real(path, rows, coordinates, per_q, **kw)
-
-    monkeypatch.setattr(series, "plot_moment_arms", spy)
-    import musclewrap.output as output
 
     monkeypatch.setattr(output, "plot_moment_arms", spy)
     toml, q = _via_capsule_scene(tmp_path)

@@ -14,6 +14,7 @@ from ._config import UNITS, Scene
 from ._errors import SceneError, suggest
 from ._motion import read_motion
 from ._opensim import OpenSimModel
+from ._plan import CENTRAL, Stencil
 
 __all__ = [
     "Drive",
@@ -225,10 +226,6 @@ def lattice_paths(
     return nodes, parent, np.array([at(p) for p in first], dtype=np.int64)
 
 
-#: the central difference ``dL/dq ~ sum(w L(q + o h)) / h``: offsets ``o`` and weights ``w``
-CENTRAL = ((-1.0, 1.0), (-0.5, 0.5))
-
-
 def one_sided(sign: int, second_order: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """Offsets and weights of the one-sided difference towards ``sign`` (-1 or +1).
 
@@ -238,22 +235,6 @@ def one_sided(sign: int, second_order: bool) -> tuple[tuple[float, ...], tuple[f
     if second_order:
         return (0.0, sign, 2.0 * sign), (-1.5 * sign, 2.0 * sign, -0.5 * sign)
     return (0.0, float(sign)), (-1.0 * sign, 1.0 * sign)
-
-
-@dataclass(frozen=True)
-class Stencil:
-    """The poses of one frame's moment arm about one coordinate where it is one-sided.
-
-    ``offsets`` are multiples of the step, ``weights`` those of the difference
-    (`one_sided`); per pose the muscle's ``lines`` and ``references`` (as in `Drive`)
-    and ``to_output[body]`` (P, 4, 4).
-    """
-
-    offsets: tuple[float, ...]
-    weights: tuple[float, ...]
-    lines: tuple[dict[str, FloatArray], ...]
-    references: tuple[FloatArray | None, ...]
-    to_output: dict[str, FloatArray]
 
 
 @dataclass
@@ -289,8 +270,8 @@ class MomentArmPoses:
     line: dict[str, FloatArray]
     opensim: dict[str, FloatArray]
     switch: dict[str, npt.NDArray[np.bool_]]
-    both_sides: dict[str, npt.NDArray[np.bool_]] = field(default_factory=dict)
-    one_sided: dict[str, dict[tuple[int, int], Stencil]] = field(default_factory=dict)
+    both_sides: dict[str, npt.NDArray[np.bool_]]
+    one_sided: dict[str, dict[tuple[int, int], Stencil]]
 
 
 def polyline_length(P: FloatArray) -> float:
@@ -589,11 +570,11 @@ def _frame_moment_arms(
             got = [at(o) for o in offsets]
             to_out = [output_transforms(g) for _, _, g in got]
             ma.one_sided[name][(k, j)] = Stencil(
-                offsets=offsets,
                 weights=weights,
                 lines=tuple(L[name] for L, _, _ in got),
                 references=tuple(R[name] for _, R, _ in got),
-                to_output={b: np.stack([T[b] for T in to_out]) for b in to_out[0]},
+                to_output=np.stack([T[m.body] for T in to_out]),
+                bone_T={b.name: np.stack([T[b.body] for T in to_out]) for b in scene.bones},
             )
 
 

@@ -185,29 +185,7 @@ def frame_fibres(
     out["points"] = P.reshape(fb.points.shape)
     out["lengths"] = fb.lengths(out["points"])
     for j in range(len(coords)):
-        st = side.one_sided.get((k, j))
-        if st is None:  # the central difference
-            poses = [
-                (
-                    side.lines[k][j][s],
-                    side.references[k][j][s],
-                    side.to_output[k, j, s],
-                    {b: T[k, j, s] for b, T in side.bone_T.items()},
-                )
-                for s in (0, 1)
-            ]
-            weights: Sequence[float] = (-0.5, 0.5)
-        else:  # a path switches on one side: the difference on the other
-            poses = [
-                (
-                    st.lines[i],
-                    st.references[i],
-                    st.to_output[i],
-                    {b: T[i] for b, T in st.bone_T.items()},
-                )
-                for i in range(len(st.offsets))
-            ]
-            weights = st.weights
+        poses, weights = side.poses(k, j)
         dL = np.zeros(n)
         for (lines, reference, T, bone_T), w in zip(poses, weights, strict=True):
             # the fine finish moves no cage vertex: the fibres are the same without it
@@ -358,7 +336,7 @@ def write_fibre_outputs(
         )
 
     for p, sw in ma.switch.items():
-        both = ma.both_sides.get(p, np.zeros_like(sw))
+        both = ma.both_sides[p]
         if (sw & ~both).any():
             notes.append(
                 f"path {p}: its points change between the frame and one side pose "

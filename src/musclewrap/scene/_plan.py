@@ -39,6 +39,7 @@ from .._runs import contiguous_runs
 from .._typing import FloatArray, IntArray
 
 __all__ = [
+    "CENTRAL",
     "BoneMesh",
     "ChunkResult",
     "Comparison",
@@ -51,7 +52,7 @@ __all__ = [
     "PathStates",
     "Prepared",
     "SidePoses",
-    "SideStencil",
+    "Stencil",
 ]
 
 
@@ -141,15 +142,19 @@ class MuscleJob:
         return Path(self.cache_dir) / f"fibres-{self.name}-{fibres_key(self.cache_key, self)}.npz"
 
 
-@dataclass(frozen=True)
-class SideStencil:
-    """A frame's one-sided moment arm about one coordinate (`musclewrap.scene._drive.Stencil`).
+#: the central difference ``dL/dq ~ sum(w L(q + o h)) / h``: offsets ``o`` and weights ``w``
+CENTRAL = ((-1.0, 1.0), (-0.5, 0.5))
 
-    Per pose (``offsets``, multiples of the step, with ``weights``): the lines, reference
-    point, the muscle body's transform ``to_output`` (P, 4, 4) and each bone's ``bone_T``.
+
+@dataclass(frozen=True)
+class Stencil:
+    """A frame's one-sided moment arm of one muscle about one coordinate.
+
+    Per pose of the difference (``dL/dq ~ sum(weights * L) / h``): the muscle's lines and
+    reference point (as in `musclewrap.scene._drive.Drive`), its body's transform
+    ``to_output`` (P, 4, 4) and each bone's ``bone_T`` (P, 4, 4).
     """
 
-    offsets: tuple[float, ...]
     weights: tuple[float, ...]
     lines: tuple[dict[str, FloatArray], ...]
     references: tuple[FloatArray | None, ...]
@@ -169,7 +174,34 @@ class SidePoses:
     references: list[list[tuple[FloatArray | None, FloatArray | None]]]
     to_output: FloatArray  # (k, C, 2, 4, 4), the muscle's body
     bone_T: dict[str, FloatArray]  # bone -> (k, C, 2, 4, 4)
-    one_sided: dict[tuple[int, int], SideStencil] = field(default_factory=dict)
+    one_sided: dict[tuple[int, int], Stencil] = field(default_factory=dict)
+
+    def poses(self, k: int, j: int) -> tuple[list[tuple[Any, ...]], tuple[float, ...]]:
+        """Frame ``k``'s poses about coordinate ``j`` and their weights in the difference.
+
+        Each pose is ``(lines, reference, to_output, bone_T)``; the central difference's
+        two, or the one-sided `Stencil`'s where the muscle has one.
+        """
+        st = self.one_sided.get((k, j))
+        if st is None:
+            return [
+                (
+                    self.lines[k][j][s],
+                    self.references[k][j][s],
+                    self.to_output[k, j, s],
+                    {b: T[k, j, s] for b, T in self.bone_T.items()},
+                )
+                for s in (0, 1)
+            ], CENTRAL[1]
+        return [
+            (
+                st.lines[i],
+                st.references[i],
+                st.to_output[i],
+                {b: T[i] for b, T in st.bone_T.items()},
+            )
+            for i in range(len(st.weights))
+        ], st.weights
 
     def slice(self, a: int, b: int) -> SidePoses:
         return SidePoses(
@@ -455,17 +487,7 @@ def frame_span(inputs: Any, name: str) -> FrameSpan:
             ma.references[name],
             ma.to_output[spec.body],
             {b.name: ma.to_output[b.body] for b in scene.bones},
-            {
-                kj: SideStencil(
-                    st.offsets,
-                    st.weights,
-                    st.lines,
-                    st.references,
-                    st.to_output[spec.body],
-                    {b.name: st.to_output[b.body] for b in scene.bones},
-                )
-                for kj, st in ma.one_sided.get(name, {}).items()
-            },
+            ma.one_sided[name],
         )
     wp = drive.waypoints
     return FrameSpan(
