@@ -1,6 +1,7 @@
 """Fibres' and action lines' moment arms on the LHDL hip sweeps: accuracy, step and cost.
 
     python benchmarks/bench_moment_arms.py [SCENE] [--steps 0.5,1,2,4] [--repeats 3]
+    python benchmarks/bench_moment_arms.py SCENE --smoothness [--fibres-of SCENE2]
 
 1. The action line's moment arm against OpenSim's ``computeMomentArm`` on every frame of
    every motion, the frames where the path's points change between the frame and a side
@@ -16,6 +17,10 @@
 3. Cost: the warm run with ``[fibres]`` against ``--no-fibres``, alternately,
    ``--repeats`` times each (CLI, all workers), medians and ratio (target <= 1.3x);
    ``--steps ""`` runs only this.
+4. ``--smoothness`` (only this): the scene run once (its ``[fibres]``, or those of
+   ``--fibres-of``: the LHDL walk and squat have none); per muscle and coordinate, every
+   frame: the fibre-frames more than 3 mm from the median of their 5 neighbouring frames,
+   the largest such distance, and the action line's largest difference from OpenSim.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import dataclasses
 import statistics
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -87,7 +93,38 @@ def sweep_table(scene, step: float, workers: int, contact: bool) -> None:  # noq
                 )
 
 
-def _spikes(path: Path, coord: str) -> dict[str, tuple[int, int]]:
+def smoothness(scene, workers: int) -> None:  # noqa: ANN001
+    """Issue 25's targets on every motion of ``scene``, every coordinate of its fibres."""
+    import time
+
+    from musclewrap.scene import run_scene
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for motion in scene.motions:
+            one = dataclasses.replace(scene, motions=(motion,), gif=False)
+            t = time.perf_counter()
+            run_scene(one, Path(tmp) / motion.stem, workers=workers, progress=None, render=False)
+            wall = time.perf_counter() - t
+            folder = Path(tmp) / motion.stem
+            arms = list(csv.DictReader(open(folder / "moment_arms.csv")))
+            print(f"{motion.stem}: {wall:.1f} s (cold run)")
+            print("  coordinate        muscle            off / fibre-frames  largest  line-OpenSim")
+            for c in scene.fibres.moment_arms:
+                spikes = _spikes(folder / "fibres.csv", c, largest=True)
+                for m in scene.muscles:
+                    big, total, worst = spikes[m.name]
+                    line = max(
+                        abs(float(x["line_moment_arm"]) - float(x["opensim_moment_arm"]))
+                        for x in arms
+                        if x["muscle"] == m.name and x["coordinate"] == c
+                    )
+                    print(
+                        f"  {c:17s} {m.name:16s} {big:7d} / {total:<9d} {worst:7.1f} mm "
+                        f"{line:8.4f} mm"
+                    )
+
+
+def _spikes(path: Path, coord: str, largest: bool = False) -> dict[str, Any]:
     """Per muscle: fibre-frames off their neighbours, and all fibre-frames.
 
     Off: the moment arm about ``coord`` more than 3 mm from the median of its 5
@@ -99,13 +136,13 @@ def _spikes(path: Path, coord: str) -> dict[str, tuple[int, int]]:
             series.setdefault((x["muscle"], x["fibre"]), []).append(
                 (int(x["frame"]), float(x["moment_arm"]))
             )
-    out: dict[str, tuple[int, int]] = {}
+    out: dict[str, Any] = {}
     for (m, _), got in series.items():
         r = np.array([v for _, v in sorted(got)])
-        med = np.array([np.median(r[max(0, i - 2) : i + 3]) for i in range(len(r))])
-        big, total = out.get(m, (0, 0))
-        out[m] = (big + int((np.abs(r - med) > 3.0).sum()), total + len(r))
-    return out
+        off = np.abs(r - [np.median(r[max(0, i - 2) : i + 3]) for i in range(len(r))])
+        big, total, worst = out.get(m, (0, 0, 0.0))
+        out[m] = (big + int((off > 3.0).sum()), total + len(r), max(worst, float(off.max())))
+    return out if largest else {m: v[:2] for m, v in out.items()}
 
 
 def main() -> None:
@@ -115,13 +152,20 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--tables-only", action="store_true", help="skip the timing")
+    p.add_argument("--smoothness", action="store_true", help="only item 4")
+    p.add_argument("--fibres-of", help="a scene whose [fibres] table to use")
     a = p.parse_args()
     from musclewrap._bench import timed_run
     from musclewrap.scene import load_scene
 
     scene = load_scene(Path(a.scene))
+    if a.fibres_of:
+        scene = dataclasses.replace(scene, fibres=load_scene(Path(a.fibres_of)).fibres)
     if scene.fibres is None or not scene.fibres.moment_arms:
         raise SystemExit(f"{a.scene}: no [fibres] moment_arms")
+    if a.smoothness:
+        smoothness(scene, a.workers)
+        return
     line_against_opensim(scene)
     for contact in (False, True):
         for step in (float(s) for s in a.steps.split(",") if s):
