@@ -4,6 +4,7 @@ from ._laplacian import cotangent_laplacian
 from ._lines import (
     LineError,
     LineSampling,
+    PathLines,
     check_lines,
     csv_rows,
     placement_problem,
@@ -16,6 +17,7 @@ from ._rotation import (
     SampleRotations,
     kabsch,
     matrix_to_quaternion,
+    path_rotations,
     quaternion_to_matrix,
     sample_rotations,
 )
@@ -23,6 +25,7 @@ from ._rotation import (
 __all__ = [
     "LineError",
     "LineSampling",
+    "PathLines",
     "RotationField",
     "SampleRotations",
     "check_lines",
@@ -31,6 +34,7 @@ __all__ = [
     "kabsch",
     "placement_problem",
     "matrix_to_quaternion",
+    "path_rotations",
     "polyline_at",
     "quaternion_to_matrix",
     "read_lines_csv",

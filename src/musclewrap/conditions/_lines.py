@@ -17,6 +17,7 @@ from .._validation import as_points
 __all__ = [
     "LineError",
     "LineSampling",
+    "PathLines",
     "check_lines",
     "csv_rows",
     "placement_problem",
@@ -28,6 +29,30 @@ __all__ = [
 
 class LineError(ValueError):
     """Action lines that cannot drive a deformation."""
+
+
+class PathLines(dict):
+    """Action lines (name -> (k, 3) points) that know the bodies their points are fixed in.
+
+    A model's muscle path: besides its points, per line the rotation from the rest pose
+    to this one of the body each point is fixed in, expressed in the lines' frame
+    (``rotations[name]``, (k, 3, 3)). Given as the current lines of a deformation, these
+    rotations, interpolated along the path, turn the muscle's differential coordinates
+    (`path_rotations`); plain lines use the lines' own frames and a reference point.
+
+    Parameters
+    ----------
+    lines : mapping of str to (k, 3) array_like
+        The points, as for `check_lines`.
+    rotations : mapping of str to (k, 3, 3) array_like
+        Per line and point, the rotation of the point's body (rest to this pose).
+    """
+
+    def __init__(
+        self, lines: Mapping[str, npt.ArrayLike], rotations: Mapping[str, npt.ArrayLike]
+    ) -> None:
+        super().__init__(lines)
+        self.rotations = {str(k): np.asarray(v, dtype=np.float64) for k, v in rotations.items()}
 
 
 def check_lines(lines: Mapping[str, npt.ArrayLike], name: str = "lines") -> dict[str, FloatArray]:

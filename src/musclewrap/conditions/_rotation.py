@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numba
 import numpy as np
+import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
 
@@ -12,6 +15,7 @@ __all__ = [
     "SampleRotations",
     "kabsch",
     "matrix_to_quaternion",
+    "path_rotations",
     "quaternion_to_matrix",
     "sample_rotations",
 ]
@@ -134,6 +138,85 @@ def sample_rotations(
     return SampleRotations(rest, line, reference_rest=reference_rest)(
         current, reference_current=reference_current
     )
+
+
+def path_rotations(
+    lines: Mapping[str, FloatArray],
+    rotations: Mapping[str, FloatArray],
+    names: Sequence[str],
+    params: Sequence[FloatArray],
+) -> FloatArray:
+    """Rotation of every sample from the bodies its path's points are fixed in.
+
+    A sample at normalized arc length ``t`` of a line lies between two of its points;
+    its rotation is the spherical interpolation (slerp) of theirs at its place on that
+    segment. So a part of the path fixed in one bone turns with that bone, and a segment
+    across a joint turns gradually from one bone's rotation to the other's: continuous
+    in the pose wherever the path's points are (where a conditional via point switches,
+    the path itself has a kink), exact under a rigid motion, and free of the twist
+    frame's degeneracy where a reference point lies along the line.
+
+    Parameters
+    ----------
+    lines : mapping of str to (k, 3) float64 array
+        Current lines (repeated consecutive points are dropped, as by `check_lines`).
+    rotations : mapping of str to (k, 3, 3) float64 array
+        Per line and point, its body's rotation from the rest pose.
+    names, params : sequences
+        The lines' names and each one's sample parameters (`LineSampling`).
+
+    Returns
+    -------
+    (count, 3, 3) float64 array
+
+    Raises
+    ------
+    LineError
+        If a line has no rotations, or not one per point.
+    """
+    from ._lines import LineError
+
+    out = []
+    for n, t in zip(names, params, strict=True):
+        P = np.asarray(lines[n], dtype=np.float64)
+        R = rotations.get(n)
+        if R is None or np.shape(R) != (len(P), 3, 3) or not np.all(np.isfinite(R)):
+            raise LineError(
+                f"current lines: line '{n}' needs one finite 3x3 rotation per point "
+                f"({len(P)}), got {None if R is None else np.shape(R)}"
+            )
+        keep = _distinct_mask(np.ascontiguousarray(P))
+        P, R = P[keep], R[keep]
+        q = matrix_to_quaternion(R)
+        # consecutive quaternions on one side: the interpolation takes the shorter way
+        for j in range(1, len(q)):
+            if q[j] @ q[j - 1] < 0.0:
+                q[j] = -q[j]
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+        s /= s[-1]
+        j = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(s) - 2)
+        f = np.clip((t - s[j]) / (s[j + 1] - s[j]), 0.0, 1.0)
+        out.append(quaternion_to_matrix(_slerp(q[j], q[j + 1], f)))
+    return np.ascontiguousarray(np.concatenate(out))
+
+
+def _slerp(q0: FloatArray, q1: FloatArray, f: FloatArray) -> FloatArray:
+    """Unit quaternions ``f`` of the way from ``q0`` to ``q1`` (rows; linear where equal)."""
+    angle = np.arccos(np.clip(np.sum(q0 * q1, axis=1), -1.0, 1.0))
+    sin = np.sin(angle)
+    far = sin > 1e-9
+    a, b = 1.0 - f, f.copy()
+    a[far] = np.sin((1.0 - f[far]) * angle[far]) / sin[far]
+    b[far] = np.sin(f[far] * angle[far]) / sin[far]
+    q = a[:, None] * q0 + b[:, None] * q1
+    return q / np.linalg.norm(q, axis=1)[:, None]
+
+
+def _distinct_mask(P: FloatArray) -> npt.NDArray[np.bool_]:
+    """The rows `check_lines` keeps: those unequal to the row before them."""
+    keep = np.ones(len(P), dtype=bool)
+    keep[1:] = np.any(P[1:] != P[:-1], axis=1)
+    return keep
 
 
 class SampleRotations:

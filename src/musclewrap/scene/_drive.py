@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
-from ..conditions import csv_rows
+from ..conditions import PathLines, csv_rows
 from ._config import UNITS, Scene
 from ._errors import SceneError, suggest
 from ._motion import read_motion
@@ -433,13 +433,32 @@ def _drive_opensim(
         else:
             ref_local[m.name] = (m.reference, model.mass_center(m.reference) * s)
 
+    # every body's orientation at the rest pose: a path point's body turns from there
+    rest_R = {b: model.transform(b, "ground")[:3, :3] for b in (*model.body_names, "ground")}
+
     def lines_now() -> tuple[
         dict[str, dict[str, FloatArray]], dict[str, FloatArray | None], dict[str, FloatArray]
     ]:
         to_g = {b: transform(b, "ground") for b in bodies}
+        turned: dict[str, FloatArray] = {}  # body -> its rotation from the rest pose (ground)
+
+        def turn(b: str) -> FloatArray:
+            if b not in turned:
+                G = to_g[b][:3, :3] if b in to_g else model.transform(b, "ground")[:3, :3]
+                turned[b] = G @ rest_R[b].T
+            return turned[b]
+
         L, R = {}, {}
         for m in scene.muscles:
-            L[m.name] = {p: model.path_points(p, m.body) * s for p in m.paths}
+            # per point, its body's rotation from the rest pose in the muscle's body frame
+            mb = rest_R[m.body].T @ turn(m.body).T
+            L[m.name] = PathLines(
+                {p: model.path_points(p, m.body) * s for p in m.paths},
+                {
+                    p: np.array([mb @ turn(b) @ rest_R[m.body] for b in model.path_point_bodies(p)])
+                    for p in m.paths
+                },
+            )
             r = ref_local[m.name]
             R[m.name] = (
                 None if r is None else apply(invert_rigid(to_g[m.body]) @ to_g[r[0]], r[1][None])[0]

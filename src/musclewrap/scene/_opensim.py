@@ -152,6 +152,11 @@ class OpenSimModel:
             out[k] = (g.get(0), g.get(1), g.get(2))
         return out
 
+    def path_point_bodies(self, name: str) -> list[str]:
+        """The body each active point of a muscle's path is fixed in (as `path_points`)."""
+        arr = self._paths[name].getCurrentPath(self.state)
+        return [arr.get(k).getParentFrame().findBaseFrame().getName() for k in range(arr.getSize())]
+
     def moment_arm(self, path: str, coordinate: str) -> float:
         """OpenSim's moment arm of a muscle path about a coordinate in the current pose.
 

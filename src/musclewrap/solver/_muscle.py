@@ -26,6 +26,7 @@ from ..conditions import (
     SampleRotations,
     check_lines,
     cotangent_laplacian,
+    path_rotations,
     placement_problem,
     sample_lines,
 )
@@ -620,9 +621,17 @@ class Deformer:
     def _targets(
         self, current_lines: Mapping[str, npt.ArrayLike], reference_point: npt.ArrayLike | None
     ) -> tuple[dict[str, FloatArray], FloatArray, FloatArray]:
-        """Validated current lines, their samples ``s'`` and the rotated deltas ``d_L``."""
+        """Validated current lines, their samples ``s'`` and the rotated deltas ``d_L``.
+
+        The samples' rotations: from the bodies of the lines' points where the lines
+        know them (`PathLines`, a model's paths), else from the lines' own frames.
+        """
         cur = check_lines(current_lines, "current lines")
         s_cur = self.sampling.evaluate(cur, "current lines")
+        body = getattr(current_lines, "rotations", None)
+        if body is not None:
+            R_s = path_rotations(current_lines, body, self.sampling.names, self.sampling.params)
+            return cur, s_cur, self.rotation_field.rotate(R_s, self.muscle.delta_rest)
         if (reference_point is None) != (self.reference_rest is None):
             raise ValueError(
                 "reference point: give it both at bind (rest) and at deform (current), or neither"
