@@ -471,3 +471,74 @@ def test_sample_rotations_are_a_rigid_motions_rotation_whatever_the_reference(se
         kw = {} if ref is None else {"reference_rest": ref, "reference_current": R @ ref + t}
         got = sample_rotations(S, S @ R.T + t, line, **kw)
         assert np.abs(got - R).max() < 1e-9
+
+
+def _angle(R):
+    return np.degrees(np.arccos(np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1, 1)))
+
+
+def test_path_rotations_follow_each_points_body_and_slerp_across_a_joint():
+    """Samples on a part of the path fixed in one body turn with it; on the segment that
+    crosses the joint they turn gradually (half way: half the angle, about the same axis);
+    the same rotation for every point gives that rotation everywhere."""
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import path_rotations
+
+    P = np.array([[0.0, 0, 0], [0, 0, 10], [0, 0, 20], [0, 0, 30], [0, 0, 40]])
+    R = Rotation.from_rotvec([0.0, np.radians(80.0), 0.0]).as_matrix()
+    I3 = np.eye(3)
+    rots = np.array([I3, I3, R, R, R])  # points 0-1 on one body, 2-4 on the other
+    t = np.linspace(0.0, 1.0, 41)
+    got = path_rotations({"a": P}, {"a": rots}, ("a",), (t,))
+    assert np.abs(got[t <= 0.25] - I3).max() < 1e-12
+    assert np.abs(got[t >= 0.5] - R).max() < 1e-12
+    half = got[np.argmin(np.abs(t - 0.375))]
+    assert abs(_angle(half) - 40.0) < 1e-9
+    assert np.allclose(Rotation.from_matrix(half).as_rotvec()[[0, 2]], 0.0)
+    # continuous along the path: neighbouring samples differ by a fraction of the turn
+    assert _angle(np.einsum("kab,kcb->kac", got[1:], got[:-1])).max() < 80.0 / 9
+    # a rigid motion: one rotation for all points, whatever the points
+    Q = Rotation.random(random_state=3).as_matrix()
+    bent = np.cumsum(np.random.default_rng(3).normal(size=(7, 3)), axis=0)
+    got = path_rotations({"b": bent}, {"b": np.repeat(Q[None], 7, 0)}, ("b",), (t,))
+    assert np.abs(got - Q).max() < 1e-12
+    # a repeated point is dropped with its rotation, as check_lines drops it
+    Pd = np.insert(P, 2, P[1], axis=0)
+    rd = np.insert(rots, 2, rots[1], axis=0)
+    again = path_rotations({"a": Pd}, {"a": rd}, ("a",), (t,))
+    assert np.abs(again - path_rotations({"a": P}, {"a": rots}, ("a",), (t,))).max() < 1e-15
+
+
+def test_path_rotations_name_a_line_without_one_rotation_per_point():
+    from musclewrap.conditions import path_rotations
+
+    P = np.array([[0.0, 0, 0], [0, 0, 10], [0, 0, 20]])
+    with pytest.raises(LineError, match="line 'a' needs one finite 3x3 rotation per point"):
+        path_rotations({"a": P}, {"a": np.repeat(np.eye(3)[None], 2, 0)}, ("a",), (np.r_[0.0, 1],))
+    with pytest.raises(LineError, match="line 'a'"):
+        path_rotations({"a": P}, {}, ("a",), (np.r_[0.0, 1.0],))
+
+
+def test_path_lines_turn_the_muscle_with_its_bodies(small_muscle):
+    """A muscle whose lines carry their points' rotations: a rigid motion of lines and
+    bodies moves it rigidly; PathLines survive pickling (workers) with their rotations."""
+    import pickle
+
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import PathLines
+
+    rest, _ = capsule_scenario("bend_short")
+    d = small_muscle.bind(rest)
+    R = Rotation.from_rotvec([0.3, -0.5, 0.2]).as_matrix()
+    t = np.array([4.0, -2.0, 7.0])
+    cur = PathLines(
+        {k: np.asarray(v) @ R.T + t for k, v in rest.items()},
+        {k: np.repeat(R[None], len(v), 0) for k, v in rest.items()},
+    )
+    cur = pickle.loads(pickle.dumps(cur))
+    assert set(cur.rotations) == set(rest)
+    r = d.deform(cur)
+    assert r.converged, r.reason
+    assert np.abs(r.V - (small_muscle.V @ R.T + t)).max() < 1e-6 * np.ptp(small_muscle.V)

@@ -591,6 +591,38 @@ def test_lhdl_line_moment_arms_match_opensim(data_dir):
     assert switched == 2  # the iliacus's and psoas's via points in flexion
 
 
+@pytest.mark.realdata
+def test_lhdl_path_points_carry_their_bodies_rotation(data_dir):
+    """The model's lines know their points' bodies: the pelvis's points (the muscles' own
+    body) never turn, the femur's turn as the femur does in the pelvis's frame (checked
+    between frames against the bodies' transforms); the side poses' lines too."""
+    import dataclasses
+
+    from musclewrap.conditions import PathLines
+    from musclewrap.scene import drive_scene
+
+    scene = load_scene(EXAMPLES / "lhdl_hip_sweeps.toml")
+    sc = dataclasses.replace(scene, motions=(scene.motions[0],))  # the flexion sweep
+    d = drive_scene(sc, None, {b.name: np.zeros(3) for b in sc.bones})
+    assert isinstance(d.rest_lines["psoas"], PathLines)
+    for R in d.rest_lines["psoas"].rotations.values():
+        assert np.abs(R - np.eye(3)).max() < 1e-12
+    femur = d.to_output["femur_r"][:, :3, :3]  # output frame: the pelvis, the muscle's body
+    last = None
+    for k, lines in enumerate(d.lines["psoas"]):
+        (R,) = lines.rotations.values()  # origin, via, (via), two points on the femur
+        assert np.abs(R[:-2] - np.eye(3)).max() < 1e-9
+        assert np.abs(R[-1] - R[-2]).max() < 1e-12
+        if last is not None:
+            j, Rj = last
+            assert np.abs(R[-1] @ Rj.T - femur[k] @ femur[j].T).max() < 1e-9
+        last = (k, R[-1])
+    angle = np.degrees(np.arccos((np.trace(R[-1]) - 1) / 2))
+    assert angle > 45  # the sweep's last frame: flexed far from the rest pose
+    lm, lp = d.moment_arms.lines["psoas"][5][0]
+    assert isinstance(lm, PathLines) and isinstance(lp, PathLines)
+
+
 @pytest.mark.parametrize("workers", [1, 2])
 def test_killed_run_resumes_to_identical_outputs(tmp_path, workers):
     import os
