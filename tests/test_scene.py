@@ -455,8 +455,8 @@ def test_gait2392_vhf_example_runs(data_dir, tmp_path):
     s = run_scene(
         scene,
         tmp_path / "g",
-        # frames where the semitendinosus needs the Newton fallback (58) and, on 95, the
-        # exact iteration after it
+        # frames where the semitendinosus needs more than the plain iterations (with the
+        # reference point's twist, 95 needed the exact iteration: test_core covers it)
         frames="58:133:37",
         workers=2,
         cache_dir=tmp_path / "c",
@@ -470,8 +470,6 @@ def test_gait2392_vhf_example_runs(data_dir, tmp_path):
     assert len(s.rows) == 6 * 3
     semi = [r["iterations"] for r in s.rows if r["muscle"] == "semitendinosus"]
     assert max(semi) > 9  # beyond the 8 iterations that used to be the limit here
-    (r95,) = [r for r in s.rows if r["muscle"] == "semitendinosus" and r["frame"] == 95]
-    assert r95["reason"].startswith("converged by the exact iteration (direction not"), r95
     for r in s.rows:
         assert r["converged"], r
         assert abs(r["relative_volume_error"]) <= 1e-9, r

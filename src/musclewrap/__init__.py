@@ -8,7 +8,7 @@ on the fine mesh.
 
 from importlib.metadata import PackageNotFoundError, version
 
-from .conditions import read_lines_csv
+from .conditions import PathLines, read_lines_csv
 from .mesh import read_mesh, write_mesh
 from .solver import DeformationResult, Deformer, Muscle, deform
 
@@ -21,6 +21,7 @@ __all__ = [
     "DeformationResult",
     "Deformer",
     "Muscle",
+    "PathLines",
     "__version__",
     "deform",
     "read_lines_csv",

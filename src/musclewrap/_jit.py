@@ -54,6 +54,8 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("conditions._rotation", "_blend_rotate",
          f"({_A2}, {_A3}, boolean[::1], {_A2}, {_A3})"),
         ("conditions._rotation", "_frame_rotations", f"({_A2}, {_A2}, {_A2}, {_A2}, {_A3})"),
+        ("conditions._rotation", "_quaternions_kernel", f"({_A3}, {_A2})"),
+        ("conditions._rotation", "_matrices_kernel", f"({_A2}, {_A3})"),
         ("mesh._volume", "_volume_ser", f"({_A2}, {_I2}, {_A1})"),
         ("mesh._volume", "_cubic_pair_ser", f"({_A2}, {_I2})"),
         ("mesh._volume", "_mean_rows_kernel", f"({_A2},)"),

@@ -726,10 +726,12 @@ class Deformer:
         ----------
         current_lines : mapping of str to (k, 3) array_like
             The same lines as at `Muscle.bind`, in the new pose; any number of
-            points per line (matched by arc length).
+            points per line (matched by arc length). A `PathLines` also gives
+            each point's body rotation: the samples then turn with their path's
+            bodies, and the reference point is not used.
         reference_point : (3,) array_like, optional
             Current position of the reference point (required if one was
-            given at `Muscle.bind`).
+            given at `Muscle.bind`, unless the lines are `PathLines`).
         method : {"sqp", "exact", "paper"}, optional
             ``"sqp"`` (default): constrained least squares solved by a few
             fixed-point updates of the volume-gradient direction on a proxy
