@@ -20,7 +20,16 @@
 4. ``--smoothness`` (only this): the scene run once (its ``[fibres]``, or those of
    ``--fibres-of``: the LHDL walk and squat have none); per muscle and coordinate, every
    frame: the fibre-frames more than 3 mm from the median of their 5 neighbouring frames,
-   the largest such distance, and the action line's largest difference from OpenSim.
+   the largest such distance, the largest on the motion's interior frames, the first
+   and last frames' largest distance from a quadratic through the 5 end frames (where
+   the median's window is one-sided), and the action line's largest difference from
+   OpenSim; per muscle, about the swept coordinate, the range across fibres of each
+   fibre's 90th percentile of the moment arm and of its negative (the published
+   figures' peak flexion and extension moment arms).
+5. ``--scan MUSCLE`` (only this): the muscle alone through hip flexion -5 to 5 deg in
+   0.1-deg steps without contact; each fibre's ``dL/dq`` between neighbouring poses,
+   and the poses where it steps (by more than 0.5 mm against a median step of a few
+   hundredths): the psoas's "stairs".
 """
 
 from __future__ import annotations
@@ -34,6 +43,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -108,11 +118,14 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
             folder = Path(tmp) / motion.stem
             arms = list(csv.DictReader(open(folder / "moment_arms.csv")))
             print(f"{motion.stem}: {wall:.1f} s (cold run)")
-            print("  coordinate        muscle            off / fibre-frames  largest  line-OpenSim")
+            print(
+                "  coordinate        muscle            off / fibre-frames  largest  interior"
+                "  ends-quadratic  line-OpenSim"
+            )
             for c in scene.fibres.moment_arms:
                 spikes = _spikes(folder / "fibres.csv", c, largest=True)
                 for m in scene.muscles:
-                    big, total, worst = spikes[m.name]
+                    big, total, worst, inner, ends = spikes[m.name]
                     line = max(
                         abs(float(x["line_moment_arm"]) - float(x["opensim_moment_arm"]))
                         for x in arms
@@ -120,29 +133,109 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
                     )
                     print(
                         f"  {c:17s} {m.name:16s} {big:7d} / {total:<9d} {worst:7.1f} mm "
-                        f"{line:8.4f} mm"
+                        f"{inner:6.2f} mm {ends:8.2f} mm {line:10.4f} mm"
                     )
+            swept = _swept(folder / "fibres.csv", scene.fibres.moment_arms)
+            if swept is not None:
+                print(f"  per fibre the 90th percentile about {swept}, range across fibres (mm):")
+                for m, (pos, neg) in _peaks(folder / "fibres.csv", swept).items():
+                    print(
+                        f"    {m:16s} r: {pos[0]:6.1f} .. {pos[1]:6.1f}   -r: {neg[0]:6.1f} .. {neg[1]:6.1f}"
+                    )
+
+
+def _series(path: Path, coord: str) -> dict[tuple[str, str], NDArray[np.float64]]:
+    """Each (muscle, fibre)'s moment arm about ``coord`` over the frames, in order."""
+    got: dict[tuple[str, str], list[tuple[int, float]]] = {}
+    for x in csv.DictReader(open(path)):
+        if x["coordinate"] == coord:
+            got.setdefault((x["muscle"], x["fibre"]), []).append(
+                (int(x["frame"]), float(x["moment_arm"]))
+            )
+    return {key: np.array([v for _, v in sorted(g)]) for key, g in got.items()}
 
 
 def _spikes(path: Path, coord: str, largest: bool = False) -> dict[str, Any]:
     """Per muscle: fibre-frames off their neighbours, and all fibre-frames.
 
     Off: the moment arm about ``coord`` more than 3 mm from the median of its 5
-    neighbouring frames (fewer at the ends).
+    neighbouring frames (fewer at the ends). With ``largest`` also the largest such
+    distance, the largest on interior frames and the largest distance of a first or
+    last frame from a quadratic through the 5 end frames.
     """
-    series: dict[tuple[str, str], list[tuple[int, float]]] = {}
-    for x in csv.DictReader(open(path)):
-        if x["coordinate"] == coord:
-            series.setdefault((x["muscle"], x["fibre"]), []).append(
-                (int(x["frame"]), float(x["moment_arm"]))
-            )
     out: dict[str, Any] = {}
-    for (m, _), got in series.items():
-        r = np.array([v for _, v in sorted(got)])
+    for (m, _), r in _series(path, coord).items():
         off = np.abs(r - [np.median(r[max(0, i - 2) : i + 3]) for i in range(len(r))])
-        big, total, worst = out.get(m, (0, 0, 0.0))
-        out[m] = (big + int((off > 3.0).sum()), total + len(r), max(worst, float(off.max())))
+        ends = 0.0
+        if len(r) >= 5:
+            x = np.arange(len(r))
+            for end, sl in ((0, slice(0, 5)), (len(r) - 1, slice(-5, None))):
+                fit = np.polyval(np.polyfit(x[sl], r[sl], 2), end)
+                ends = max(ends, abs(float(r[end] - fit)))
+        inner = float(off[1:-1].max()) if len(r) > 2 else 0.0
+        big, total, worst, inn, end_ = out.get(m, (0, 0, 0.0, 0.0, 0.0))
+        out[m] = (
+            big + int((off > 3.0).sum()),
+            total + len(r),
+            max(worst, float(off.max())),
+            max(inn, inner),
+            max(end_, ends),
+        )
     return out if largest else {m: v[:2] for m, v in out.items()}
+
+
+def _swept(path: Path, coords: Any) -> str | None:
+    """The moment-arm coordinate whose value changes over the frames (one only), or None."""
+    values: dict[str, set[str]] = {}
+    for x in csv.DictReader(open(path)):
+        values.setdefault(x["coordinate"], set()).add(x["coordinate_value"])
+    moving = [c for c in coords if len(values.get(c, ())) > 1]
+    return moving[0] if len(moving) == 1 else None
+
+
+def _peaks(path: Path, coord: str) -> dict[str, tuple[tuple[float, float], ...]]:
+    """Per muscle, the range across fibres of the 90th percentile of r and of -r."""
+    per: dict[str, list[tuple[float, float]]] = {}
+    for (m, _), r in _series(path, coord).items():
+        per.setdefault(m, []).append((np.percentile(r, 90), np.percentile(-r, 90)))
+    return {
+        m: tuple((float(min(v)), float(max(v))) for v in zip(*got, strict=True))
+        for m, got in per.items()
+    }
+
+
+def scan(scene, muscle: str, workers: int) -> None:  # noqa: ANN001
+    """Item 5: ``dL/dq`` of each fibre between hip flexion poses 0.1 deg apart."""
+    from musclewrap.scene import run_scene, write_motion
+
+    q = np.round(np.linspace(-5.0, 5.0, 101), 6)
+    with tempfile.TemporaryDirectory() as tmp:
+        cols = {"hip_flexion_r": q, "hip_adduction_r": 0 * q, "hip_rotation_r": 0 * q}
+        mot = write_motion(Path(tmp) / "scan.mot", 0.01 * np.arange(len(q)), cols)
+        one = dataclasses.replace(
+            scene,
+            motions=(mot,),
+            muscles=tuple(m for m in scene.muscles if m.name == muscle),
+            gif=False,
+        )
+        run_scene(one, Path(tmp) / "o", workers=workers, progress=None, render=False,
+                  collisions=False)  # fmt: skip
+        L: dict[str, dict[int, float]] = {}
+        for x in csv.DictReader(open(Path(tmp) / "o" / "fibres.csv")):
+            L.setdefault(x["fibre"], {})[int(x["frame"])] = float(x["length"])
+    lengths = np.array([[f[k] for k in sorted(f)] for f in L.values()])
+    slope = -np.diff(lengths, axis=1) / np.radians(0.1)  # mm per rad: a moment arm
+    change = np.abs(np.diff(slope, axis=1))
+    mid = q[1:-1]
+    steps = np.flatnonzero(change.max(axis=0) > 0.5)
+    print(f"{muscle}: hip flexion -5..5 deg by 0.1, no contact, {len(lengths)} fibres")
+    print(f"  median change of dL/dq between neighbouring intervals: {np.median(change):.3f} mm")
+    for i in steps:
+        print(
+            f"  step at {mid[i]:+.1f} deg: dL/dq {slope[:, i].mean():.2f} -> "
+            f"{slope[:, i + 1].mean():.2f} mm (mean over fibres; largest fibre's change "
+            f"{change[:, i].max():.2f} mm)"
+        )
 
 
 def main() -> None:
@@ -154,6 +247,7 @@ def main() -> None:
     p.add_argument("--tables-only", action="store_true", help="skip the timing")
     p.add_argument("--smoothness", action="store_true", help="only item 4")
     p.add_argument("--fibres-of", help="a scene whose [fibres] table to use")
+    p.add_argument("--scan", metavar="MUSCLE", help="only item 5, for this muscle")
     a = p.parse_args()
     from musclewrap._bench import timed_run
     from musclewrap.scene import load_scene
@@ -165,6 +259,9 @@ def main() -> None:
         raise SystemExit(f"{a.scene}: no [fibres] moment_arms")
     if a.smoothness:
         smoothness(scene, a.workers)
+        return
+    if a.scan:
+        scan(scene, a.scan, a.workers)
         return
     line_against_opensim(scene)
     for contact in (False, True):

@@ -59,7 +59,6 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("mesh._volume", "_volume_ser", f"({_A2}, {_I2}, {_A1})"),
         ("mesh._volume", "_cubic_pair_ser", f"({_A2}, {_I2})"),
         ("mesh._volume", "_mean_rows_kernel", f"({_A2},)"),
-        ("conditions._lines", "_distinct_consecutive", f"({_A2},)"),
         ("conditions._lines", "_arclength_kernel", f"({_A2},)"),
         ("conditions._lines", "_polyline_at_kernel", f"({_A2}, {_A1}, {_A2})"),
     ),

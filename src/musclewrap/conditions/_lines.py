@@ -20,6 +20,7 @@ __all__ = [
     "PathLines",
     "check_lines",
     "csv_rows",
+    "distinct_mask",
     "placement_problem",
     "polyline_at",
     "read_lines_csv",
@@ -83,7 +84,7 @@ def check_lines(lines: Mapping[str, npt.ArrayLike], name: str = "lines") -> dict
             P = as_points(pts, f"{name}: line '{key}'")
         except ValueError as exc:
             raise LineError(str(exc)) from None
-        P = _distinct_consecutive(P)
+        P = P[distinct_mask(P)]
         if len(P) < 2:
             raise LineError(
                 f"{name}: line '{key}' needs at least two distinct points, got {len(P)}"
@@ -92,13 +93,11 @@ def check_lines(lines: Mapping[str, npt.ArrayLike], name: str = "lines") -> dict
     return out
 
 
-@numba.njit(cache=True)
-def _distinct_consecutive(P):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
-    # the rows of P without those equal to the row before them
-    keep = np.ones(P.shape[0], dtype=np.bool_)
-    for i in range(1, P.shape[0]):
-        keep[i] = P[i, 0] != P[i - 1, 0] or P[i, 1] != P[i - 1, 1] or P[i, 2] != P[i - 1, 2]
-    return P[keep]
+def distinct_mask(P: FloatArray) -> npt.NDArray[np.bool_]:
+    """The rows of a poly-line that `check_lines` keeps: those unequal to the row before."""
+    keep = np.ones(len(P), dtype=bool)
+    keep[1:] = np.any(P[1:] != P[:-1], axis=1)
+    return keep
 
 
 @numba.njit(cache=True)

@@ -6,7 +6,6 @@ from collections.abc import Mapping, Sequence
 
 import numba
 import numpy as np
-import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
 
@@ -174,7 +173,7 @@ def path_rotations(
     LineError
         If a line has no rotations, or not one per point.
     """
-    from ._lines import LineError
+    from ._lines import LineError, _arclength, distinct_mask
 
     out = []
     for n, t in zip(names, params, strict=True):
@@ -185,15 +184,12 @@ def path_rotations(
                 f"current lines: line '{n}' needs one finite 3x3 rotation per point "
                 f"({len(P)}), got {None if R is None else np.shape(R)}"
             )
-        keep = _distinct_mask(np.ascontiguousarray(P))
-        P, R = P[keep], R[keep]
-        q = matrix_to_quaternion(R)
-        # consecutive quaternions on one side: the interpolation takes the shorter way
-        for j in range(1, len(q)):
-            if q[j] @ q[j - 1] < 0.0:
-                q[j] = -q[j]
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
-        s /= s[-1]
+        keep = distinct_mask(P)
+        s = _arclength(P[keep])
+        q = matrix_to_quaternion(R[keep])
+        # each quaternion on its predecessor's side: the interpolation takes the shorter way
+        flip = np.cumprod(np.where(np.sum(q[1:] * q[:-1], axis=1) < 0.0, -1.0, 1.0))
+        q[1:] *= flip[:, None]
         j = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(s) - 2)
         f = np.clip((t - s[j]) / (s[j + 1] - s[j]), 0.0, 1.0)
         out.append(quaternion_to_matrix(_slerp(q[j], q[j + 1], f)))
@@ -201,7 +197,11 @@ def path_rotations(
 
 
 def _slerp(q0: FloatArray, q1: FloatArray, f: FloatArray) -> FloatArray:
-    """Unit quaternions ``f`` of the way from ``q0`` to ``q1`` (rows; linear where equal)."""
+    """Unit quaternions ``f`` of the way from ``q0`` to ``q1`` (rows; linear where equal).
+
+    Not scipy's `Slerp`: per pose and line it cost 467 us against 145 us here (3 lines
+    of 40 samples), which took the sweeps' fibres from 1.24x to 1.32x ``--no-fibres``.
+    """
     angle = np.arccos(np.clip(np.sum(q0 * q1, axis=1), -1.0, 1.0))
     sin = np.sin(angle)
     far = sin > 1e-9
@@ -210,13 +210,6 @@ def _slerp(q0: FloatArray, q1: FloatArray, f: FloatArray) -> FloatArray:
     b[far] = np.sin(f[far] * angle[far]) / sin[far]
     q = a[:, None] * q0 + b[:, None] * q1
     return q / np.linalg.norm(q, axis=1)[:, None]
-
-
-def _distinct_mask(P: FloatArray) -> npt.NDArray[np.bool_]:
-    """The rows `check_lines` keeps: those unequal to the row before them."""
-    keep = np.ones(len(P), dtype=bool)
-    keep[1:] = np.any(P[1:] != P[:-1], axis=1)
-    return keep
 
 
 class SampleRotations:

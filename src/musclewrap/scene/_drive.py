@@ -317,7 +317,10 @@ def drive_scene(
     *,
     waypoints: bool = False,
 ) -> Drive:
-    """Compute every muscle's action lines (and reference point) for the selected frames.
+    """Compute every muscle's action lines for the selected frames.
+
+    A model's lines are `PathLines` (their points' bodies' rotations turn the muscle);
+    a line CSV's come with the muscles' reference points.
 
     Parameters
     ----------
@@ -326,21 +329,19 @@ def drive_scene(
     frames : str or None
         ``start:stop:step`` over the motion's rows (or the CSV's frames).
     bone_centroids : dict of str to (3,) array
-        Centroid of each bone mesh in mesh coordinates.
+        Centroid of each bone mesh in mesh coordinates (a line CSV's reference points).
     waypoints : bool, optional
         Also the poses on the paths from the rest pose to the frames (`Waypoints`;
         a model's scene only: a line CSV has no poses in between).
     """
     if scene.osim is not None and scene.motion is not None:
-        return _drive_opensim(scene, frames, bone_centroids, waypoints)
+        return _drive_opensim(scene, frames, waypoints)
     if scene.lines_csv is not None:
         return _drive_csv(scene, frames, bone_centroids)
     raise SceneError(f"{scene.path}: nothing drives the scene (no motion, no line CSV)")
 
 
-def _drive_opensim(
-    scene: Scene, frames_text: str | None, centroids: dict[str, FloatArray], waypoints: bool
-) -> Drive:
+def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Drive:
     model = OpenSimModel(scene.osim)
     motion = read_motion(scene.motion)
     names = model.coordinate_names
@@ -392,15 +393,12 @@ def _drive_opensim(
     for b in scene.bones:
         model.check_body(b.body)
     model.check_body(scene.output_frame)
-    bone_names = {b.name: b for b in scene.bones}
     for spec in scene.muscles:
-        if spec.reference is not None and spec.reference not in bone_names:
-            if spec.reference not in (*model.body_names,):
-                raise SceneError(
-                    f"{scene.path}: [muscles.{spec.name}] reference '{spec.reference}' is neither "
-                    "a bone of the scene nor a body of the model; "
-                    + suggest(spec.reference, sorted(bone_names) + list(model.body_names))
-                )
+        if spec.reference is not None:
+            notes.append(
+                f"[muscles.{spec.name}] reference '{spec.reference}' is not used with a model: "
+                "the muscle turns with the bodies its path's points are fixed in"
+            )
 
     def transform(body: str, frame: str) -> FloatArray:
         T = model.transform(body, frame)
@@ -410,10 +408,7 @@ def _drive_opensim(
     reg = scene.registration
     bodies = sorted({m.body for m in scene.muscles} | {b.body for b in scene.bones} | {
         x.frame for x in (*scene.muscles, *scene.bones) if x.frame != "registration"} | {
-        lm.body for lm in (reg.landmarks if reg else ())} | {
-        bone_names[m.reference].body if m.reference in bone_names else m.reference
-        for m in scene.muscles if m.reference is not None
-    } | {"ground"})  # fmt: skip
+        lm.body for lm in (reg.landmarks if reg else ())} | {"ground"})  # fmt: skip
     model.set_pose(rest)
     for b in bodies:
         model.check_body(b)
@@ -421,18 +416,6 @@ def _drive_opensim(
     if reg is not None:
         g["registration"] = _register(scene, g, s, notes)
     to_body = {x.name: invert_rigid(g[x.body]) @ g[x.frame] for x in (*scene.muscles, *scene.bones)}
-    # reference points as fixed points of their bodies
-    ref_local: dict[str, tuple[str, FloatArray] | None] = {}
-    for m in scene.muscles:
-        if m.reference is None:
-            ref_local[m.name] = None
-        elif m.reference in bone_names:
-            b = bone_names[m.reference]
-            c = apply(to_body[b.name], centroids[b.name][None])[0]
-            ref_local[m.name] = (b.body, c)
-        else:
-            ref_local[m.name] = (m.reference, model.mass_center(m.reference) * s)
-
     # every body's orientation at the rest pose: a path point's body turns from there
     rest_R = {b: model.transform(b, "ground")[:3, :3] for b in (*model.body_names, "ground")}
 
@@ -459,10 +442,7 @@ def _drive_opensim(
                     for p in m.paths
                 },
             )
-            r = ref_local[m.name]
-            R[m.name] = (
-                None if r is None else apply(invert_rigid(to_g[m.body]) @ to_g[r[0]], r[1][None])[0]
-            )
+            R[m.name] = None  # the points' bodies turn it: no reference point
         return L, R, to_g
 
     rest_lines, rest_ref, _ = lines_now()
