@@ -169,6 +169,57 @@ def test_rest_line_far_from_the_muscle_is_refused(small_muscle):
     small_muscle.bind({"a": [[0, 0, -60], [0, 0, 260]]})
 
 
+def test_a_tendon_beyond_the_muscle_turning_at_a_joint_leaves_the_muscle_alone(small_muscle):
+    # the capsule's belly lies along z from 0 to 200; its path runs on through a tendon to
+    # z = 320, turned 60 degrees at a "knee" 40 mm past the belly's end. Bound to its whole
+    # path, the extrapolated coordinates of the tendon's samples drag the belly 33 mm and
+    # crease it; bound up to one mean thickness (4 V / A, about 37 mm here) past its end,
+    # the belly stays where its own stretch of the path is: at rest.
+    V = small_muscle.V
+    rest = {"axis": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 240.0], [0.0, 0.0, 320.0]])}
+    a = np.radians(60.0)
+    knee = [80.0 * np.sin(a), 0.0, 240.0 + 80.0 * np.cos(a)]
+    cur = {"axis": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 240.0], knee])}
+    d = small_muscle.bind(rest)
+    from musclewrap.mesh import face_areas
+
+    thickness = 4 * small_muscle.volume_rest / face_areas(V, small_muscle.F).sum()
+    (start, end, far) = d.unbound["axis"]
+    assert start == 0.0 and far == pytest.approx(120.0, abs=0.5)
+    # cut past the last sample within one thickness of the pole (z = 200)
+    kept_end = (1 - end) * 320.0
+    assert 200.0 < kept_end <= 200.0 + 1.05 * thickness
+    assert d.sampling.count < small_muscle.bind(rest, line_reach=None).sampling.count
+    r = d.deform(cur)
+    assert r.converged and np.abs(r.V - V).max() <= 1e-6
+    whole = small_muscle.bind(rest, line_reach=None).deform(cur)
+    assert np.abs(whole.V - V).max() > 20.0
+    assert small_muscle.shape_change(whole.V).max() > 0.5
+    # a path that stays within the muscle's reach is bound whole
+    assert small_muscle.bind({"a": [[0, 0, -20], [0, 0, 220]]}).unbound == {}
+    with pytest.raises(ValueError, match="line_reach must be positive"):
+        small_muscle.bind(rest, line_reach=0.0)
+
+
+def test_within_reach_keeps_each_lines_stretch_near_the_muscle():
+    from musclewrap.conditions import LineSampling, within_reach
+
+    t = np.linspace(0.0, 1.0, 11)
+    s = LineSampling(names=("a", "b", "c"), params=(t, t, t))
+    far = np.r_[9, 5, 1, 0, 0, 3, 0, 1, 2, 4, 8.0]  # "a": tails both sides, a gap inside
+    away = np.full(11, 7.0)  # "b": nowhere within reach: kept whole
+    touch = np.r_[np.full(7, 9.0), 2.0, np.full(3, 9.0)]  # "c": one sample within reach
+    got, cut = within_reach(s, np.r_[far, away, touch], 2.0, keep=5)
+    assert np.array_equal(got.params[0], t[2:9])  # the gap at 3 stays bound
+    assert np.array_equal(got.params[1], t)
+    assert np.array_equal(got.params[2], t[5:10])  # 5 kept around the nearest
+    assert cut["a"] == pytest.approx((0.2, 0.2, 9.0))
+    assert "b" not in cut and cut["c"] == pytest.approx((0.5, 0.1, 9.0))
+    # the kept samples evaluate any current line at their old parameters
+    line = {n: np.array([[0.0, 0, 0], [0, 0, 10.0]]) for n in "abc"}
+    assert np.allclose(got.evaluate(line)[: len(got.params[0]), 2], 10 * t[2:9])
+
+
 def test_a_muscle_too_large_for_the_memory_is_refused_before_preparation(monkeypatch):
     import musclewrap.mesh._checks as sm
 

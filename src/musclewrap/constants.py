@@ -107,6 +107,13 @@ class Defaults:
         pelvic brim).
     samples_per_line : int
         Minimum number of arc-length samples per action line.
+    line_reach : float
+        A line's samples before the first or after the last that lies within this
+        many of the muscle's mean thicknesses (``4 * volume / area``) outside the
+        muscle are not bound to it: a model's path runs on through the tendons that
+        a segmented mesh leaves out (gait2392's semitendinosus path runs 175 mm
+        past the VHF mesh, to the tibia), and there the samples' mean value
+        coordinates extrapolate the cage.
     max_iterations : int
         Iteration limit of the default solver (most poses converge in 3-6
         plain iterations).
@@ -210,6 +217,7 @@ class Defaults:
     anchor_reach: float = 0.5
     anchor_end_reach: float = 0.15
     samples_per_line: int = 33
+    line_reach: float = 1.0
     max_iterations: int = 60
     plain_iterations: int = 30
     newton_rate: float = 0.85

@@ -11,6 +11,7 @@ from ._lines import (
     polyline_at,
     read_lines_csv,
     sample_lines,
+    within_reach,
 )
 from ._rotation import (
     RotationField,
@@ -40,4 +41,5 @@ __all__ = [
     "read_lines_csv",
     "sample_lines",
     "sample_rotations",
+    "within_reach",
 ]

@@ -25,6 +25,7 @@ __all__ = [
     "polyline_at",
     "read_lines_csv",
     "sample_lines",
+    "within_reach",
 ]
 
 
@@ -255,6 +256,61 @@ def sample_lines(
         t[-1] = 1.0
         params.append(t)
     return LineSampling(names=names, params=tuple(params))
+
+
+def within_reach(
+    sampling: LineSampling, outside: FloatArray, reach: float, *, keep: int = 5
+) -> tuple[LineSampling, dict[str, tuple[float, float, float]]]:
+    """The samples of each line from its first to its last within ``reach`` of the muscle.
+
+    A model's path runs from bone to bone, tendons included, while a segmented muscle
+    mesh usually holds the belly alone: the samples of a path's tendons lie beyond the
+    muscle's ends, where their mean value coordinates extrapolate the cage and a joint
+    that turns the tendon (the knee under the semitendinosus) would bend the whole
+    muscle with it. Such a tail is not bound. Samples between the first and the last
+    within reach are all kept, however far they stray (a skeleton outside its muscle,
+    as the sartorius's, still drives it).
+
+    Parameters
+    ----------
+    sampling : LineSampling
+        The rest lines' samples.
+    outside : (count,) float64 array
+        Each sample's distance outside the muscle (0 inside it).
+    reach : float
+        Largest distance outside the muscle of a bound sample at a line's ends.
+    keep : int, optional
+        Fewest samples kept per line (around its nearest sample, where fewer lie
+        within reach); a line none of whose samples lies within reach is kept whole.
+
+    Returns
+    -------
+    sampling : LineSampling
+        The kept samples (the same parameters: a current line is sampled as before).
+    cut : dict of str to (float, float, float)
+        Per line with samples left out: the arc-length fractions left out at its
+        start and at its end, and the farthest of them from the muscle.
+    """
+    outside = np.asarray(outside, dtype=np.float64)
+    params: list[FloatArray] = []
+    cut: dict[str, tuple[float, float, float]] = {}
+    start = 0
+    for name, t in zip(sampling.names, sampling.params, strict=True):
+        d = outside[start : start + len(t)]
+        start += len(t)
+        near = np.flatnonzero(d <= reach)
+        if not len(near) or len(t) <= keep:
+            params.append(t)
+            continue
+        a, b = int(near[0]), int(near[-1])
+        if b - a + 1 < keep:
+            a = min(max(0, int(np.argmin(d)) - keep // 2), len(t) - keep)
+            b = a + keep - 1
+        params.append(t[a : b + 1])
+        if a > 0 or b < len(t) - 1:
+            dropped = np.r_[d[:a], d[b + 1 :]]
+            cut[name] = (float(t[a]), float(1.0 - t[b]), float(dropped.max()))
+    return LineSampling(names=sampling.names, params=tuple(params)), cut
 
 
 def csv_rows(

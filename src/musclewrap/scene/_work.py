@@ -111,6 +111,22 @@ def bone_probe(bone: BoneMesh, cache_dir: str | None) -> Any:
     return _probes[key]
 
 
+def _unbound_note(name: str, unbound: dict[str, tuple[float, float, float]]) -> str | None:
+    """What of a muscle's lines is not bound to it (`musclewrap.Deformer.unbound`), or None."""
+    if not unbound:
+        return None
+    parts = []
+    for line, (start, end, far) in unbound.items():
+        where = " and ".join(
+            f"its {w} {100 * f:.0f} %" for w, f in (("first", start), ("last", end)) if f > 0
+        )
+        parts.append(f"{line} ({where}, up to {far:.3g} mesh units outside the muscle)")
+    return (
+        f"{name}: not bound where the path runs on beyond the muscle (tendons the mesh does "
+        f"not hold): {', '.join(parts)}; the muscle follows the rest of its path"
+    )
+
+
 def _deformer(job: MuscleJob, keep: int = 1) -> tuple[Any, Any, bool, str | None, float]:
     """The muscle bound to its rest lines, kept per process (a muscle comes in chunks).
 
@@ -333,7 +349,8 @@ class _MuscleFrames:
         self.out = Path(job.outdir)
         self.result = ChunkResult(job.name, [], [], seconds_prepare=seconds_prepare, cache_hit=hit)
         self.fb, fibre_note = _fibres(job, muscle)
-        self.result.note = "; ".join(n for n in (note, fibre_note) if n) or None
+        unbound = _unbound_note(job.name, d.unbound)
+        self.result.note = "; ".join(n for n in (note, unbound, fibre_note) if n) or None
         self.kw: dict[str, Any] = {"method": job.method, "max_iterations": job.max_iterations}
         if self.contact is not None:
             self.kw["margin"] = job.margin

@@ -29,6 +29,7 @@ from ..conditions import (
     path_rotations,
     placement_problem,
     sample_lines,
+    within_reach,
 )
 from ..constants import defaults, tol
 from ..contact import (
@@ -53,6 +54,7 @@ from ..mesh import (
     clean_mesh,
     combine_pair,
     cubic_root_near,
+    face_areas,
     mean_edge_length,
     mean_rows,
     umbrella_laplacian,
@@ -442,6 +444,7 @@ class Muscle:
         reference_point: npt.ArrayLike | None = None,
         skeleton_weight: float = defaults.skeleton_weight,
         anchors: npt.ArrayLike | None = None,
+        line_reach: float | None = defaults.line_reach,
     ) -> Deformer:
         """Attach the rest-pose action lines; returns the per-pose solver.
 
@@ -459,6 +462,11 @@ class Muscle:
             Fine vertices that keep their rest positions (soft, like the skeleton
             condition): where the muscle lies on a bone of the body that carries
             it (an origin), in the frame in which it is deformed.
+        line_reach : float or None, optional
+            A line's samples beyond the first or last that lies within this many
+            of the muscle's mean thicknesses (``4 V / A``) outside it are not bound
+            (tendons the mesh does not hold; `Deformer.unbound` says which). None
+            binds every sample.
 
         Returns
         -------
@@ -470,6 +478,7 @@ class Muscle:
             reference_point=reference_point,
             skeleton_weight=skeleton_weight,
             anchors=anchors,
+            line_reach=line_reach,
         )
 
 
@@ -495,6 +504,16 @@ class Deformer:
         ``w_a W_a x = w_a V_a`` (rows of ``A`` like the skeleton's; weight
         ``defaults.anchor_weight * sqrt(m / k)``, feathered toward the rim of the
         anchors' patch over ``defaults.anchor_feather`` rings).
+    line_reach : float or None, optional
+        A line's samples beyond the first or last within this many of the muscle's
+        mean thicknesses outside it are not bound (`musclewrap.conditions.within_reach`);
+        None binds every sample.
+
+    Attributes
+    ----------
+    unbound : dict of str to (float, float, float)
+        Per line with samples not bound: the arc-length fractions left out at its
+        start and at its end, and the farthest of them from the muscle (mesh units).
     """
 
     def __init__(
@@ -505,6 +524,7 @@ class Deformer:
         reference_point: npt.ArrayLike | None = None,
         skeleton_weight: float = defaults.skeleton_weight,
         anchors: npt.ArrayLike | None = None,
+        line_reach: float | None = defaults.line_reach,
     ) -> None:
         if not skeleton_weight > 0:
             raise ValueError(f"skeleton_weight must be positive, got {skeleton_weight}")
@@ -519,6 +539,17 @@ class Deformer:
         self.rest_samples = self.sampling.evaluate(rest, "rest lines")
         self.sample_line = self.sampling.line_index()
         self._check_near(muscle.V)
+        self.unbound: dict[str, tuple[float, float, float]] = {}
+        if line_reach is not None:
+            if not line_reach > 0:
+                raise ValueError(f"line_reach must be positive or None, got {line_reach}")
+            # tendons beyond the mesh: their samples' coordinates would extrapolate the cage
+            thickness = 4.0 * muscle.volume_rest / float(face_areas(muscle.V, muscle.F).sum())
+            self.sampling, self.unbound = within_reach(
+                self.sampling, _outside(self.rest_samples, muscle), line_reach * thickness
+            )
+            self.rest_samples = self.sampling.evaluate(rest, "rest lines")
+            self.sample_line = self.sampling.line_index()
         self.S = mean_value_coordinates(self.rest_samples, C, CF)
         m, k = len(C), len(self.rest_samples)
         self.weight = skeleton_weight * np.sqrt(m / k)
@@ -1326,6 +1357,13 @@ class Deformer:
                 return x, lam, its, True
             damp = damp / 4.0 if damp > 1e-3 else 0.0
         return x, lam, budget, False
+
+
+def _outside(P: FloatArray, muscle: Muscle) -> FloatArray:
+    """Each point's distance outside the muscle's surface (0 inside it)."""
+    d2, _, _ = igl.point_mesh_squared_distance(P, muscle.V, muscle.F)
+    inside = igl.fast_winding_number(muscle.V, muscle.F, P) > 0.5
+    return np.where(inside, 0.0, np.sqrt(d2))
 
 
 def _feather(muscle: Muscle, anchors: IntArray, depth: int) -> FloatArray:
