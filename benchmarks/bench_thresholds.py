@@ -1,6 +1,6 @@
 """The contact's thresholds on either side of their defaults, on the deep squat.
 
-    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine|points]
+    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine|points|reach]
 
 Drives `examples/lhdl_squat.toml` (the OpenCap deep squat, hip flexion to 106 deg) and, per
 setting, runs the muscles it matters for with the setting replaced, checks the written meshes
@@ -25,7 +25,13 @@ muscle) and prints the largest shape change (and on how many frames it exceeds 0
 - ``points`` (``contact_points_per_cage_vertex``, another muscle's vertices standing in a muscle
   kept as conditions of its cage step per cage vertex): 1, 3 (default) and every one, on
   `examples/gait2392_walk.toml` every 5th frame, every one checked, with the run's seconds
-  (one run each in this process: a rough figure, no repeats).
+  (one run each in this process: a rough figure, no repeats);
+- ``reach`` (``line_reach``, how far past the muscle a path's tail stays bound, in mean
+  thicknesses ``4 V / A``): 0.5, 1 (default), 2, 4 and none (every sample bound), on
+  `examples/gait2392_walk.toml`'s semitendinosus through the whole walk with the LHDL sweeps'
+  fibres (its fibres' moment arms more than 3 mm from the median of their 5 neighbouring
+  frames, shape change, iterations), and per setting what it leaves unbound on every muscle
+  of the gait2392 and LHDL walks.
 
 Every run is in this process, on one worker (a replaced default does not reach worker
 processes); no timing is taken but for ``points``.
@@ -169,6 +175,85 @@ def main() -> None:
             )
             print(f"  {time.perf_counter() - t0:.1f} s (run and check)")
             _print(f"points {k if k < 10**9 else 'all'}", names, rows, checked, others=True)
+
+    if a.only in (None, "reach"):
+        _reach(cache)
+
+
+def _reach(cache: Path) -> None:
+    """``line_reach`` on either side of its default (the module's docstring)."""
+    import csv
+
+    import numpy as np
+
+    import musclewrap.solver._muscle as solver
+    from musclewrap.constants import defaults
+    from musclewrap.scene import load_scene, run_scene
+
+    gait = load_scene(ROOT / "examples" / "gait2392_walk.toml")
+    fibres = load_scene(ROOT / "examples" / "lhdl_hip_sweeps.toml").fibres
+    semi = dataclasses.replace(
+        gait,
+        muscles=tuple(m for m in gait.muscles if m.name == "semitendinosus"),
+        fibres=fibres,
+        gif=False,
+    )
+    walks = [gait, load_scene(ROOT / "examples" / "lhdl_walk.toml")]
+    print("line_reach (gait2392 walk's semitendinosus, frames 0:211:1, sweeps' fibres)")
+    old = defaults.line_reach
+    bound: list[object] = []
+    bind = solver.Deformer.__init__
+
+    def kept(self, muscle, rest_lines, **kw):  # noqa: ANN001, ANN003, ANN202
+        bind(self, muscle, rest_lines, **kw)
+        bound.append(self)
+
+    try:
+        for reach in (0.5, 1.0, 2.0, 4.0, None):
+            object.__setattr__(defaults, "line_reach", reach)
+            with tempfile.TemporaryDirectory() as tmp:
+                out = Path(tmp) / "o"
+                s = run_scene(semi, out, workers=1, cache_dir=cache, progress=None, render=False)
+                series: dict[tuple[str, str], list[tuple[int, float]]] = {}
+                for r in csv.DictReader(open(out / "fibres.csv")):
+                    key = (r["coordinate"], r["fibre"])
+                    series.setdefault(key, []).append((int(r["frame"]), float(r["moment_arm"])))
+            off, worst = 0, 0.0
+            for got in series.values():
+                a = np.array([v for _, v in sorted(got)])
+                med = np.array([np.median(a[max(0, i - 2) : i + 3]) for i in range(len(a))])
+                dev = np.abs(a - med)
+                off, worst = off + int((dev > 3.0).sum()), max(worst, float(np.nanmax(dev)))
+            n = sum(len(v) for v in series.values())
+            print(
+                f"  reach {reach!s:<5} semitendinosus: {off} of {n} fibre-frames > 3 mm off "
+                f"(largest {worst:.1f} mm), shape change <= "
+                f"{max(r['shape_change_max'] for r in s.rows):.2f}, iterations <= "
+                f"{max(r['iterations'] for r in s.rows)}, unconverged "
+                f"{sum(not r['converged'] for r in s.rows)}"
+            )
+            solver.Deformer.__init__ = kept
+            try:
+                for sc in walks:
+                    bound.clear()
+                    with tempfile.TemporaryDirectory() as tmp:
+                        one = dataclasses.replace(sc, fibres=None, gif=False, paper_frames=0)
+                        run_scene(one, Path(tmp), frames="0:1", workers=1, cache_dir=cache,
+                                  progress=None, render=False)  # fmt: skip
+                    cut = {k: v for d in bound for k, v in d.unbound.items()}
+                    print(
+                        f"    {sc.path.name}: unbound "
+                        + (
+                            ", ".join(
+                                f"{k} {100 * (a + b):.0f} %" for k, (a, b, _) in sorted(cut.items())
+                            )
+                            or "nothing"
+                        )
+                    )
+            finally:
+                solver.Deformer.__init__ = bind
+    finally:
+        object.__setattr__(defaults, "line_reach", old)
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
+from ..constants import defaults
 from ..mesh import write_mesh
 from ._drive import apply, invert_rigid
 from ._fibres import fibres_of, frame_fibres, write_frame_fibres
@@ -141,7 +142,12 @@ def _deformer(job: MuscleJob, keep: int = 1) -> tuple[Any, Any, bool, str | None
     t0 = time.perf_counter()
     muscle, hit, note = _prepare(job)
     seconds = time.perf_counter() - t0
-    d = muscle.bind(job.rest_lines, reference_point=job.rest_reference, anchors=job.anchors)
+    d = muscle.bind(
+        job.rest_lines,
+        reference_point=job.rest_reference,
+        anchors=job.anchors,
+        line_reach=defaults.line_reach,
+    )
     while len(_deformers) >= max(1, keep):
         del _deformers[next(iter(_deformers))]  # the one used longest ago
     _deformers[key] = (muscle, d)
