@@ -94,7 +94,8 @@ def _print(label, muscles, rows, checked, others=False) -> None:  # noqa: ANN001
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument(
-        "--only", choices=("path_step", "cage_depth", "cage_size", "facing", "fine", "points")
+        "--only",
+        choices=("path_step", "cage_depth", "cage_size", "facing", "fine", "points", "reach"),
     )
     a = p.parse_args()
     from musclewrap.scene import load_scene
