@@ -1106,3 +1106,23 @@ def test_moment_arm_picture_is_drawn_against_the_swept_angle(tmp_path, monkeypat
 
     drive = drive_scene(load_scene(toml), "0:6", {})
     assert drive.swept == "flex" and drive.coordinate_values["flex"] == pytest.approx(q[:6])
+
+
+def test_the_documented_columns_are_the_files_columns_and_the_keys_the_readers():
+    """The documentation's tables (generated from OUTPUT_COLUMNS and SCENE_KEYS) cannot drift
+    from what a run writes and what a scene may say."""
+    import musclewrap.scene._config as config
+    from musclewrap.scene import OUTPUT_COLUMNS, REPORT_FIELDS, SCENE_KEYS
+    from musclewrap.scene._fibres import FIBRE_FIELDS, MOMENT_ARM_FIELDS
+
+    assert list(OUTPUT_COLUMNS["report.csv"]) == REPORT_FIELDS
+    assert list(OUTPUT_COLUMNS["fibres.csv"]) == FIBRE_FIELDS
+    assert list(OUTPUT_COLUMNS["moment_arms.csv"]) == MOMENT_ARM_FIELDS
+    assert config._MUSCLE == set(SCENE_KEYS["muscles.NAME"])
+    assert config._FIBRES == set(SCENE_KEYS["fibres"])
+    for table in SCENE_KEYS.values():
+        for key, meaning in table.items():
+            assert meaning.strip() and key == key.strip()
+    # every table of the top level is described, and every key of it refused when unknown
+    tables = {k for k, v in SCENE_KEYS[""].items() if v.startswith("Table")}
+    assert tables == {t.split(".")[0] for t in SCENE_KEYS if t}

@@ -4,12 +4,15 @@ from ._config import BoneSpec, MuscleSpec, Scene, load_scene
 from ._drive import Drive, drive_scene, parse_frames
 from ._errors import SceneError
 from ._execute import Executor, LocalExecutor, ProcessExecutor
+from ._keys import OUTPUT_COLUMNS, SCENE_KEYS
 from ._motion import Motion, random_motion, read_motion, write_motion
 from ._opensim import OpenSimModel
 from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_batch, run_scene
 
 __all__ = [
+    "OUTPUT_COLUMNS",
     "REPORT_FIELDS",
+    "SCENE_KEYS",
     "BoneSpec",
     "Drive",
     "Executor",

@@ -14,38 +14,24 @@ import numpy as np
 from .._typing import PathLike
 from ..constants import defaults
 from ._errors import SceneError, suggest
+from ._keys import SCENE_KEYS
 
 __all__ = ["UNITS", "BoneSpec", "FibreSpec", "MuscleSpec", "Scene", "load_scene"]
 
 #: length units accepted in ``[units]``, in metres
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
-_TOP = {
-    "name",
-    "units",
-    "model",
-    "lines",
-    "output",
-    "muscles",
-    "bones",
-    "cache_dir",
-    "registration",
-    "collisions",
-    "fibres",
-}
-_MODEL = {"osim", "motion", "rest_pose", "angle_unit", "coordinates", "output_frame", "mesh_frame"}
-_LINES = {"csv", "rest_frame"}
-_OUTPUT = {"bone_display_faces", "paper_frames", "gif", "image_size", "gif_every"}
-_MUSCLE = {
-    "mesh", "paths", "body", "reference", "cage_size", "cage_coarsening", "method",
-    "max_iterations", "repair", "frame", "bones", "fibre_origin", "fibre_insertion",
-}  # fmt: skip
-_COLLISIONS = {"enabled", "margin", "rest_overlap", "muscles", "pairs"}
-_FIBRES = {
-    "count", "points", "moment_arms", "step", "voxels", "moment_arm_contact", "landmark_radius",
-}  # fmt: skip
-_BONE = {"mesh", "body", "frame"}
-_LANDMARK = {"name", "mesh", "fit", "body", "point"}
+# the keys each table may hold: one table with their meanings (`_keys.SCENE_KEYS`), which the
+# documentation's scene reference is generated from
+_TOP = set(SCENE_KEYS[""])
+_MODEL = set(SCENE_KEYS["model"])
+_LINES = set(SCENE_KEYS["lines"])
+_OUTPUT = set(SCENE_KEYS["output"])
+_MUSCLE = set(SCENE_KEYS["muscles.NAME"])
+_COLLISIONS = set(SCENE_KEYS["collisions"])
+_FIBRES = set(SCENE_KEYS["fibres"])
+_BONE = set(SCENE_KEYS["bones.NAME"])
+_LANDMARK = set(SCENE_KEYS["registration.landmark"])
 
 
 @dataclass(frozen=True)
@@ -236,7 +222,7 @@ def load_scene(path: PathLike) -> Scene:
     _keys(raw, _TOP, "the scene's top level", src)
 
     units = _table(raw.get("units", {}), "units", src)
-    _keys(units, {"mesh", "model"}, "[units]", src)
+    _keys(units, set(SCENE_KEYS["units"]), "[units]", src)
     mesh_unit, model_unit = units.get("mesh", "mm"), units.get("model", "m")
     for k, u in (("mesh", mesh_unit), ("model", model_unit)):
         if u not in UNITS:
@@ -540,7 +526,7 @@ def _fibres(raw: dict[str, Any], src: Path, osim: Path | None) -> FibreSpec | No
 
 def _registration(raw: dict[str, Any], base: Path, src: Path, osim: Path | None) -> Registration:
     reg = _table(raw["registration"], "registration", src)
-    _keys(reg, {"axes", "landmark"}, "[registration]", src)
+    _keys(reg, set(SCENE_KEYS["registration"]), "[registration]", src)
     if osim is None:
         raise SceneError(f"{src}: [registration] needs an OpenSim model ([model] osim)")
     axes = reg.get("axes")

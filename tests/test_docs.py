@@ -1,0 +1,92 @@
+"""The built documentation (``sphinx-build -W -b html docs docs/_build/html``, run by ``.ci/run``
+before the tests): every public name has its rendered page with its docstring, every gallery
+example its pictures, and the generated tables every scene key and output column. Required in
+CI; elsewhere skipped when the site has not been built."""
+
+import html
+import os
+import re
+from pathlib import Path
+
+import pytest
+
+import musclewrap
+import musclewrap.scene
+from musclewrap.scene import OUTPUT_COLUMNS, SCENE_KEYS
+
+SITE = Path(os.environ.get("MUSCLEWRAP_DOCS_BUILD", Path(__file__).resolve().parents[1] / "docs"
+                           / "_build" / "html"))  # fmt: skip
+GALLERY = ("plot_method", "plot_demo", "plot_python_api", "plot_lhdl_walk", "plot_moment_arms",
+           "plot_batch")  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def site() -> Path:
+    if not (SITE / "index.html").is_file():
+        if os.environ.get("CI"):
+            pytest.fail(f"the documentation is not built at {SITE}: .ci/run builds it first")
+        pytest.skip(f"documentation not built at {SITE}")
+    return SITE
+
+
+def _text(path: Path) -> str:
+    """The page's visible text, roughly: tags dropped, entities decoded, spaces collapsed."""
+    raw = re.sub(r"<(script|style)\b.*?</\1>", " ", path.read_text(), flags=re.S)
+    raw = re.sub(r"</?(p|div|td|th|tr|li|dt|dd|h\d|br|section|table)\b[^>]*>", " ", raw)
+    return " ".join(html.unescape(re.sub(r"<[^>]+>", "", raw)).split())
+
+
+def _public() -> list[tuple[str, object]]:
+    names = [(f"musclewrap.{n}", getattr(musclewrap, n)) for n in musclewrap.__all__
+             if n != "__version__"]  # fmt: skip
+    return names + [(f"musclewrap.scene.{n}", getattr(musclewrap.scene, n))
+                    for n in musclewrap.scene.__all__]  # fmt: skip
+
+
+@pytest.mark.parametrize("name,obj", _public(), ids=[n for n, _ in _public()])
+def test_every_public_name_has_its_rendered_docstring(site, name, obj):
+    page = site / "api" / "generated" / f"{name}.html"
+    assert page.is_file(), f"{name} has no page in the API reference"
+    text = _text(page)
+    doc = (obj.__doc__ or "") if callable(obj) else ""
+    if doc and not isinstance(obj, (dict, list)):
+        summary = " ".join(doc.strip().split("\n\n")[0].split())
+        # the summary line as rendered: backquoted names lose their quotes
+        plain = re.sub(r"`~?([^`]+)`", r"\1", re.sub(r"``([^`]+)``", r"\1", summary))
+        assert plain[:60] in text, (name, plain[:60])
+    assert name.rsplit(".", 1)[1] in text
+
+
+def test_the_api_index_links_every_public_name(site):
+    text = (site / "api.html").read_text()
+    for name, _ in _public():
+        assert f"api/generated/{name}.html" in text, name
+
+
+def test_every_gallery_example_ran_and_shows_its_pictures(site):
+    index = (site / "gallery" / "index.html").read_text()
+    for ex in GALLERY:
+        assert f"{ex}.html" in index, ex
+        page = (site / "gallery" / f"{ex}.html").read_text()
+        images = re.findall(r'src="((?:\.\./)?_images/sphx_glr_' + ex + r'_\d+\.png)"', page)
+        assert images, f"{ex}: no picture on its page"
+        for src in images:
+            png = (site / "gallery" / src).resolve()
+            assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png
+            assert png.stat().st_size > 5_000, png  # a picture, not a blank
+    # the method's page shows the method example's pictures
+    method = (site / "method.html").read_text()
+    assert method.count("sphx_glr_plot_method_00") >= 3
+
+
+def test_the_scene_keys_and_output_columns_pages_list_every_one(site):
+    scenes = _text(site / "scenes.html")
+    for table, keys in SCENE_KEYS.items():
+        for key, meaning in keys.items():
+            assert key in scenes, (table, key)
+            assert " ".join(meaning.replace("``", "").split())[:40] in scenes, (table, key)
+    outputs = _text(site / "outputs.html")
+    for name, cols in OUTPUT_COLUMNS.items():
+        assert name in outputs
+        for col in cols:
+            assert col in outputs, (name, col)
