@@ -50,6 +50,8 @@ smartquotes = False  # quotes as written (the tests find the docstrings' text on
 
 # the gallery: scripts run at build time, PyVista's pictures scraped off-screen
 pyvista.OFF_SCREEN = True
+if not os.environ.get("DISPLAY"):  # EGL straight away, as the run's renderers: no X to try first
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 pyvista.BUILDING_GALLERY = True
 os.environ.setdefault("MUSCLEWRAP_DOCS_FRAMES", "12")
 sphinx_gallery_conf = {

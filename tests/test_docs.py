@@ -90,3 +90,57 @@ def test_the_scene_keys_and_output_columns_pages_list_every_one(site):
         assert name in outputs
         for col in cols:
             assert col in outputs, (name, col)
+
+
+def _chromium() -> str:
+    """Chromium from the OS packages (``.ci/run`` installs it); required in CI."""
+    import shutil
+
+    found = shutil.which("chromium") or shutil.which("chromium-browser")
+    if found is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium not found: .ci/run installs it from the OS packages")
+        pytest.skip("chromium not installed")
+    return found
+
+
+def test_the_site_opens_in_a_real_browser_and_shows_its_pictures(site):
+    """Headless Chromium (the OS's, driven by Playwright; nothing downloaded) loads the index
+    and a gallery page from a loopback server; every picture on them has loaded (a decoded
+    image with its size), and the gallery page shows its example's code and its output."""
+    import functools
+    import http.server
+    import threading
+
+    try:
+        from playwright import sync_api as playwright
+    except ImportError:
+        if os.environ.get("CI"):
+            pytest.fail("playwright missing: the [dev] extra installs it")
+        pytest.skip("playwright not installed")
+    exe = _chromium()
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(site))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    base = f"http://127.0.0.1:{server.server_address[1]}"
+    try:
+        with playwright.sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=exe, headless=True)
+            page = browser.new_page(viewport={"width": 1280, "height": 900})
+            for path, least in (("index.html", 1), ("gallery/plot_lhdl_walk.html", 2)):
+                page.goto(f"{base}/{path}", wait_until="load")
+                sizes = page.eval_on_selector_all(
+                    "article img",
+                    "els => els.map(e => [e.complete, e.naturalWidth, e.naturalHeight])",
+                )
+                assert len(sizes) >= least, (path, sizes)
+                assert all(ok and w > 100 and h > 100 for ok, w, h in sizes), (path, sizes)
+            text = page.inner_text("article")
+            assert "run_scene(" in text and "muscle-frames, unconverged 0" in text
+            assert page.title().startswith("A scene on the real data")
+            browser.close()
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join()
