@@ -846,6 +846,30 @@ def test_dead_worker_is_a_clear_error(tmp_path):
     assert "worker process died" in err and "Traceback" not in err
 
 
+def test_run_scene_from_standard_input_on_two_workers_is_a_clear_error(tmp_path):
+    """A script read from standard input has no module the worker processes can import: the
+    pool breaks, and the run says why wherever it finds out (a task's result, or the next
+    task handed out: the 6-muscle gait2392 scene met it there), never a raw
+    BrokenProcessPool from the executor's internals."""
+    import subprocess
+    import sys
+
+    _, toml = _twin_scene(tmp_path, n_frames=4)
+    script = (
+        "from pathlib import Path\n"
+        "from musclewrap.scene import load_scene, run_scene\n"
+        f"run_scene(load_scene({str(toml)!r}), Path({str(tmp_path / 'out')!r}), workers=2,\n"
+        "          cache_dir=False, progress=None, render=False)\n"
+    )
+    got = subprocess.run(
+        [sys.executable, "-"], input=script, capture_output=True, text=True, timeout=300
+    )
+    assert got.returncode != 0
+    last = got.stderr.strip().splitlines()[-1]
+    assert last.startswith("RuntimeError: a worker process died"), got.stderr[-2000:]
+    assert "if __name__ == '__main__':" in last
+
+
 def test_a_batch_of_four_scenes_writes_each_as_a_single_run(tmp_path):
     """Four scenes in one batch (more than are planned ahead): one subfolder each, with the
     reports a run of each scene alone writes (but timings)."""

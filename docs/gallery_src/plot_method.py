@@ -79,3 +79,25 @@ p.add_mesh(surface(rV, rF), color="ivory")
 p.view_vector((-1.0, -0.8, 0.25), viewup=(0.0, 0.0, 1.0))
 p.camera.zoom(1.3)
 p.show()
+
+# %%
+# Fibres, carried by the cage
+# ---------------------------
+# A harmonic field between the two ends of the muscle (Choi & Blemker 2013) gives fibres from
+# one end to the other; each fibre point has its coordinates in the cage, so the bent pose
+# carries them as it carries the surface. Coloured by their stretch (length over rest length).
+from musclewrap.fibres import fibres_at_rest  # noqa: E402
+
+fibres = fibres_at_rest(muscle, rest, count=40, points=15, voxels=20_000)
+now = fibres.at(result.cage)
+stretch = fibres.lengths(now) / fibres.lengths()
+print(f"{len(now)} fibres, stretch {stretch.min():.3f} to {stretch.max():.3f}")
+p = pv.Plotter(window_size=(500, 600))
+p.add_mesh(surface(result.V, muscle.F), color="indianred", opacity=0.15)
+for i, pts in enumerate(now):
+    line = pv.lines_from_points(pts)
+    line["stretch"] = np.full(line.n_cells, stretch[i])
+    p.add_mesh(line, scalars="stretch", cmap="coolwarm", clim=(0.8, 1.2), line_width=3,
+               show_scalar_bar=i == 0)  # fmt: skip
+p.view_xz()
+p.show()

@@ -48,6 +48,14 @@ def run_task(task: Any) -> Any:
         return task.run()
 
 
+#: a worker pool that lost a process, said the same wherever the run finds out
+_DIED = (
+    "a worker process died without a Python error (out of memory, a crash in a compiled "
+    "library, or, from a Python script or standard input, run_scene called outside an "
+    "`if __name__ == '__main__':` block); rerun with --workers 1 to see where"
+)
+
+
 class Executor:
     """Where tasks run.
 
@@ -181,7 +189,10 @@ class ProcessExecutor(Executor):
             self.pool.submit(warm_up)
 
     def submit(self, task: Any) -> Future[Any]:
-        return self.pool.submit(run_task, task)
+        try:
+            return self.pool.submit(run_task, task)
+        except BrokenProcessPool:
+            raise RuntimeError(_DIED) from None
 
     def ticks(self, timeout: float | None) -> int:
         n = 0
@@ -197,11 +208,7 @@ class ProcessExecutor(Executor):
         try:
             return future.result()
         except BrokenProcessPool:
-            raise RuntimeError(
-                "a worker process died without a Python error (out of memory, a crash in "
-                "a compiled library, or, from a Python script, run_scene called outside an "
-                "`if __name__ == '__main__':` block); rerun with --workers 1 to see where"
-            ) from None
+            raise RuntimeError(_DIED) from None
 
     def close(self, cancel: bool = False) -> None:
         # On an error, queued work is dropped, but the workers are still waited for: one
