@@ -29,8 +29,11 @@ extensions = [
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
     "numpydoc",
+    "myst_parser",
     "sphinx_gallery.gen_gallery",
 ]
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+myst_heading_anchors = 3
 exclude_patterns = ["_build", "gallery_src", "gallery/*.ipynb", "gallery/*.py", "gallery/*.zip"]
 html_theme = "pydata_sphinx_theme"
 html_title = f"musclewrap {release}"
@@ -46,6 +49,7 @@ numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 default_role = "py:obj"
 nitpicky = False
+html_scaled_image_link = False  # pictures side by side, not links to themselves
 smartquotes = False  # quotes as written (the tests find the docstrings' text on the pages)
 
 # the gallery: scripts run at build time, PyVista's pictures scraped off-screen
@@ -83,13 +87,13 @@ def _generate() -> None:
         title = "The top level" if not table else f"``[{table}]``"
         if table == "registration.landmark":
             title = "``[[registration.landmark]]``"
-        lines += [title, "-" * len(title), ""]
+        lines += [title, "~" * len(title), ""]
         lines += _table([(f"``{k}``", v) for k, v in keys.items()], ("key", "meaning"))
     (gen / "scene_keys.rst").write_text("\n".join(lines))
     lines = []
     for name, cols in OUTPUT_COLUMNS.items():
         title = f"``{name}``"
-        lines += [title, "-" * len(title), ""]
+        lines += [title, "~" * len(title), ""]
         lines += _table([(f"``{k}``", v) for k, v in cols.items()], ("column", "meaning"))
     (gen / "output_columns.rst").write_text("\n".join(lines))
 

@@ -144,3 +144,25 @@ def test_the_site_opens_in_a_real_browser_and_shows_its_pictures(site):
         server.shutdown()
         server.server_close()
         thread.join()
+
+
+def test_the_readme_is_the_front_door_and_its_links_lead_to_the_guide():
+    """Two commands first, then the guide's pages, each of which exists and is in the site's
+    table of contents (no site build needed)."""
+    root = Path(__file__).resolve().parents[1]
+    readme = (root / "README.md").read_text()
+    block = readme.split("```", 2)[1].strip().splitlines()
+    assert block == [
+        "python3 -m venv .venv && . .venv/bin/activate && pip install -e . && "
+        "musclewrap demo -o demo_out",
+        "bash .ci/run",
+    ]
+    links = re.findall(r"\]\((docs/[^)]+)\)", readme)
+    pages = [x for x in links if x.endswith((".md", ".rst"))]
+    assert len(pages) >= 7
+    index = (root / "docs" / "index.rst").read_text()
+    for x in links:
+        assert (root / x).is_file(), x
+    for x in pages:
+        assert f"   {Path(x).stem}\n" in index, x
+    assert len(readme.splitlines()) < 120  # the front door; the guide holds the rest

@@ -84,7 +84,7 @@ def _parser() -> argparse.ArgumentParser:
         "run",
         help="deform every muscle of a scene (OpenSim model + motion) for every frame",
         description=(
-            "Read a scene file (TOML; see examples/ and the README), compute each muscle's "
+            "Read a scene file (TOML; see examples/ and docs/motions.md), compute each muscle's "
             "action lines per frame with OpenSim (or read them from a CSV), deform every "
             "muscle, and write OUTDIR/<muscle>/<muscle>_<frame>.vtp, bones, action lines, "
             "scene.pvd (ParaView), report.csv, volume_error.png, convergence.png, "

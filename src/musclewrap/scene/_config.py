@@ -55,7 +55,7 @@ class Registration:
 
 @dataclass(frozen=True)
 class MuscleSpec:
-    """One muscle of a scene (see the README's scene reference)."""
+    """One muscle of a scene (docs/scenes.rst lists every key)."""
 
     name: str
     mesh: Path
