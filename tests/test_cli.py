@@ -43,6 +43,28 @@ def files(tmp_path):
     return tmp_path, str(tmp_path / "m.ply"), rest, cur
 
 
+def test_deform_says_which_part_of_a_line_beyond_the_muscle_is_not_bound(files, capsys):
+    """A rest line that runs on 120 mm past the capsule's end (a tendon the mesh does not
+    hold): the tail is not bound, and the command says so and reports it."""
+    tmp, mesh, _, _ = files
+    rest = _lines(tmp / "rest_long.csv", {"a": [(0, 0, 5), (0, 0, 320)]})
+    # the tail turned 60 degrees at z = 250, 50 mm past the belly (farther than the one mean
+    # thickness, 37 mm, that stays bound), its length kept (arc-length matching)
+    end = (70 * float(np.sin(np.radians(60))), 0.0, 250 + 70 * float(np.cos(np.radians(60))))
+    cur = _lines(tmp / "cur_long.csv", {"a": [(0, 0, 5), (0, 0, 250), end]})
+    out, rep = tmp / "long.vtp", tmp / "long.json"
+    args = ["deform", mesh, "--rest", rest, "--current", cur, "-o", str(out)]
+    assert main([*args, "--report", str(rep)]) == 0
+    said = capsys.readouterr().out
+    assert re.search(r"note: line 'a' is not bound over its first 0 % and last \d+ %", said)
+    start, end, far = json.loads(rep.read_text())["lines_unbound"]["a"]
+    assert start == 0.0 and 0.25 < end < 0.45 and far == pytest.approx(120.0, abs=1.0)
+    # the belly's own stretch of the line did not move: neither did the muscle
+    V0, _ = read_mesh(mesh)
+    V, _ = read_mesh(out)
+    assert np.abs(V - V0).max() <= 1e-6
+
+
 def test_prepare_then_deform_writes_the_volume_it_reports(files, capsys):
     tmp, mesh, rest, cur = files
     prepared = str(tmp / "m.npz")

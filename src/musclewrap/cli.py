@@ -271,6 +271,9 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         "seconds_prepare": seconds_prepare,
         "seconds_deform": res.seconds,
         "mesh_notes": list(muscle.notes),
+        # per line: the arc-length fractions not bound at its start and end (tendons beyond
+        # the mesh, `Deformer.unbound`) and the farthest of those samples from the muscle
+        "lines_unbound": {k: list(v) for k, v in d.unbound.items()},
         "coordinates_precision": "float32 (STL format limit)"
         if a.output.lower().endswith(".stl")
         else "float64",
@@ -290,6 +293,12 @@ def _cmd_deform(a: argparse.Namespace) -> int:
         f"volume error {res.relative_volume_error:.2e}, skeleton fit {res.skeleton_fit_mean:.3g} (mean), "
         f"{res.seconds * 1e3:.1f} ms"
     )
+    for line, (start, end, far) in d.unbound.items():
+        print(
+            f"note: line '{line}' is not bound over its first {100 * start:.0f} % and last "
+            f"{100 * end:.0f} % (up to {far:.3g} outside the muscle: a tendon the mesh does "
+            "not hold); the muscle follows the rest of it"
+        )
     if not ok and not (a.allow_unconverged and finite):
         hint = " (use --allow-unconverged to write it anyway)" if finite else ""
         print(f"error: {res.reason}; no output written{hint}", file=sys.stderr)
