@@ -2,6 +2,8 @@
 
     python benchmarks/bench_moment_arms.py [SCENE] [--steps 0.5,1,2,4] [--repeats 3]
     python benchmarks/bench_moment_arms.py SCENE --smoothness [--fibres-of SCENE2]
+    python benchmarks/bench_moment_arms.py SCENE --scan MUSCLE [--about START:STOP:STEP]
+        [--span DEG] [--by DEG] [--line-reach X|none] [--fibres-of SCENE2]
 
 1. The action line's moment arm against OpenSim's ``computeMomentArm`` on every frame of
    every motion, the frames where the path's points change between the frame and a side
@@ -30,6 +32,14 @@
    0.1-deg steps without contact; each fibre's ``dL/dq`` between neighbouring poses,
    and the poses where it steps (by more than 0.5 mm against a median step of a few
    hundredths): the psoas's "stairs".
+6. ``--scan MUSCLE --about START:STOP:STEP`` (only this): the muscle alone, without
+   contact, in process, at the poses of the scene's motion rows START:STOP:STEP, each
+   with hip flexion moved by -SPAN to SPAN degrees in steps of BY (default 0: the rows
+   themselves), ``defaults.line_reach`` set to ``--line-reach`` ("none": every sample
+   bound): per pose, the mean fibre length, the iterations and the volume of the
+   unconstrained solution (``x_ls``, conditions without the volume) over the rest
+   volume. Jumps of the mean length between neighbouring poses are the solve landing in
+   different minima of the volume-constrained problem (the gait2392 semitendinosus).
 """
 
 from __future__ import annotations
@@ -238,6 +248,69 @@ def scan(scene, muscle: str, workers: int) -> None:  # noqa: ANN001
         )
 
 
+def pose_scan(scene, muscle: str, about: str, span: float, by: float, reach: str | None) -> None:  # noqa: ANN001
+    """Item 6: mean fibre length, iterations and the unconstrained volume, pose by pose."""
+    import musclewrap.solver._muscle as solver
+    from musclewrap.constants import defaults
+    from musclewrap.mesh import volume
+    from musclewrap.scene import read_motion, run_scene, write_motion
+
+    motion = read_motion(scene.motion)
+    rows = range(motion.n_frames)[slice(*(int(x) if x else None for x in about.split(":")))]
+    dq = np.round(np.arange(-span, span + by / 2, by), 6) if span > 0 else np.zeros(1)
+    held = scene.coordinates or tuple(motion.columns)
+    cols = {c: np.repeat(motion.columns[c][list(rows)], len(dq)) for c in held}
+    cols["hip_flexion_r"] = cols["hip_flexion_r"] + np.tile(dq, len(rows))
+    one = dataclasses.replace(
+        scene,
+        muscles=tuple(m for m in scene.muscles if m.name == muscle),
+        fibres=dataclasses.replace(scene.fibres, moment_arms=()),
+        collisions=False,
+        gif=False,
+        paper_frames=0,
+    )
+    volumes: list[float] = []
+    iterations: list[int] = []
+    deform = solver.Deformer.deform
+
+    def measured(self, lines, **kw):  # noqa: ANN001, ANN003, ANN202
+        # the solution of the conditions alone (no volume), as the solve starts from it
+        _, s_cur, d_L = self._targets(lines, kw.get("reference_point"))
+        x_ls = self._HL @ d_L + self._HS @ s_cur + self._x_anchor
+        volumes.append(volume(self.muscle.W @ x_ls, self.muscle.F) / self.muscle.volume_rest)
+        r = deform(self, lines, **kw)
+        iterations.append(r.iterations)
+        return r
+
+    old = defaults.line_reach
+    if reach is not None:
+        object.__setattr__(defaults, "line_reach", None if reach == "none" else float(reach))
+    solver.Deformer.deform = measured
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            t = 0.01 * np.arange(len(dq) * len(rows))
+            # undeclared units: the values are as the run read them (degrees where it guessed so)
+            deg = motion.in_degrees or not motion.degrees_declared
+            mot = write_motion(Path(tmp) / "scan.mot", t, cols, in_degrees=deg)
+            run_scene(dataclasses.replace(one, motions=(mot,)), Path(tmp) / "o", workers=1,
+                      progress=None, render=False)  # fmt: skip
+            L: dict[int, list[float]] = {}
+            for x in csv.DictReader(open(Path(tmp) / "o" / "fibres.csv")):
+                L.setdefault(int(x["frame"]), []).append(float(x["length"]))
+    finally:
+        solver.Deformer.deform = deform
+        object.__setattr__(defaults, "line_reach", old)
+    if len(volumes) != len(L):
+        raise SystemExit(f"{len(volumes)} solves for {len(L)} poses: cannot pair them")
+    moved = f"{-span:+g} to {span:+g} deg by {by:g}" if span > 0 else "0 deg"
+    print(f"{muscle}: {scene.motion.name} rows {about}, hip flexion moved by {moved}, "
+          f"no contact, line_reach {defaults.line_reach if reach is None else reach}")  # fmt: skip
+    print("  row   dq (deg)  mean fibre length (mm)  iterations  unconstrained volume / rest")
+    for k in sorted(L):
+        print(f"  {rows[k // len(dq)]:4d} {dq[k % len(dq)]:+8.1f} {np.mean(L[k]):18.1f} "
+              f"{iterations[k]:11d} {volumes[k]:18.3f}")  # fmt: skip
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_hip_sweeps.toml"))
@@ -247,7 +320,11 @@ def main() -> None:
     p.add_argument("--tables-only", action="store_true", help="skip the timing")
     p.add_argument("--smoothness", action="store_true", help="only item 4")
     p.add_argument("--fibres-of", help="a scene whose [fibres] table to use")
-    p.add_argument("--scan", metavar="MUSCLE", help="only item 5, for this muscle")
+    p.add_argument("--scan", metavar="MUSCLE", help="only item 5 (or 6), for this muscle")
+    p.add_argument("--about", metavar="START:STOP:STEP", help="item 6: the motion's rows")
+    p.add_argument("--span", type=float, default=0.0, help="item 6: degrees of flexion either side")
+    p.add_argument("--by", type=float, default=0.2, help="item 6: degrees between poses")
+    p.add_argument("--line-reach", help="item 6: mean thicknesses, or none (default: the default)")
     a = p.parse_args()
     from musclewrap._bench import timed_run
     from musclewrap.scene import load_scene
@@ -259,6 +336,9 @@ def main() -> None:
         raise SystemExit(f"{a.scene}: no [fibres] moment_arms")
     if a.smoothness:
         smoothness(scene, a.workers)
+        return
+    if a.scan and a.about:
+        pose_scan(scene, a.scan, a.about, a.span, a.by, a.line_reach)
         return
     if a.scan:
         scan(scene, a.scan, a.workers)

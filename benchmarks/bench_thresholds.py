@@ -183,11 +183,8 @@ def main() -> None:
 
 def _reach(cache: Path) -> None:
     """``line_reach`` on either side of its default (the module's docstring)."""
-    import csv
-
-    import numpy as np
-
     import musclewrap.solver._muscle as solver
+    from bench_moment_arms import _spikes  # the same count as its --smoothness
     from musclewrap.constants import defaults
     from musclewrap.scene import load_scene, run_scene
 
@@ -215,17 +212,11 @@ def _reach(cache: Path) -> None:
             with tempfile.TemporaryDirectory() as tmp:
                 out = Path(tmp) / "o"
                 s = run_scene(semi, out, workers=1, cache_dir=cache, progress=None, render=False)
-                series: dict[tuple[str, str], list[tuple[int, float]]] = {}
-                for r in csv.DictReader(open(out / "fibres.csv")):
-                    key = (r["coordinate"], r["fibre"])
-                    series.setdefault(key, []).append((int(r["frame"]), float(r["moment_arm"])))
-            off, worst = 0, 0.0
-            for got in series.values():
-                a = np.array([v for _, v in sorted(got)])
-                med = np.array([np.median(a[max(0, i - 2) : i + 3]) for i in range(len(a))])
-                dev = np.abs(a - med)
-                off, worst = off + int((dev > 3.0).sum()), max(worst, float(np.nanmax(dev)))
-            n = sum(len(v) for v in series.values())
+                # per coordinate: (off, fibre-frames, largest, ...) of the semitendinosus
+                got = [_spikes(out / "fibres.csv", c, largest=True)["semitendinosus"]
+                       for c in fibres.moment_arms]  # fmt: skip
+            off, n = sum(g[0] for g in got), sum(g[1] for g in got)
+            worst = max(g[2] for g in got)
             print(
                 f"  reach {reach!s:<5} semitendinosus: {off} of {n} fibre-frames > 3 mm off "
                 f"(largest {worst:.1f} mm), shape change <= "

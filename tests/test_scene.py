@@ -505,15 +505,10 @@ def test_gait2392_semitendinosus_fibre_moment_arms_smooth_through_the_walk(data_
         assert r["shape_change_max"] <= 0.5, r
     # no fibre point had to be moved back inside a folded surface
     assert not [x for x in s.notes if "moved inside" in x]
-    series: dict[tuple[str, str], list[tuple[int, float]]] = {}
-    for r in _rows(tmp_path / "o" / "fibres.csv"):
-        key = (r["coordinate"], r["fibre"])
-        series.setdefault(key, []).append((int(r["frame"]), float(r["moment_arm"])))
+    series = _moment_arm_series(_rows(tmp_path / "o" / "fibres.csv"), "coordinate", "fibre")
     assert len(series) == 3 * 100
-    for key, got in series.items():
-        a = np.array([v for _, v in sorted(got)])
-        med = np.array([np.median(a[max(0, i - 2) : i + 3]) for i in range(len(a))])
-        assert np.abs(a - med).max() <= 3.0, key  # 0.7 mm measured
+    for key, a in series.items():
+        assert _off_median(a).max() <= 3.0, key  # 0.7 mm measured
 
 
 @pytest.mark.realdata
@@ -544,6 +539,21 @@ def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys, collisions):
                 assert float(r["skeleton_fit_mean"]) <= 1.0, r
                 assert float(r["shape_change_max"]) <= 0.5, r
     assert "unconverged frames 0" in capsys.readouterr().out
+
+
+def _moment_arm_series(rows, *fields):
+    """fibres.csv rows -> {(fields' values): each fibre's moment arm over the frames, in order}."""
+    got: dict[tuple[str, ...], list[tuple[int, float]]] = {}
+    for r in rows:
+        got.setdefault(tuple(r[f] for f in fields), []).append(
+            (int(r["frame"]), float(r["moment_arm"]))
+        )
+    return {key: np.array([v for _, v in sorted(g)]) for key, g in got.items()}
+
+
+def _off_median(a):
+    """Each frame's distance from the median of its 5 neighbouring frames (fewer at the ends)."""
+    return np.abs(a - [np.median(a[max(0, i - 2) : i + 3]) for i in range(len(a))])
 
 
 def _check_sweep_fibres(folder, n):
@@ -585,14 +595,8 @@ def _check_sweep_fibres(folder, n):
     # the median of its 5 neighbouring frames (2.87 mm measured); at a sweep's first and
     # last frame, where that window is one-sided and a steep curve's slope alone would
     # count (up to 4.6 mm), within 3 mm of a quadratic through the 5 end frames (0.41)
-    series: dict[tuple[str, str, str], list[tuple[int, float]]] = {}
-    for r in fibres:
-        key = (r["coordinate"], r["muscle"], r["fibre"])
-        series.setdefault(key, []).append((int(r["frame"]), float(r["moment_arm"])))
-    for key, got in series.items():
-        a = np.array([v for _, v in sorted(got)])
-        med = np.array([np.median(a[max(0, i - 2) : i + 3]) for i in range(len(a))])
-        assert np.abs(a - med)[1:-1].max() <= 3.0, (folder.name, key)
+    for key, a in _moment_arm_series(fibres, "coordinate", "muscle", "fibre").items():
+        assert _off_median(a)[1:-1].max() <= 3.0, (folder.name, key)
         x = np.arange(len(a))
         for end, sl in ((0, slice(0, 5)), (len(a) - 1, slice(-5, None))):
             fit = np.polyval(np.polyfit(x[sl], a[sl], 2), end)

@@ -118,7 +118,7 @@ class Defaults:
         semitendinosus's fibre moment arms are smooth from 0.5 to 4 (none off by
         3 mm) and up to 1,208 mm off with every sample bound; below 1 the lines that
         run beside their muscle lose much of their length (adductor longus 56 % at
-        0.5). The LHDL model's paths stay within 0.5 of their muscles.
+        0.5). The LHDL model's paths end within 0.5 of their muscles (none cut at 0.5).
     max_iterations : int
         Iteration limit of the default solver (most poses converge in 3-6
         plain iterations).

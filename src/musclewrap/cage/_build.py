@@ -10,7 +10,13 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..mesh import check_mesh, face_areas, self_intersecting_faces, vertex_normals, volume
+from ..mesh import (
+    check_mesh,
+    mean_thickness,
+    self_intersecting_faces,
+    vertex_normals,
+    volume,
+)
 
 __all__ = ["Cage", "CageError", "build_cage", "cage_self_intersections", "verify_cage"]
 
@@ -284,9 +290,10 @@ def _build_cage(
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     longest = float(np.max(V.max(0) - V.min(0)))
     vol = volume(V, F)
-    area = float(face_areas(V, F).sum())
     if offset is None:
-        offset = min(defaults.cage_offset * 4.0 * vol / area, defaults.cage_offset_max * diag)
+        offset = min(
+            defaults.cage_offset * mean_thickness(V, F, vol), defaults.cage_offset_max * diag
+        )
     if not offset > 0:
         raise ValueError(f"offset must be positive, got {offset}")
     spacing = max(offset / 1.2, longest / 160.0)

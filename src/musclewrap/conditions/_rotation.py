@@ -8,6 +8,7 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ._lines import LineError, _arclength, distinct_mask
 
 __all__ = [
     "RotationField",
@@ -173,8 +174,6 @@ def path_rotations(
     LineError
         If a line has no rotations, or not one per point.
     """
-    from ._lines import LineError, _arclength, distinct_mask
-
     out = []
     for n, t in zip(names, params, strict=True):
         P = np.asarray(lines[n], dtype=np.float64)

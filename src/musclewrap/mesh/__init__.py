@@ -29,6 +29,7 @@ from ._repair import repair_mesh
 from ._volume import (
     combine_pair,
     mean_rows,
+    mean_thickness,
     volume,
     volume_cubic,
     volume_cubic_pair,
@@ -52,6 +53,7 @@ __all__ = [
     "half_edges",
     "mean_edge_length",
     "mean_rows",
+    "mean_thickness",
     "umbrella_laplacian",
     "vertex_adjacency",
     "vertex_normals",

@@ -6,6 +6,7 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ._geometry import face_areas
 
 __all__ = [
     "mean_rows",
@@ -72,6 +73,15 @@ def volume(V: FloatArray, F: IntArray, *, center: FloatArray | None = None) -> f
             np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64), c
         )
     )
+
+
+def mean_thickness(V: FloatArray, F: IntArray, vol: float | None = None) -> float:
+    """A closed surface's mean thickness ``4 V / A`` (a cylinder's diameter, a slab's thickness).
+
+    ``vol``: its volume where already known (else computed).
+    """
+    vol = volume(V, F) if vol is None else vol
+    return 4.0 * abs(vol) / float(face_areas(V, F).sum())
 
 
 def volume_gradient(V: FloatArray, F: IntArray) -> FloatArray:

@@ -24,6 +24,8 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 # the keys each table may hold: one table with their meanings (`_keys.SCENE_KEYS`), which the
 # documentation's scene reference is generated from
 _TOP = set(SCENE_KEYS[""])
+_UNITS = set(SCENE_KEYS["units"])
+_REGISTRATION = set(SCENE_KEYS["registration"])
 _MODEL = set(SCENE_KEYS["model"])
 _LINES = set(SCENE_KEYS["lines"])
 _OUTPUT = set(SCENE_KEYS["output"])
@@ -222,7 +224,7 @@ def load_scene(path: PathLike) -> Scene:
     _keys(raw, _TOP, "the scene's top level", src)
 
     units = _table(raw.get("units", {}), "units", src)
-    _keys(units, set(SCENE_KEYS["units"]), "[units]", src)
+    _keys(units, _UNITS, "[units]", src)
     mesh_unit, model_unit = units.get("mesh", "mm"), units.get("model", "m")
     for k, u in (("mesh", mesh_unit), ("model", model_unit)):
         if u not in UNITS:
@@ -526,7 +528,7 @@ def _fibres(raw: dict[str, Any], src: Path, osim: Path | None) -> FibreSpec | No
 
 def _registration(raw: dict[str, Any], base: Path, src: Path, osim: Path | None) -> Registration:
     reg = _table(raw["registration"], "registration", src)
-    _keys(reg, set(SCENE_KEYS["registration"]), "[registration]", src)
+    _keys(reg, _REGISTRATION, "[registration]", src)
     if osim is None:
         raise SceneError(f"{src}: [registration] needs an OpenSim model ([model] osim)")
     axes = reg.get("axes")

@@ -26,6 +26,7 @@ from .._typing import FloatArray
 from ..fibres import keep_inside
 from ..mesh import write_mesh
 from ._drive import Drive, apply
+from ._keys import OUTPUT_COLUMNS
 from ._plan import MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
 
 __all__ = [
@@ -42,28 +43,9 @@ __all__ = [
 ]
 
 FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS = "fibres.csv", "moment_arms.csv", "moment_arms.png"
-FIBRE_FIELDS = [
-    "frame",
-    "time",
-    "muscle",
-    "fibre",
-    "length",
-    "coordinate",
-    "coordinate_value",
-    "moment_arm",
-]
-MOMENT_ARM_FIELDS = [
-    "frame",
-    "time",
-    "muscle",
-    "coordinate",
-    "coordinate_value",
-    "fibre_min",
-    "fibre_mean",
-    "fibre_max",
-    "line_moment_arm",
-    "opensim_moment_arm",
-]
+# their meanings: `OUTPUT_COLUMNS` (the documentation lists them)
+FIBRE_FIELDS = list(OUTPUT_COLUMNS[FIBRES_CSV])
+MOMENT_ARM_FIELDS = list(OUTPUT_COLUMNS[MOMENT_ARMS_CSV])
 _FORMAT = 1  # of the cached fibres
 #: how far inside the surface a fibre point outside it is put, in grid cells of its field
 INSIDE_DEPTH = 0.1

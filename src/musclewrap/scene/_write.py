@@ -21,30 +21,14 @@ from ._config import Scene
 from ._drive import Drive, apply
 from ._fibres import FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS, write_fibre_outputs
 from ._journal import JOURNAL
+from ._keys import OUTPUT_COLUMNS
 from ._plan import BoneMesh, MuscleOutcome
 
 __all__ = ["REPORT_FIELDS", "TOP_FILES", "Progress", "RunSummary", "write_bones", "write_outputs"]
 
-#: columns of ``report.csv`` (the first eight are the documented contract)
-REPORT_FIELDS = [
-    "frame",
-    "time",
-    "muscle",
-    "iterations",
-    "converged",
-    "relative_volume_error",
-    "skeleton_fit_mean",
-    "seconds",
-    "shape_change_max",
-    "penetration_share",
-    "penetration_depth_max",
-    "bone_inside_depth_max",
-    "muscle_overlap_max",
-    "contact_vertices",
-    "penetration_depth_before",
-    "line_inside_depth_max",
-    "reason",
-]
+#: columns of ``report.csv`` (the first eight are the documented contract; their meanings:
+#: `OUTPUT_COLUMNS`, which the documentation lists)
+REPORT_FIELDS = list(OUTPUT_COLUMNS["report.csv"])
 
 
 # the files a run writes at the top of its output folder (besides one folder per muscle and bone)

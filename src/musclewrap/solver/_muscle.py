@@ -54,9 +54,9 @@ from ..mesh import (
     clean_mesh,
     combine_pair,
     cubic_root_near,
-    face_areas,
     mean_edge_length,
     mean_rows,
+    mean_thickness,
     umbrella_laplacian,
     vertex_adjacency,
     vertex_origins,
@@ -544,7 +544,7 @@ class Deformer:
             if not line_reach > 0:
                 raise ValueError(f"line_reach must be positive or None, got {line_reach}")
             # tendons beyond the mesh: their samples' coordinates would extrapolate the cage
-            thickness = 4.0 * muscle.volume_rest / float(face_areas(muscle.V, muscle.F).sum())
+            thickness = mean_thickness(muscle.V, muscle.F, muscle.volume_rest)
             self.sampling, self.unbound = within_reach(
                 self.sampling, _outside(self.rest_samples, muscle), line_reach * thickness
             )
