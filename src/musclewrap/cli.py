@@ -1,4 +1,4 @@
-"""Command-line interface: ``musclewrap prepare | deform | run | demo | bench``."""
+"""Command-line interface: ``musclewrap init | check | run | prepare | deform | demo | bench``."""
 
 from __future__ import annotations
 
@@ -136,6 +136,48 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="go on from an interrupted run into the same OUTDIR (same scene, files and frames)",
     )
+
+    ru.add_argument(
+        "--no-check",
+        action="store_true",
+        help="skip the checks of 'musclewrap check' that run first (a scene they refuse "
+        "would give a wrong result)",
+    )
+
+    it = sub.add_parser(
+        "init",
+        help="write a scene from an OpenSim model and a folder of meshes",
+        description=(
+            "Classify every mesh of MESH_DIR (muscle, bone, cartilage) by name and shape, match "
+            "the muscles to the model's paths by anatomical name and the bones to its bodies, "
+            "find the units, the rest pose and, for meshes of another subject, a registration "
+            "from the cartilages; write a commented scene (each guess with how sure it is) and "
+            "list what could not be placed. Then: musclewrap check SCENE."
+        ),
+    )
+    it.add_argument("model", help="OpenSim model (.osim)")
+    it.add_argument("mesh_dir", help="folder of meshes (.stl .vtk .vtp .ply .obj .off)")
+    it.add_argument("-o", "--output", required=True, help="scene file to write (.toml)")
+    it.add_argument(
+        "--motion",
+        help="motion to drive the scene (.mot/.sto); without one, a sweep of each driven "
+        "coordinate over its range is written beside the scene",
+    )
+    it.add_argument("--force", action="store_true", help="write over an existing scene file")
+
+    ck = sub.add_parser(
+        "check",
+        help="check a scene at its rest pose without deforming",
+        description=(
+            "Everything a run reads and validates, without deforming: per muscle the distance "
+            "of its action lines to its mesh at rest and their length against its extent, "
+            "repairs, overlaps at rest with bones and other muscles, units, bodies, and the "
+            "coordinates the motion lacks; each finding with what to change. Exit status 0: "
+            "clean (notes and warnings aside), 2: something would make a run wrong."
+        ),
+    )
+    ck.add_argument("scene", help="scene file (.toml)")
+    ck.add_argument("-o", "--output", help="picture of the rest pose (.png)")
 
     dm = sub.add_parser("demo", help="run the embedded synthetic example (no data needed)")
     dm.add_argument("-o", "--output", default="musclewrap_demo", help="output folder")
@@ -392,6 +434,22 @@ def _cmd_run(a: argparse.Namespace) -> int:
     from .scene import load_scene, run_batch
 
     scenes = [load_scene(p) for p in a.scene]
+    if not a.no_check:
+        from .scene import check_scene
+
+        for sc in scenes:
+            rep = check_scene(sc)
+            if not rep.ok:
+                print(
+                    f"error: {sc.path}: the scene's check found what would make the run wrong:",
+                    file=sys.stderr,
+                )
+                _print_findings(rep, sys.stderr)
+                print(
+                    "(musclewrap check SCENE -o check.png shows it; --no-check runs anyway)",
+                    file=sys.stderr,
+                )
+                return 2
     if len(scenes) > 1 and not a.output:
         raise ValueError("several scenes: give the batch's output folder with -o")
     stems = [sc.path.stem for sc in scenes]
@@ -459,6 +517,70 @@ def _cmd_run(a: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_init(a: argparse.Namespace) -> int:
+    from .subject import init_scene
+
+    out = Path(a.output)
+    if out.suffix.lower() != ".toml":
+        raise ValueError(f"{out}: the scene file must end in .toml")
+    if out.exists() and not a.force:
+        raise ValueError(f"{out}: exists; --force to write over it")
+    inputs = [a.model, a.motion]
+    if Path(a.mesh_dir).is_dir():
+        inputs += [str(p) for p in Path(a.mesh_dir).iterdir()]
+    _spare_inputs(inputs, [a.output, str(out.with_name(out.stem + "_sweep.mot"))])
+    t = time.perf_counter()
+    r = init_scene(
+        Path(a.model),
+        Path(a.mesh_dir),
+        out,
+        motion=Path(a.motion) if a.motion else None,
+        log=lambda m: print(m, file=sys.stderr),
+    )
+    print(
+        f"wrote {out} in {time.perf_counter() - t:.1f} s: {len(r.muscles)} muscles, "
+        f"{len(r.bones)} bones"
+        + (f"; a sweep motion {r.motion_written}" if r.motion_written else "")
+    )
+    for name, paths in r.muscles.items():
+        print(f"  {name}: {', '.join(paths)}")
+    if r.unplaced:
+        print(f"not placed ({len(r.unplaced)}):")
+        for u in r.unplaced:
+            print(f"  {u}")
+    print(f"next: musclewrap check {out}")
+    return 0
+
+
+def _print_findings(report, out) -> None:  # noqa: ANN001
+    for f in report.findings:
+        print(f"  {f}", file=out)
+
+
+def _cmd_check(a: argparse.Namespace) -> int:
+    from .scene import check_scene
+
+    t = time.perf_counter()
+    if a.output:
+        _spare_inputs([a.scene], [a.output])
+    rep = check_scene(a.scene, picture=a.output, log=lambda m: print(m, file=sys.stderr))
+    counts = {lv: sum(f.level == lv for f in rep.findings) for lv in ("error", "warning", "note")}
+    print(
+        f"{a.scene}: {counts['error']} errors, {counts['warning']} warnings, {counts['note']} "
+        f"notes ({time.perf_counter() - t:.1f} s)"
+    )
+    _print_findings(rep, sys.stdout)
+    for name, fit in rep.fits.items():
+        print(
+            f"  {name}: lines {100 * fit.inside:.0f} % inside, nearest quarter within "
+            f"{fit.near:.3g}, farthest {fit.far:.3g}; lines {fit.length:.4g} long, muscle "
+            f"{fit.extent:.4g}, thickness {rep.thickness[name]:.3g}"
+        )
+    if rep.picture is not None:
+        print(f"picture: {rep.picture}")
+    return 0 if rep.ok else 2
+
+
 def _cmd_bench(a: argparse.Namespace) -> int:
     from ._bench import capsule_benchmark
 
@@ -510,6 +632,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "run": _cmd_run,
         "demo": _cmd_demo,
         "bench": _cmd_bench,
+        "init": _cmd_init,
+        "check": _cmd_check,
     }
     try:
         return handlers[args.command](args)

@@ -1,5 +1,6 @@
 """Scenes: an OpenSim model and motion (or per-frame lines) driving many muscles."""
 
+from ._check import CheckReport, Finding, check_scene
 from ._config import BoneSpec, MuscleSpec, Scene, load_scene
 from ._drive import Drive, drive_scene, parse_frames
 from ._errors import SceneError
@@ -14,8 +15,10 @@ __all__ = [
     "REPORT_FIELDS",
     "SCENE_KEYS",
     "BoneSpec",
+    "CheckReport",
     "Drive",
     "Executor",
+    "Finding",
     "LocalExecutor",
     "Motion",
     "MuscleSpec",
@@ -24,6 +27,7 @@ __all__ = [
     "RunSummary",
     "Scene",
     "SceneError",
+    "check_scene",
     "default_cache_dir",
     "drive_scene",
     "load_scene",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -86,6 +86,51 @@ class OpenSimModel:
     def path_names(self) -> tuple[str, ...]:
         """Names of the model's muscles (each has a geometry path)."""
         return tuple(self._paths)
+
+    def parent_joints(self) -> dict[str, tuple[str, tuple[str, ...]]]:
+        """Per body: its parent body (or 'ground') and the coordinates of the joint between."""
+        js = self.model.getJointSet()
+        out = {}
+        for i in range(js.getSize()):
+            j = js.get(i)
+            child = j.getChildFrame().findBaseFrame().getName()
+            parent = j.getParentFrame().findBaseFrame().getName()
+            out[child] = (
+                parent,
+                tuple(j.get_coordinates(k).getName() for k in range(j.numCoordinates())),
+            )
+        return out
+
+    def coordinates_between(self, bodies: Sequence[str], frame: str) -> tuple[list[str], list[str]]:
+        """The coordinates that move ``bodies`` relative to ``frame``, in the model's order.
+
+        Walks each body's joints up to ``frame`` (or to the root); a coordinate coupled
+        to others (Rajagopal's ``knee_angle_r_beta``) brings the ones it follows
+        instead, and a locked one is left out. Returns (free coordinates, locked ones).
+        """
+        up = self.parent_joints()
+        coupled = {}
+        cs = self.model.getConstraintSet()
+        for i in range(cs.getSize()):
+            c = self._osim.CoordinateCouplerConstraint.safeDownCast(cs.get(i))
+            if c is not None:
+                names = c.getIndependentCoordinateNames()
+                coupled[c.getDependentCoordinateName()] = [
+                    names.get(k) for k in range(names.getSize())
+                ]
+        wanted: set[str] = set()
+        locked: set[str] = set()
+        for b in bodies:
+            while b != frame and b in up:
+                parent, coords = up[b]
+                if parent == "ground" and frame != "ground":
+                    break  # the root's joint moves the whole scene: held still
+                for name in coords:
+                    for c in coupled.get(name, [name]):
+                        (locked if self._coords[c].getDefaultLocked() else wanted).add(c)
+                b = parent
+        order = list(self._coords)
+        return [c for c in order if c in wanted], [c for c in order if c in locked]
 
     def is_rotational(self, name: str) -> bool:
         """Whether coordinate ``name`` is an angle (radians in the model)."""

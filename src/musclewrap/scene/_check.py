@@ -1,0 +1,498 @@
+"""``musclewrap check``: everything a run reads and validates, without deforming.
+
+Each finding names what it is about, what is wrong and what to change in the scene.
+An *error* would make a run wrong (or stop it); a *warning* deserves a look; a *note*
+says what the run will do about something (a repair, a rest overlap it takes apart).
+`check_scene` gathers them all instead of stopping at the first; ``musclewrap run``
+refuses a scene with an error before it starts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray, PathLike
+from ._config import UNITS, Scene, load_scene
+from ._errors import SceneError
+from ._fit import LineFit, line_fits, outside_distance
+
+__all__ = ["CheckReport", "Finding", "check_scene"]
+
+#: a muscle's rest lines whose nearest quarter lies farther than this many mean
+#: thicknesses (4 V / A) outside it are not its lines (see BENCHMARKS.md, "check")
+FAR_THICKNESSES = 1.0
+#: a bone's attachments: the path points within this distance (m, model units) of it
+ATTACHED_M = 0.010
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One thing `check_scene` found."""
+
+    level: str  # "error", "warning" or "note"
+    subject: str  # the muscle, bone, coordinate or file it is about ("scene": the whole)
+    message: str
+    fix: str = ""
+
+    def __str__(self) -> str:
+        return f"{self.level}: {self.subject}: {self.message}" + (
+            f" -> {self.fix}" if self.fix else ""
+        )
+
+
+@dataclass
+class CheckReport:
+    """The findings, and the figures they were judged by."""
+
+    path: Path
+    findings: list[Finding] = field(default_factory=list)
+    fits: dict[str, LineFit] = field(default_factory=dict)
+    thickness: dict[str, float] = field(default_factory=dict)
+    picture: Path | None = None
+
+    @property
+    def errors(self) -> list[Finding]:
+        return [f for f in self.findings if f.level == "error"]
+
+    @property
+    def ok(self) -> bool:
+        """No error: a run would not be wrong for any reason the check knows."""
+        return not self.errors
+
+    def add(self, level: str, subject: str, message: str, fix: str = "") -> None:
+        self.findings.append(Finding(level, subject, message, fix))
+
+
+def check_scene(
+    scene: Scene | PathLike,
+    *,
+    picture: PathLike | None = None,
+    cache_dir: Path | None | bool = True,
+    log: Callable[[str], None] | None = None,
+) -> CheckReport:
+    """Check a scene at its rest pose: files, units, frames, lines, bodies, overlaps, motion.
+
+    Parameters
+    ----------
+    scene : Scene or path
+        A loaded scene, or its file (a file that does not load is one error).
+    picture : path, optional
+        Where to draw the rest pose from two sides (PNG): meshes translucent,
+        bones, and the action lines coloured by their distance outside their muscle.
+    cache_dir : path, True or False, optional
+        Where the cleaned meshes are cached, as for `run_scene`.
+    log : callable, optional
+        Receives a line per step.
+
+    Returns
+    -------
+    CheckReport
+    """
+    say = log or (lambda s: None)
+    if not isinstance(scene, Scene):
+        try:
+            scene = load_scene(scene)
+        except SceneError as exc:
+            rep = CheckReport(Path(scene))
+            rep.add("error", "scene", str(exc))
+            return rep
+    rep = CheckReport(scene.path)
+    try:
+        _check(scene, rep, picture, cache_dir, say)
+    except SceneError as exc:
+        rep.add("error", "scene", str(exc))
+    except ImportError as exc:
+        rep.add("error", "scene", str(exc))
+    return rep
+
+
+def _check(
+    scene: Scene,
+    rep: CheckReport,
+    picture: PathLike | None,
+    cache_dir: Path | None | bool,
+    say: Callable[[str], None],
+) -> None:
+    from ..mesh import MeshError
+    from ._read import _read_bone, _read_muscle, default_cache_dir
+
+    cache: Path | None
+    if cache_dir is True:
+        cache = Path(scene.cache_dir or default_cache_dir())
+    elif cache_dir is False or cache_dir is None:
+        cache = None
+    else:
+        cache = Path(cache_dir)
+    model = None
+    if scene.osim is not None:
+        from ._opensim import OpenSimModel
+
+        model = OpenSimModel(scene.osim)
+        if not _check_model(scene, model, rep):
+            return
+    say("reading the meshes")
+    muscles: dict[str, tuple[FloatArray, IntArray]] = {}
+    for m in scene.muscles:
+        try:
+            V, F, notes, _ = _read_muscle(m, cache)
+        except MeshError as exc:
+            rep.add("error", m.name, str(exc), "repair the mesh, or set repair = true")
+            continue
+        for n in notes:
+            rep.add("note", m.name, f"{m.mesh.name}: {n}")
+        muscles[m.name] = (V, F)
+    bones: dict[str, tuple[FloatArray, IntArray]] = {}
+    for b in scene.bones:
+        try:
+            V, F, flipped, open_edges = _read_bone(b.mesh, cache)
+        except (MeshError, ValueError) as exc:
+            rep.add("error", b.name, str(exc))
+            continue
+        if open_edges:
+            rep.add(
+                "note", b.name,
+                f"{b.mesh.name} is open ({open_edges} boundary edges): contact closes it first",
+            )  # fmt: skip
+        bones[b.name] = (V, F)
+    if rep.errors:
+        return
+    from ._drive import apply, drive_scene
+
+    say("the action lines at rest")
+    drive = drive_scene(scene, "0:1", {n: V.mean(axis=0) for n, (V, _) in bones.items()})
+    body_m = {n: (apply(drive.to_body[n], V), F) for n, (V, F) in muscles.items()}
+    body_b = {n: (apply(drive.to_body[n], V), F) for n, (V, F) in bones.items()}
+    _check_lines(scene, model, drive, body_m, rep)
+    if model is not None:
+        _check_bone_bodies(scene, model, body_b, rep)
+    _check_overlaps(scene, model, drive, body_m, body_b, rep)
+    if picture is not None:
+        from ..output._check_picture import draw_check
+
+        say("drawing the rest pose")
+        rep.picture = draw_check(
+            Path(picture), _picture_data(scene, model, drive, body_m, body_b, rep)
+        )
+
+
+# ---------------------------------------------------------------------------- model, motion
+def _check_model(scene: Scene, model: Any, rep: CheckReport) -> bool:
+    """Bodies, paths and coordinates named by the scene; the coordinates the motion lacks."""
+    from ._errors import suggest
+    from ._motion import read_motion
+
+    ok = True
+    for m in scene.muscles:
+        if m.body != "ground" and m.body not in model.body_names:
+            rep.add(
+                "error",
+                m.name,
+                f"the model has no body '{m.body}'",
+                suggest(m.body, model.body_names),
+            )
+            ok = False
+        for p in m.paths:
+            if p not in model.path_names:
+                rep.add(
+                    "error",
+                    m.name,
+                    f"the model has no muscle path '{p}'",
+                    suggest(p, model.path_names),
+                )
+                ok = False
+    for b in scene.bones:
+        if b.body != "ground" and b.body not in model.body_names:
+            rep.add(
+                "error",
+                b.name,
+                f"the model has no body '{b.body}'",
+                suggest(b.body, model.body_names),
+            )
+            ok = False
+    if not ok:
+        return False
+    bodies = {m.body for m in scene.muscles} | {b.body for b in scene.bones}
+    for m in scene.muscles:
+        for p in m.paths:
+            bodies |= set(model.path_point_bodies(p))
+    moving, _ = model.coordinates_between(sorted(bodies - {"ground"}), scene.output_frame)
+    for motion in scene.motions:
+        mot = read_motion(motion)
+        driven = (
+            list(scene.coordinates)
+            if scene.coordinates is not None
+            else [c for c in mot.columns if c in model.coordinate_names]
+        )
+        for c in driven:
+            if c not in model.coordinate_names:
+                rep.add(
+                    "error", c, f"[model] coordinates names '{c}', not a coordinate of {model.path.name}",
+                    suggest(c, model.coordinate_names),
+                )  # fmt: skip
+                ok = False
+            elif c not in mot.columns:
+                rep.add(
+                    "error", c,
+                    f"{motion.name} has no column '{c}', a coordinate the scene drives",
+                    f"use a motion with '{c}', or take it out of [model] coordinates (it is then "
+                    "held at the rest pose)",
+                )  # fmt: skip
+                ok = False
+        for c in moving:
+            if c not in driven:
+                rep.add(
+                    "warning", c,
+                    f"'{c}' moves the scene's bodies or paths but is not driven "
+                    + ("(the motion lacks it)" if c not in mot.columns else "(not in [model] coordinates)")
+                    + ": it is held at the rest pose",
+                    f"add '{c}' to [model] coordinates" if c in mot.columns else f"use a motion with '{c}'",
+                )  # fmt: skip
+        if not driven:
+            rep.add(
+                "error",
+                "scene",
+                f"{motion.name}: no column of it is a coordinate of {model.path.name}",
+            )
+            ok = False
+    return ok
+
+
+# ---------------------------------------------------------------------------- lines
+def _check_lines(
+    scene: Scene,
+    model: Any,
+    drive: Any,
+    body_m: dict[str, tuple[FloatArray, IntArray]],
+    rep: CheckReport,
+) -> None:
+    from ..mesh import mean_thickness
+
+    far = []
+    for m in scene.muscles:
+        V, F = body_m[m.name]
+        fit = line_fits(V, F, [dict(drive.rest_lines[m.name])])[0]
+        rep.fits[m.name] = fit
+        thick = float(mean_thickness(V, F))
+        rep.thickness[m.name] = thick
+        ratio = fit.length / fit.extent
+        if ratio < 0.02 or ratio > 50:
+            unit = min(UNITS, key=lambda u: abs(np.log(ratio * UNITS[scene.mesh_unit] / UNITS[u])))
+            rep.add(
+                "error", m.name,
+                f"its lines measure {fit.length:.3g} {scene.mesh_unit} and the muscle {fit.extent:.3g}: "
+                "the units are mixed up",
+                f"set [units] mesh = '{unit}' (now '{scene.mesh_unit}')" if unit != scene.mesh_unit
+                else "check [units] model",
+            )  # fmt: skip
+            continue
+        if fit.near > FAR_THICKNESSES * thick:
+            far.append(m.name)
+        elif ratio < 0.5:
+            rep.add(
+                "warning", m.name,
+                f"its lines measure {fit.length:.3g} {scene.mesh_unit}, half the muscle's length "
+                f"({fit.extent:.3g}) or less: the rest of it follows no line",
+            )  # fmt: skip
+    if not far:
+        return
+    if (
+        len(far) == len(scene.muscles)
+        and len(far) > 1
+        or (len(far) == 1 and len(scene.muscles) == 1 and scene.registration is None)
+    ):
+        gaps = ", ".join(f"{n} {rep.fits[n].near:.3g}" for n in far)
+        rep.add(
+            "error", "scene",
+            f"no muscle lies along its lines at rest (a quarter of each line within {gaps} "
+            f"{scene.mesh_unit} of its muscle at best): the meshes are not where the model is",
+            "if the meshes come from another subject or scanner, place them with a "
+            "[registration] (musclewrap init writes one); else check [units], [model] "
+            "mesh_frame and rest_pose",
+        )  # fmt: skip
+        return
+    for n in far:
+        spec = next(m for m in scene.muscles if m.name == n)
+        fit = rep.fits[n]
+        better = _nearest_paths(model, drive, spec, body_m[n], scene) if model is not None else []
+        fix = (
+            "the model's paths that run nearest it: "
+            + ", ".join(f"{p} ({g:.3g} {scene.mesh_unit})" for p, g in better)
+            + "; set its paths, or its mesh"
+            if better
+            else "check its paths and its mesh"
+        )
+        rep.add(
+            "error", n,
+            f"its lines ({', '.join(spec.paths)}) do not run along it at rest: their nearest "
+            f"quarter lies {fit.near:.3g} {scene.mesh_unit} outside it (its mean thickness is "
+            f"{rep.thickness[n]:.3g}); the farthest point {fit.far:.3g}",
+            fix,
+        )  # fmt: skip
+
+
+def _nearest_paths(
+    model: Any, drive: Any, spec: Any, mesh: tuple[FloatArray, IntArray], scene: Scene
+) -> list[tuple[str, float]]:
+    """The three model paths whose nearest quarter comes closest to the muscle at rest."""
+    s = scene.scale
+    names = list(model.path_names)
+    lines = []
+    _set_rest(scene, model)
+    for p in names:
+        P = model.path_points(p, spec.body) * s
+        lines.append({p: P})
+    fits = line_fits(mesh[0], mesh[1], lines)
+    order = np.argsort([f.near for f in fits])[:3]
+    return [(names[i], fits[i].near) for i in order]
+
+
+def _set_rest(scene: Scene, model: Any) -> None:
+    pose = model.default_pose()
+    for c, v in scene.rest_pose.items():
+        if c in pose:
+            pose[c] = np.radians(v) if model.is_rotational(c) else v
+    model.set_pose(pose)
+
+
+# ---------------------------------------------------------------------------- bodies
+def _check_bone_bodies(
+    scene: Scene, model: Any, body_b: dict[str, tuple[FloatArray, IntArray]], rep: CheckReport
+) -> None:
+    """Each bone against the attachments of the model's paths: whose lie on it."""
+    _set_rest(scene, model)
+    s = scene.scale
+    by_body: dict[str, list[FloatArray]] = {}
+    for p in model.path_names:
+        bodies = model.path_point_bodies(p)
+        for b, P in zip(bodies, model.path_points(p, "ground"), strict=True):
+            by_body.setdefault(b, []).append(P)
+    if not by_body:
+        return
+    for spec in scene.bones:
+        if spec.name not in body_b or spec.body == "ground":
+            continue
+        V, F = body_b[spec.name]
+        T = model.transform(spec.body, "ground")
+        Ti = np.linalg.inv(T)
+        count = {}
+        for b, pts in by_body.items():
+            P = (np.array(pts) @ Ti[:3, :3].T + Ti[:3, 3]) * s  # into the bone's body, mesh units
+            count[b] = int((outside_distance(P, V, F) <= ATTACHED_M * s).sum())
+        best = max(count, key=lambda b: count[b])
+        mine = count.get(spec.body, 0)
+        if best != spec.body and count[best] >= 3 and mine * 3 < count[best]:
+            rep.add(
+                "error", spec.name,
+                f"carried by '{spec.body}', but {count[best]} path points of '{best}' lie on it "
+                f"(within {ATTACHED_M * s:.3g} {scene.mesh_unit}) and {mine} of '{spec.body}'",
+                f"set [bones.{spec.name}] body = '{best}'",
+            )  # fmt: skip
+
+
+# ---------------------------------------------------------------------------- overlaps
+def _check_overlaps(
+    scene: Scene, model: Any, drive: Any,
+    body_m: dict[str, tuple[FloatArray, IntArray]],
+    body_b: dict[str, tuple[FloatArray, IntArray]],
+    rep: CheckReport,
+) -> None:  # fmt: skip
+    from ._verify import inside_depth, muscle_overlaps
+
+    rest_m = _in_output(scene, model, drive, body_m)
+    rest_b = _in_output(scene, model, drive, body_b)
+    unit = scene.mesh_unit
+    for m in scene.muscles:
+        V = rest_m[m.name][0]
+        for b in scene.bones:
+            if m.bones is not None and b.name not in m.bones:
+                continue
+            n, depth = inside_depth(V, *rest_b[b.name])
+            if n > 0.5 * len(V):
+                rep.add(
+                    "error", m.name,
+                    f"{n} of its {len(V)} vertices lie inside the bone '{b.name}' at rest "
+                    f"({depth:.3g} {unit} deep)",
+                    "the muscle and the bone must be the same subject's, in the same frame and "
+                    "units: check both bodies and [units]",
+                )  # fmt: skip
+            elif n:
+                rep.add(
+                    "note", m.name,
+                    f"{n} vertices inside the bone '{b.name}' at rest, up to {depth:.3g} {unit}: "
+                    "the run pushes them out once, volume kept"
+                    + (" (rest_overlap = 'keep': kept)" if scene.rest_overlap == "keep" else ""),
+                )  # fmt: skip
+    if len(rest_m) > 1:
+        over = muscle_overlaps(rest_m)
+        for name, (n, depth, other) in over.items():
+            if n == len(rest_m[name][0]):
+                rep.add(
+                    "error", name, f"lies entirely inside '{other}' at rest",
+                    "check both muscles' files, frames and units",
+                )  # fmt: skip
+            elif n:
+                rep.add(
+                    "note", name,
+                    f"{n} vertices inside '{other}' at rest, up to {depth:.3g} {unit}: the run "
+                    "takes them apart once, volumes kept",
+                )  # fmt: skip
+
+
+def _in_output(
+    scene: Scene, model: Any, drive: Any, meshes: dict[str, tuple[FloatArray, IntArray]]
+) -> dict[str, tuple[FloatArray, IntArray]]:
+    """Meshes (in their bodies' frames) placed together in the output frame at rest."""
+    from ._drive import apply
+
+    specs = {x.name: x for x in (*scene.muscles, *scene.bones)}
+    out = {}
+    if model is not None:
+        _set_rest(scene, model)
+    for n, (V, F) in meshes.items():
+        body = specs[n].body
+        if model is None or body == scene.output_frame:
+            out[n] = (V, F)
+            continue
+        T = model.transform(body, scene.output_frame)
+        T[:3, 3] *= scene.scale
+        out[n] = (apply(T, V), F)
+    return out
+
+
+def _picture_data(
+    scene: Scene, model: Any, drive: Any, body_m: dict, body_b: dict, rep: CheckReport
+) -> dict[str, Any]:  # noqa: ANN401
+    from ._drive import apply
+    from ._fit import resample_polyline
+
+    rest_m = _in_output(scene, model, drive, body_m)
+    rest_b = _in_output(scene, model, drive, body_b)
+    lines = []
+    for m in scene.muscles:
+        V, F = body_m[m.name]
+        T = np.eye(4)
+        if model is not None and m.body != scene.output_frame:
+            _set_rest(scene, model)
+            T = model.transform(m.body, scene.output_frame)
+            T[:3, 3] *= scene.scale
+        for L in drive.rest_lines[m.name].values():
+            P = resample_polyline(L, rep.fits[m.name].extent / 100)
+            lines.append((apply(T, P), outside_distance(P, V, F)))
+    front, up = np.array([1.0, 0, 0]), np.array([0, 1.0, 0])
+    if model is not None:  # OpenSim's ground: x forward, y up; in the output frame
+        _set_rest(scene, model)
+        R = model.transform("ground", scene.output_frame)[:3, :3]
+        front, up = R @ front, R @ up
+    return {
+        "view": np.array([front, up]),
+        "muscles": {n: rest_m[n] for n in rest_m},
+        "bones": rest_b,
+        "lines": lines,
+        "unit": scene.mesh_unit,
+        "title": f"{scene.name}: rest pose",
+    }

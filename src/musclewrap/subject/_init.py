@@ -1,0 +1,690 @@
+"""``musclewrap init``: a scene from an OpenSim model and a folder of meshes.
+
+Each mesh is classified (muscle, bone or landmark) by its file name (`._names`) and its
+shape; each muscle is matched to the model's paths by anatomical name, each bone to its
+body. Then the placement that makes the paths run through their muscles at rest is
+chosen among: the meshes in their bodies' frames (at the pose where the scene's bodies
+coincide, a model built in its scan's frame, else the default pose), in the model's
+ground frame, or in another subject's frame placed by the landmarks found (femoral head
+-> hip centre, distal femur -> knee) with each of the 24 turns of the axes. Every guess
+is written into the scene as a comment with how sure it is; what could not be placed is
+listed, never dropped silently.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+from ..scene._config import UNITS
+from ..scene._errors import SceneError
+from ..scene._fit import LineFit, line_fits
+from ._names import (
+    BONES,
+    LANDMARKS,
+    MUSCLES,
+    NameMatch,
+    match_bone,
+    match_muscle,
+    mesh_name_tokens,
+    path_anatomy,
+)
+
+__all__ = ["MESH_SUFFIXES", "InitResult", "MeshInfo", "init_scene", "survey"]
+
+#: the mesh files a folder is searched for
+MESH_SUFFIXES = (".stl", ".vtk", ".vtp", ".ply", ".obj", ".off")
+
+_REGION_BODY = {
+    "hip": ("pelvis",),
+    "thigh": ("femur_{s}",),
+    "shank": ("tibia_{s}",),
+    "trunk": ("torso", "pelvis"),
+}
+_ANATOMY = {a.name: a for a in MUSCLES}
+_BONE_BODIES = {b.name: b.bodies for b in (*BONES, *LANDMARKS)}
+
+
+@dataclass
+class MeshInfo:
+    """One mesh of the folder: what it was taken for, and why."""
+
+    path: Path
+    kind: str | None  # "muscle", "bone", "landmark" or None (not recognised)
+    match: NameMatch | None
+    side: str | None
+    V: FloatArray
+    F: IntArray
+    closed: bool
+    thickness: float
+    why: str = ""
+    sphere_rms: float = np.inf
+
+    @property
+    def stem(self) -> str:
+        return self.path.name.rsplit(".", 1)[0]
+
+
+def survey(folder: Path) -> list[MeshInfo]:
+    """Every mesh of ``folder`` (not its subfolders), read and classified."""
+    from ..mesh import check_mesh, mean_thickness, read_mesh, tidy_mesh
+    from ..scene._register import fit_sphere
+
+    if not folder.is_dir():
+        raise SceneError(f"{folder}: no such folder of meshes")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in MESH_SUFFIXES and p.is_file())
+    if not files:
+        raise SceneError(f"{folder}: no mesh files ({' '.join(MESH_SUFFIXES)}) in the folder")
+    out = []
+    for p in files:
+        V, F, _ = tidy_mesh(*read_mesh(p))
+        chk = check_mesh(V, F)
+        closed = chk.boundary_edges == 0
+        thick = float(mean_thickness(V, F)) if closed else 0.0
+        _, r, rms = fit_sphere(V)
+        stem = p.name.rsplit(".", 1)[0]
+        words, side = mesh_name_tokens(stem)
+        m, b = match_muscle(stem), match_bone(stem)
+        kind, match, why = None, None, ""
+        said_muscle, said_bone = "muscle" in words or "muscles" in words, "bone" in words
+        if m is not None and (b is None or m.score > b[0].score or said_muscle):
+            kind, match = "muscle", m
+        elif b is not None:
+            match = b[0]
+            kind = "landmark" if b[1] else "bone"
+        elif said_muscle:
+            why = "its name says muscle but names no muscle the table knows (musclewrap.subject.MUSCLES)"
+        elif said_bone:
+            why = "its name says bone but names no bone the table knows"
+        else:
+            why = "its name names no muscle, bone or cartilage the table knows"
+        if kind == "muscle" and not closed:
+            kind, why = (
+                None,
+                f"named like a muscle ({m.name}) but not closed ({chk.boundary_edges} boundary edges)",
+            )
+        out.append(MeshInfo(p, kind, match, side, V, F, closed, thick, why, rms / r))
+    return out
+
+
+@dataclass
+class _Muscle:
+    info: MeshInfo
+    name: str
+    side: str
+    paths: list[str]
+    body: str
+    fit: LineFit | None = None
+
+
+@dataclass
+class InitResult:
+    """What `init_scene` wrote and what it could not place."""
+
+    scene: Path
+    text: str
+    muscles: dict[str, tuple[str, ...]]
+    bones: dict[str, str]
+    unplaced: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    motion_written: Path | None = None
+
+
+def _rel(p: Path, base: Path) -> str:
+    return Path(os.path.relpath(os.path.abspath(p), os.path.abspath(base))).as_posix()
+
+
+def _q(s: str) -> str:
+    return json.dumps(s)
+
+
+def _paths_by_anatomy(model) -> dict[tuple[str, str | None], list[str]]:  # noqa: ANN001
+    out: dict[tuple[str, str | None], list[str]] = {}
+    for p in model.path_names:
+        a = path_anatomy(p)
+        if a is not None:
+            out.setdefault((a[0].name, a[1]), []).append(p)
+    return out
+
+
+def _first_body(model, options: Sequence[str], side: str) -> str | None:  # noqa: ANN001
+    for o in options:
+        b = o.format(s=side)
+        if b in model.body_names:
+            return b
+    return None
+
+
+def init_scene(
+    osim: Path,
+    mesh_dir: Path,
+    out: Path,
+    *,
+    motion: Path | None = None,
+    log: Callable[[str], None] | None = None,
+) -> InitResult:
+    """Write a scene for the meshes of ``mesh_dir`` on the model ``osim`` (see module doc).
+
+    Parameters
+    ----------
+    osim : pathlib.Path
+        The OpenSim model.
+    mesh_dir : pathlib.Path
+        A folder of muscle, bone and cartilage meshes (STL, VTK, VTP, PLY, OBJ, OFF).
+    out : pathlib.Path
+        The scene file to write (``.toml``).
+    motion : pathlib.Path, optional
+        The motion to drive the scene with. Without one, a sweep of each driven
+        coordinate over its range is written beside the scene
+        (``<scene>_sweep.mot``).
+    log : callable, optional
+        Receives one line per step.
+
+    Returns
+    -------
+    InitResult
+
+    Raises
+    ------
+    SceneError
+        If the model cannot be read, the folder holds no mesh, or no muscle of it
+        could be matched to the model.
+    """
+    from ..scene._opensim import OpenSimModel
+
+    say = log or (lambda s: None)
+    out = Path(out)
+    model = OpenSimModel(osim)
+    meshes = survey(Path(mesh_dir))
+    by_anatomy = _paths_by_anatomy(model)
+    unplaced: list[str] = []
+    notes: list[str] = []
+    for mi in meshes:
+        if mi.kind is None:
+            unplaced.append(f"{mi.path.name}: {mi.why}")
+    sides = [mi.side for mi in meshes if mi.kind == "muscle" and mi.side]
+    main_side = max(set(sides), key=sides.count) if sides else "r"
+
+    # ---------------------------------------------------------------- muscles to paths
+    muscles: list[_Muscle] = []
+    for mi in meshes:
+        if mi.kind != "muscle":
+            continue
+        assert mi.match is not None
+        a = _ANATOMY[mi.match.name]
+        options = [mi.side] if mi.side else [main_side, "l" if main_side == "r" else "r"]
+        found = [(s, by_anatomy.get((a.name, s), [])) for s in options]
+        found = [(s, p) for s, p in found if p]
+        if not found:
+            unplaced.append(
+                f"{mi.path.name}: taken for the {a.name.replace('_', ' ')} ({mi.match.how}), "
+                f"but {model.path.name} has no path for it"
+                + (f" on the {'right' if mi.side == 'r' else 'left'} side" if mi.side else "")
+            )
+            continue
+        side, paths = found[0]
+        body = _first_body(model, _REGION_BODY[a.region], side) or "pelvis"
+        muscles.append(_Muscle(mi, a.name, side, paths, body))
+        if len(found) > 1:
+            muscles[-1].paths = [p for _, ps in found for p in ps]  # both sides: resolved by fit
+    if not muscles:
+        raise SceneError(
+            f"{mesh_dir}: no mesh of the folder could be matched to a muscle path of "
+            f"{model.path.name}" + ("" if not unplaced else "; " + "; ".join(unplaced[:5]))
+        )
+    # a muscle named on the other side than most keeps its side in its name
+    for m in muscles:
+        if m.info.side and m.info.side != main_side:
+            m.name = f"{m.name}_{'left' if m.side == 'l' else 'right'}"
+
+    # ---------------------------------------------------------------- bones to bodies
+    bones: list[tuple[MeshInfo, str, str]] = []
+    for mi in meshes:
+        if mi.kind not in ("bone", "landmark"):
+            continue
+        assert mi.match is not None
+        side = mi.side or main_side
+        body = _first_body(model, _BONE_BODIES[mi.match.name], side)
+        if body is None:
+            unplaced.append(
+                f"{mi.path.name}: taken for the {mi.match.name.replace('_', ' ')}, but "
+                f"{model.path.name} has no body for it ({', '.join(b.format(s=side) for b in _BONE_BODIES[mi.match.name])})"
+            )
+            continue
+        name = mi.match.name + (
+            "" if side == main_side or mi.side is None else f"_{'left' if side == 'l' else 'right'}"
+        )
+        bones.append((mi, name, body))
+    names = [n for _, n, _ in bones]
+    for i, (mi, n, b) in enumerate(bones):
+        if names.count(n) > 1:  # two files for the same bone: keep both, by file name
+            bones[i] = (mi, mi.stem.lower().replace("-", "_").replace(" ", "_"), b)
+
+    # ---------------------------------------------------------------- units
+    model.set_pose(model.default_pose())
+    path_pts = np.vstack([model.path_points(p, "ground") for m in muscles for p in m.paths])
+    mesh_pts = np.vstack([m.info.V for m in muscles])
+    ratio = float(
+        np.linalg.norm(np.ptp(mesh_pts, axis=0)) / np.linalg.norm(np.ptp(path_pts, axis=0))
+    )
+    mesh_unit = min(UNITS, key=lambda u: abs(np.log(ratio * UNITS[u])))
+    s = 1.0 / UNITS[mesh_unit]  # model (m) to mesh units
+    say(f"units: the muscles span {ratio:.3g} times their paths: meshes in {mesh_unit}")
+    units_note = (
+        f"the muscle meshes span {np.linalg.norm(np.ptp(mesh_pts, axis=0)):.4g} (corner to "
+        f"corner), their paths {np.linalg.norm(np.ptp(path_pts, axis=0)):.4g} m at the default pose: "
+        f"ratio {ratio:.4g}, nearest {s:g} ({mesh_unit})"
+    )
+
+    # ---------------------------------------------------------------- coordinates
+    output_frame = "pelvis" if "pelvis" in model.body_names else "ground"
+    used = {m.body for m in muscles} | {b for _, _, b in bones}
+    for m in muscles:
+        for p in m.paths:
+            used |= set(model.path_point_bodies(p))
+    coords, locked = model.coordinates_between(sorted(used), output_frame)
+    lacking: list[str] = []
+    if motion is not None:
+        from ..scene._motion import read_motion
+
+        mot = read_motion(motion)
+        lacking = [c for c in coords if c not in mot.columns]
+        coords = [c for c in coords if c in mot.columns]
+        if not coords:
+            raise SceneError(
+                f"{motion}: the motion has none of the coordinates that move the scene "
+                f"({', '.join(lacking)})"
+            )
+
+    # ---------------------------------------------------------------- placement
+    default = model.default_pose()
+    coincident = _coincident_pose(model, sorted(used - {"ground"}), output_frame, coords)
+    candidates = _candidates(model, meshes, muscles, coords, default, coincident, s, main_side)
+    scores = []
+    per_muscle = {m.info.path.name: _fits_in(model, candidates, m, s) for m in muscles}
+    fits_by: list[dict[str, LineFit]] = [
+        {name: fits[i] for name, fits in per_muscle.items()} for i in range(len(candidates))
+    ]
+    for fits in fits_by:
+        # the part of each path nearest its muscle first (tendons running on past a
+        # muscle weigh nothing), the mean gap to break ties
+        near = float(np.median([f.near for f in fits.values()]))
+        scores.append(near + 0.1 * float(np.median([f.mean for f in fits.values()])))
+    k, alike, other = _choose(candidates, scores)
+    best, best_fits = candidates[k], fits_by[k]
+    say(f"placement: {best.describe()} (score {scores[k]:.3g} {mesh_unit})")
+    place_note = (
+        f"placement: {best.describe()}: the median muscle's paths come within "
+        f"{np.median([f.near for f in best_fits.values()]):.3g} {mesh_unit} of it for a quarter of "
+        f"their length and run {np.median([f.mean for f in best_fits.values()]):.3g} {mesh_unit} "
+        "outside it on average"
+        + (
+            f"; {alike} other turns of the axes end within {_ALIKE_DEG:g} deg of it after the "
+            f"landmarks' correction; this one needs the least ({best.correction:.1f} deg)"
+            if alike
+            else ""
+        )
+        + (
+            f"; the next best, {candidates[other].describe()}, scores {scores[other]:.3g} against "
+            f"{scores[k]:.3g} {mesh_unit}"
+            if other is not None
+            else ""
+        )
+    )
+    # sides not given by a name: the side whose paths fit
+    for m in muscles:
+        fit = best_fits[m.info.path.name]
+        if m.info.side is None and len({path_anatomy(p)[1] for p in m.paths}) > 1:  # type: ignore[index]
+            per = {}
+            for sd in ("r", "l"):
+                ps = [p for p in m.paths if path_anatomy(p)[1] == sd]  # type: ignore[index]
+                per[sd] = (_fit_in(model, best, _Muscle(m.info, m.name, sd, ps, m.body), s), ps)
+            sd = min(per, key=lambda k: per[k][0].near)
+            m.side, m.paths = sd, per[sd][1]
+            m.body = _first_body(model, _REGION_BODY[_ANATOMY[m.name].region], sd) or m.body
+            fit = per[sd][0]
+        m.fit = fit
+
+    # ---------------------------------------------------------------- motion
+    written = None
+    if motion is None:
+        written = out.with_name(out.stem + "_sweep.mot")
+        _write_sweep(model, coords, best.rest, written)
+        motion = written
+        say(f"no motion given: a sweep of {', '.join(coords)} written to {written}")
+
+    text = _scene_text(
+        out,
+        model,
+        muscles,
+        bones,
+        coords,
+        locked,
+        lacking,
+        best,
+        mesh_unit,
+        motion,
+        output_frame,
+        unplaced,
+        [units_note, place_note],
+        written is not None,
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".part")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(out)
+    return InitResult(
+        out,
+        text,
+        {m.name: tuple(m.paths) for m in muscles},
+        {n: b for _, n, b in bones},
+        unplaced,
+        notes + [units_note, place_note],
+        written,
+    )
+
+
+# ------------------------------------------------------------------------ placements
+@dataclass
+class _Placement:
+    kind: str  # "body", "ground" or "registration"
+    rest: dict[str, float]  # model units
+    why_rest: str
+    T: FloatArray | None = None  # registration: mesh -> ground (mesh units)
+    axes: tuple[str, str, str] | None = None
+    correction: float = 0.0  # registration: degrees the landmarks turn the axes' rotation by
+    landmarks: list[tuple[str, MeshInfo, str, str]] = field(default_factory=list)
+
+    def describe(self) -> str:
+        if self.kind == "registration":
+            return f"meshes in another subject's frame, registered by {' and '.join(n for n, *_ in self.landmarks)} with axes {list(self.axes or ())}"
+        if self.kind == "body":
+            return f"meshes in their bodies' frames at {self.why_rest}"
+        return f"meshes in the model's ground frame at {self.why_rest}"
+
+
+#: two registrations whose rotations differ by less than this are the same placement
+_ALIKE_DEG = 15.0
+#: placements whose scores differ by less than this (mesh units) fit equally well
+_TIE = 0.5
+
+
+def _turn(R: FloatArray) -> float:
+    """A rotation's angle, degrees."""
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
+
+
+def _choose(cands: list[_Placement], scores: list[float]) -> tuple[int, int, int | None]:
+    """The placement to take, how many others are the same one, and the next best distinct one.
+
+    Turns of the axes that the landmarks correct onto the same rotation (within
+    `_ALIKE_DEG`) are one placement: of those that fit as well as the best (within
+    `_TIE`), the one the landmarks turn least. The scores come first, the order of
+    ``cands`` breaks ties.
+    """
+    order = sorted(range(len(cands)), key=lambda i: scores[i])
+    best = order[0]
+
+    def same(i: int, j: int) -> bool:
+        a, b = cands[i], cands[j]
+        if a.kind != b.kind or a.rest != b.rest:
+            return False
+        if a.T is None or b.T is None:
+            return a.T is None and b.T is None
+        Ra = a.T[:3, :3] / np.cbrt(np.linalg.det(a.T[:3, :3]))
+        Rb = b.T[:3, :3] / np.cbrt(np.linalg.det(b.T[:3, :3]))
+        return _turn(Ra @ Rb.T) < _ALIKE_DEG
+
+    group = [i for i in order if same(i, best)]
+    tied = [i for i in group if scores[i] <= scores[best] + _TIE]
+    pick = min(tied, key=lambda i: (cands[i].correction, order.index(i)))
+    other = next((i for i in order if not same(i, best)), None)
+    return pick, len(group) - 1, other
+
+
+def _coincident_pose(
+    model, bodies: list[str], root: str, coords: list[str]
+) -> dict[str, float] | None:  # noqa: ANN001
+    """The pose where every body of ``bodies`` coincides with ``root``, if there is one.
+
+    A model built in its scan's frame (the LHDL hip model) has one: the scanned pose.
+    """
+    from scipy.optimize import least_squares
+
+    others = [b for b in bodies if b != root]
+    if not others or not coords:
+        return None
+    base = model.default_pose()
+
+    def residual(q: FloatArray) -> FloatArray:
+        model.set_pose({**base, **dict(zip(coords, q, strict=True))})
+        out = []
+        for b in others:
+            T = model.transform(b, root)
+            out += [(T[:3, :3] - np.eye(3)).ravel(), T[:3, 3]]
+        return np.concatenate(out)
+
+    q0 = np.array([base[c] for c in coords])
+    sol = least_squares(residual, q0, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    model.set_pose(base)
+    # within 1e-4 (rad, m): the bodies' frames meet; the LHDL model's meet to 7e-6
+    if np.abs(sol.fun).max() > 1e-4:
+        return None
+    return {**base, **dict(zip(coords, sol.x.tolist(), strict=True))}
+
+
+def _candidates(
+    model,
+    meshes: list[MeshInfo],
+    muscles: list[_Muscle],
+    coords: list[str],  # noqa: ANN001
+    default: dict[str, float],
+    coincident: dict[str, float] | None,
+    s: float,
+    side: str,
+) -> list[_Placement]:
+    out = [
+        _Placement("body", default, "the default pose"),
+        _Placement("ground", default, "the default pose"),
+    ]
+    if coincident is not None:
+        out.insert(0, _Placement("body", coincident, "the pose where the scene's bodies coincide"))
+    marks = _landmarks(model, meshes, side)
+    if len(marks) >= 2:
+        from ..scene._register import axes_rotation, similarity
+
+        model.set_pose(default)
+        P = np.array([point for _, _, point, _, _ in marks])
+        Q = np.array([model.transform(b, "ground")[:3, 3] * s for _, _, _, b, _ in marks])
+        for axes in _proper_axes():
+            R0 = axes_rotation(axes)
+            T = similarity(P, Q, R0)
+            out.append(
+                _Placement(
+                    "registration",
+                    default,
+                    "the default pose",
+                    T,
+                    axes,
+                    _turn(T[:3, :3] / np.cbrt(np.linalg.det(T[:3, :3])) @ R0.T),
+                    [(n, mi, fit, b) for n, mi, _, b, fit in marks],
+                )
+            )
+    return out
+
+
+def _landmarks(
+    model, meshes: list[MeshInfo], side: str
+) -> list[tuple[str, MeshInfo, FloatArray, str, str]]:  # noqa: ANN001
+    """The hip and knee landmarks found among the meshes: (name, mesh, point, body, fit)."""
+    from ..scene._register import fit_sphere, surface_centroid
+
+    found: dict[str, tuple[str, MeshInfo, FloatArray, str, str]] = {}
+    for mi in meshes:
+        if mi.kind != "landmark" or (mi.side or side) != side or mi.match is None:
+            continue
+        n = mi.match.name
+        if n == "femoral_head" or (n == "acetabulum" and "hip" not in found):
+            body = f"femur_{side}"
+            if body in model.body_names:
+                found["hip"] = ("hip", mi, fit_sphere(mi.V)[0], body, "sphere")
+        elif n == "femur_distal":
+            body = f"tibia_{side}"
+            if body in model.body_names:
+                found["knee"] = ("knee", mi, surface_centroid(mi.V, mi.F), body, "centroid")
+    return [found[k] for k in ("hip", "knee") if k in found]
+
+
+def _proper_axes() -> list[tuple[str, str, str]]:
+    """The 24 turns of the axes onto each other (signed permutations of det +1)."""
+    from ..scene._register import axes_rotation
+
+    out = []
+    for perm in itertools.permutations("xyz"):
+        for signs in itertools.product(("", "-"), repeat=3):
+            axes = tuple(sg + a for sg, a in zip(signs, perm, strict=True))
+            if np.isclose(np.linalg.det(axes_rotation(axes)), 1.0):
+                out.append(axes)  # type: ignore[arg-type]
+    return out  # type: ignore[return-value]
+
+
+def _lines_in(model, cand: _Placement, m: _Muscle, s: float) -> dict[str, FloatArray]:  # noqa: ANN001
+    """The muscle's rest paths in its mesh's coordinates under a placement."""
+    model.set_pose(cand.rest)
+    lines = {}
+    for p in m.paths:
+        if cand.kind == "body":
+            P = model.path_points(p, m.body) * s
+        else:
+            P = model.path_points(p, "ground") * s
+            if cand.T is not None:
+                Ti = np.linalg.inv(cand.T)
+                P = P @ Ti[:3, :3].T + Ti[:3, 3]
+        lines[p] = P
+    return lines
+
+
+def _fits_in(model, cands: list[_Placement], m: _Muscle, s: float) -> list[LineFit]:  # noqa: ANN001
+    """The muscle's paths against its mesh under each placement."""
+    return line_fits(m.info.V, m.info.F, [_lines_in(model, c, m, s) for c in cands])
+
+
+def _fit_in(model, cand: _Placement, m: _Muscle, s: float) -> LineFit:  # noqa: ANN001
+    return _fits_in(model, [cand], m, s)[0]
+
+
+# ------------------------------------------------------------------------ writing
+def _write_sweep(model, coords: list[str], rest: dict[str, float], path: Path) -> None:  # noqa: ANN001
+    """Each coordinate from its rest value to the ends of its range and back, in turn."""
+    from ..scene._motion import write_motion
+
+    rows = []
+    n = 21
+    for c in coords:
+        lo, hi = model.coordinate_range(c)
+        r0 = rest[c]
+        go = np.concatenate([
+            np.linspace(r0, hi, n // 2 + 1), np.linspace(hi, lo, n)[1:], np.linspace(lo, r0, n // 2 + 1)[1:]
+        ])  # fmt: skip
+        for v in go:
+            rows.append({**{k: rest[k] for k in coords}, c: v})
+    values = {
+        c: np.array([np.degrees(r[c]) if model.is_rotational(c) else r[c] for r in rows])
+        for c in coords
+    }
+    times = np.arange(len(rows)) / 30.0
+    write_motion(path, times, values, in_degrees=True)
+
+
+def _num(x: float) -> str:
+    return repr(round(float(x), 3) + 0.0)
+
+
+def _scene_text(
+    out: Path,
+    model,
+    muscles: list[_Muscle],
+    bones: list[tuple[MeshInfo, str, str]],  # noqa: ANN001
+    coords: list[str],
+    locked: list[str],
+    lacking: list[str],
+    place: _Placement,
+    mesh_unit: str,
+    motion: Path,
+    output_frame: str,
+    unplaced: list[str],
+    notes: list[str],
+    swept: bool,
+) -> str:
+    base = Path(os.path.abspath(out)).parent
+    unit = mesh_unit
+    L = [
+        f"# Written by `musclewrap init {model.path.name} ...`: every guess below says how sure it is.",
+        "# Check it with `musclewrap check " + out.name + "` before a run.",
+    ]
+    for n in notes:
+        L.append("# " + n)
+    if unplaced:
+        L.append(f"# NOT PLACED ({len(unplaced)}): these files are not in the scene:")
+        L += [f"#   {u}" for u in unplaced]
+    L += [f"name = {_q(out.stem)}", "", "[units]", f"mesh = {_q(mesh_unit)}", 'model = "m"', ""]
+    L += ["[model]", f"osim = {_q(_rel(model.path, base))}", f"motion = {_q(_rel(motion, base))}"]
+    if swept:
+        L.append("# (no motion was given: each coordinate swept over its range, written by init)")
+    L.append(f"coordinates = [{', '.join(_q(c) for c in coords)}]")
+    if locked:
+        L.append(f"# locked in the model, held still: {', '.join(locked)}")
+    if lacking:
+        L.append(f"# NOT DRIVEN: the motion lacks {', '.join(lacking)} (held at the rest pose)")
+    deg = {
+        c: (np.degrees(place.rest[c]) if model.is_rotational(c) else place.rest[c]) for c in coords
+    }
+    L.append(f"# the rest pose (degrees): {place.why_rest}")
+    L.append("rest_pose = { " + ", ".join(f"{c} = {_num(v)}" for c, v in deg.items()) + " }")
+    L.append(f"output_frame = {_q(output_frame)}")
+    if place.kind != "body":
+        L.append(f"mesh_frame = {_q(place.kind)}")
+    L.append("")
+    if place.kind == "registration":
+        L += ["[registration]", f"axes = [{', '.join(_q(a) for a in place.axes or ())}]"]
+        for name, mi, fit, body in place.landmarks:
+            L += [
+                "",
+                "[[registration.landmark]]",
+                f"name = {_q(name)}",
+                f"mesh = {_q(_rel(mi.path, base))}",
+                f"fit = {_q(fit)}",
+                f"body = {_q(body)}               # its origin",
+            ]
+        L.append("")
+    for m in muscles:
+        f = m.fit
+        assert f is not None and m.info.match is not None
+        L.append(
+            f"# {m.info.path.name}: the {m.name.replace('_', ' ')} by name ({m.info.match.how}); "
+            f"at rest its paths run {100 * f.inside:.0f} % inside it, a quarter of their length "
+            f"within {f.near:.3g} {unit}, the farthest point {f.far:.3g} {unit} out; paths "
+            f"{f.length:.4g} {unit} long, the muscle {f.extent:.4g}"
+        )
+        L += [
+            f"[muscles.{m.name}]",
+            f"mesh = {_q(_rel(m.info.path, base))}",
+            f"paths = [{', '.join(_q(p) for p in m.paths)}]",
+            f"body = {_q(m.body)}",
+            "",
+        ]
+    for mi, name, body in bones:
+        assert mi.match is not None
+        what = "landmark surface" if mi.kind == "landmark" else "bone"
+        L.append(
+            f"# {mi.path.name}: a {what}, the {mi.match.name.replace('_', ' ')} by name ({mi.match.how}), carried by {body}"
+        )
+        L += [f"[bones.{name}]", f"mesh = {_q(_rel(mi.path, base))}", f"body = {_q(body)}", ""]
+    return "\n".join(L).rstrip() + "\n"
