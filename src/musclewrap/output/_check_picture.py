@@ -71,7 +71,10 @@ def _main(src: str, png: str) -> None:
             else:
                 groups.setdefault((parts[0], int(parts[1]), parts[2]), {})[parts[3]] = d[k]
     pl = pv.Plotter(off_screen=True, shape=(1, 2), window_size=(1600, 900), border=False)
-    dmax = max([float(g["d"].max()) for (k, _, _), g in groups.items() if k == "line"] + [1e-9])
+    # the colours span the 95th percentile: a tendon running on far past its muscle
+    # would otherwise leave every other line one colour
+    ds = [g["d"] for (k, _, _), g in groups.items() if k == "line"]
+    dmax = max(float(np.quantile(np.concatenate(ds), 0.95)) if ds else 0.0, 1e-9)
     allV = np.vstack([g["V"] for (k, _, _), g in groups.items() if k == "muscles"])
     size = float(np.linalg.norm(np.ptp(allV, axis=0)))
     centre = allV.mean(axis=0)
@@ -97,7 +100,7 @@ def _main(src: str, png: str) -> None:
             line["distance"] = g["d"]
             pl.add_mesh(
                 line.tube(radius=0.004 * size),
-                scalars="distance", cmap="viridis", clim=(0, dmax),
+                scalars="distance", cmap="viridis", clim=(0, dmax), above_color="red",
                 scalar_bar_args={"title": f"line outside its muscle ({unit})", "color": "black"},
                 show_scalar_bar=col == 1,
             )  # fmt: skip

@@ -167,6 +167,24 @@ def _check(
     drive = drive_scene(scene, "0:1", {n: V.mean(axis=0) for n, (V, _) in bones.items()})
     body_m = {n: (apply(drive.to_body[n], V), F) for n, (V, F) in muscles.items()}
     body_b = {n: (apply(drive.to_body[n], V), F) for n, (V, F) in bones.items()}
+    if scene.registration is not None and scene.muscles:
+        T = drive.to_body[scene.muscles[0].name]
+        scale = float(np.cbrt(abs(np.linalg.det(T[:3, :3]))))
+        if not 1 / 3 < scale < 3:
+            # the units that would make the registration scale nearest 1
+            now = scene.scale
+            u, v = min(
+                ((u, v) for u in UNITS for v in UNITS),
+                key=lambda p: (abs(np.log(scale * (UNITS[p[1]] / UNITS[p[0]]) / now)), p[1] != "m"),
+            )
+            rep.add(
+                "error", "scene",
+                f"the registration scales the meshes by {scale:.3g}: the meshes and the model "
+                "are not in the units [units] says (two subjects differ in size by far less)",
+                f"set [units] mesh = '{u}', model = '{v}' (now '{scene.mesh_unit}', "
+                f"'{scene.model_unit}')",
+            )  # fmt: skip
+            return
     _check_lines(scene, model, drive, body_m, rep)
     if model is not None:
         _check_bone_bodies(scene, model, body_b, rep)
@@ -271,9 +289,23 @@ def _check_lines(
     rep: CheckReport,
 ) -> None:
     from ..mesh import mean_thickness
+    from ._names import match_muscle, path_anatomy
+    from ._read import rest_lines_problem
 
     far = []
+    refused: set[str] = set()
     for m in scene.muscles:
+        # the names: a neighbour's path can run through a muscle (the vasti's through
+        # each other), so only the names tell such a swap
+        named = match_muscle(m.mesh.name.rsplit(".", 1)[0]) or match_muscle(m.name)
+        of = {a[0].name for a in map(path_anatomy, m.paths) if a is not None}
+        if named is not None and of and named.name not in of:
+            rep.add(
+                "warning", m.name,
+                f"its mesh {m.mesh.name} is named like the {named.name.replace('_', ' ')}, its "
+                f"paths ({', '.join(m.paths)}) are the {', '.join(sorted(of)).replace('_', ' ')}'s",
+                "check its paths (musclewrap init matches them by name)",
+            )  # fmt: skip
         V, F = body_m[m.name]
         fit = line_fits(V, F, [dict(drive.rest_lines[m.name])])[0]
         rep.fits[m.name] = fit
@@ -284,13 +316,17 @@ def _check_lines(
             unit = min(UNITS, key=lambda u: abs(np.log(ratio * UNITS[scene.mesh_unit] / UNITS[u])))
             rep.add(
                 "error", m.name,
-                f"its lines measure {fit.length:.3g} {scene.mesh_unit} and the muscle {fit.extent:.3g}: "
+                f"its lines measure {fit.length:.3g} {scene.mesh_unit} and the muscle {fit.extent:.3g} {scene.mesh_unit}: "
                 "the units are mixed up",
                 f"set [units] mesh = '{unit}' (now '{scene.mesh_unit}')" if unit != scene.mesh_unit
                 else "check [units] model",
             )  # fmt: skip
             continue
-        if fit.near > FAR_THICKNESSES * thick:
+        problem = rest_lines_problem(scene, m, V, drive.rest_lines[m.name])
+        if problem is not None:  # what the run refuses, in its words
+            rep.add("error", m.name, problem)
+            refused.add(m.name)
+        if fit.near > FAR_THICKNESSES * thick or m.name in refused:
             far.append(m.name)
         elif ratio < 0.5:
             rep.add(
@@ -316,6 +352,8 @@ def _check_lines(
         )  # fmt: skip
         return
     for n in far:
+        if n in refused:
+            continue
         spec = next(m for m in scene.muscles if m.name == n)
         fit = rep.fits[n]
         better = _nearest_paths(model, drive, spec, body_m[n], scene) if model is not None else []

@@ -673,16 +673,26 @@ def _check_units(
     scene: Scene, drive: Drive, muscles: dict[str, tuple[FloatArray, IntArray]]
 ) -> None:
     """Refuse a muscle whose rest lines cannot belong to its mesh (both in its body frame)."""
+    for spec in scene.muscles:
+        problem = rest_lines_problem(
+            scene, spec, muscles[spec.name][0], drive.rest_lines[spec.name]
+        )
+        if problem is not None:
+            raise SceneError(problem)
+
+
+def rest_lines_problem(scene: Scene, spec: Any, V: FloatArray, lines: Any) -> str | None:
+    """Why a muscle's rest lines cannot belong to its mesh (`placement_problem`), or None."""
     from ..conditions import placement_problem
 
-    for spec in scene.muscles:
-        problem = placement_problem(muscles[spec.name][0], drive.rest_lines[spec.name])
-        if problem is not None:
-            raise SceneError(
-                f"{spec.mesh}: the rest action lines of '{spec.name}' ({scene.mesh_unit}): "
-                f"{problem}: check [units] (mesh = '{scene.mesh_unit}', model = "
-                f"'{scene.model_unit}'), the muscle's body ('{spec.body}'), or the rest pose"
-            )
+    problem = placement_problem(V, lines)
+    if problem is None:
+        return None
+    return (
+        f"{spec.mesh}: the rest action lines of '{spec.name}' ({scene.mesh_unit}): "
+        f"{problem}: check [units] (mesh = '{scene.mesh_unit}', model = "
+        f"'{scene.model_unit}'), the muscle's body ('{spec.body}'), or the rest pose"
+    )
 
 
 def attachment_area(

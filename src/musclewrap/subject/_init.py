@@ -1,6 +1,6 @@
 """``musclewrap init``: a scene from an OpenSim model and a folder of meshes.
 
-Each mesh is classified (muscle, bone or landmark) by its file name (`._names`) and its
+Each mesh is classified (muscle, bone or landmark) by its file name (`musclewrap.scene._names`) and its
 shape; each muscle is matched to the model's paths by anatomical name, each bone to its
 body. Then the placement that makes the paths run through their muscles at rest is
 chosen among: the meshes in their bodies' frames (at the pose where the scene's bodies
@@ -26,7 +26,7 @@ from .._typing import FloatArray, IntArray
 from ..scene._config import UNITS
 from ..scene._errors import SceneError
 from ..scene._fit import LineFit, line_fits
-from ._names import (
+from ..scene._names import (
     BONES,
     LANDMARKS,
     MUSCLES,
