@@ -412,8 +412,6 @@ class _Placement:
 
 #: two registrations whose rotations differ by less than this are the same placement
 _ALIKE_DEG = 15.0
-#: placements whose scores differ by less than this (mesh units) fit equally well
-_TIE = 0.5
 
 
 def _turn(R: FloatArray) -> float:
@@ -425,8 +423,10 @@ def _choose(cands: list[_Placement], scores: list[float]) -> tuple[int, int, int
     """The placement to take, how many others are the same one, and the next best distinct one.
 
     Turns of the axes that the landmarks correct onto the same rotation (within
-    `_ALIKE_DEG`) are one placement: of those that fit as well as the best (within
-    `_TIE`), the one the landmarks turn least. The scores come first, the order of
+    `_ALIKE_DEG`) are one placement: the fit picks the placement (two landmarks leave
+    the turn about the line through them open), and of its turns of the axes the one
+    the landmarks turn least, the frame's own axes (the fit's differences among them,
+    a few degrees apart, depend on which muscles the folder holds). The order of
     ``cands`` breaks ties.
     """
     order = sorted(range(len(cands)), key=lambda i: scores[i])
@@ -443,8 +443,7 @@ def _choose(cands: list[_Placement], scores: list[float]) -> tuple[int, int, int
         return _turn(Ra @ Rb.T) < _ALIKE_DEG
 
     group = [i for i in order if same(i, best)]
-    tied = [i for i in group if scores[i] <= scores[best] + _TIE]
-    pick = min(tied, key=lambda i: (cands[i].correction, order.index(i)))
+    pick = min(group, key=lambda i: (cands[i].correction, order.index(i)))
     other = next((i for i in order if not same(i, best)), None)
     return pick, len(group) - 1, other
 

@@ -1,0 +1,374 @@
+"""A user's own subject: the name table, ``musclewrap init`` and ``musclewrap check``."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from musclewrap.cli import main
+from musclewrap.scene import check_scene, load_scene, run_scene
+from musclewrap.scene._names import (
+    match_bone,
+    match_muscle,
+    mesh_name_tokens,
+    path_anatomy,
+    split_path_name,
+)
+from musclewrap.subject import init_scene
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+# OpenCap's LaiUhlrich2022 and LaiArnoldModified2017 keep Rajagopal 2016's names (their
+# model files are not in ../shared/data; this is their right leg's list)
+LAI_RIGHT = (
+    "addbrev_r addlong_r addmagDist_r addmagIsch_r addmagMid_r addmagProx_r bflh_r bfsh_r "
+    "edl_r ehl_r fdl_r fhl_r gaslat_r gasmed_r glmax1_r glmax2_r glmax3_r glmed1_r glmed2_r "
+    "glmed3_r glmin1_r glmin2_r glmin3_r grac_r iliacus_r perbrev_r perlong_r piri_r psoas_r "
+    "recfem_r sart_r semimem_r semiten_r soleus_r tfl_r tibant_r tibpost_r vasint_r vaslat_r "
+    "vasmed_r"
+).split()
+
+
+# ---------------------------------------------------------------------------- the table
+def test_path_names_split_into_stem_part_side():
+    assert split_path_name("glut_max2_r") == ("glut_max", "2", "r")
+    assert split_path_name("addmagIsch_l") == ("addmag", "Isch", "l")
+    assert split_path_name("psoas_r") == ("psoas", "", "r")
+    assert split_path_name("ercspn_r") == ("ercspn", "", "r")
+    assert split_path_name("iliacus") == ("iliacus", "", None)
+
+
+def test_mesh_file_names_give_words_and_side():
+    assert mesh_name_tokens("VHF_Left_Muscle_BicepsFemorisLong_smooth")[1] == "l"
+    assert mesh_name_tokens("LHDL_R_GluteusMaximus")[1] == "r"
+    assert mesh_name_tokens("r_femur") == (["r", "femur"], "r")
+    assert mesh_name_tokens("sacrum")[1] is None
+
+
+def _expected(stem: str) -> str:
+    return {
+        "glut_max": "gluteus_maximus", "glmax": "gluteus_maximus", "glut_med": "gluteus_medius",
+        "glmed": "gluteus_medius", "bifemlh": "biceps_femoris_long", "bflh": "biceps_femoris_long",
+        "bifemsh": "biceps_femoris_short", "bfsh": "biceps_femoris_short",
+        "rect_fem": "rectus_femoris", "recfem": "rectus_femoris", "sar": "sartorius",
+        "sart": "sartorius", "add_mag": "adductor_magnus", "addmag": "adductor_magnus",
+        "iliacus": "iliacus", "psoas": "psoas", "med_gas": "gastrocnemius_medial",
+        "gasmed": "gastrocnemius_medial", "peri": "piriformis", "piri": "piriformis",
+    }.get(stem, "")  # fmt: skip
+
+
+def _model_muscles(path: Path) -> list[str]:
+    from musclewrap.scene import OpenSimModel
+
+    return list(OpenSimModel(path).path_names)
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        "opensim/models/gait2392_thelen2003muscle.osim",
+        "opensim/models/subject01_simbody.osim",
+        "opensim/models/Rajagopal2016.osim",
+        "lhdl/model/LHDL_hip_r.osim",
+        "LaiUhlrich2022 (Rajagopal's names)",
+    ],
+)
+def test_name_table_knows_every_muscle_of_the_model(data_dir, model):
+    names = LAI_RIGHT if model.startswith("Lai") else _model_muscles(data_dir / model)
+    assert len(names) >= 8
+    for n in names:
+        found = path_anatomy(n)
+        assert found is not None, f"{model}: {n} is not in the name table"
+        anatomy, side = found
+        assert side == n[-1], n  # every path of these models ends in _r or _l
+        stem = split_path_name(n)[0]
+        if _expected(stem):
+            assert anatomy.name == _expected(stem), n
+    # one muscle to several paths where the model splits it
+    by = {}
+    for n in names:
+        a, side = path_anatomy(n)  # type: ignore[misc]
+        by.setdefault((a.name, side), []).append(n)
+    if "glut_max1_r" in names:
+        assert by[("gluteus_maximus", "r")] == ["glut_max1_r", "glut_max2_r", "glut_max3_r"]
+    if "addmagDist_r" in names:
+        assert len(by[("adductor_magnus", "r")]) == 4
+
+
+def test_mesh_names_of_the_data_are_classified(data_dir):
+    """Every file of ../shared/data's mesh folders: muscles by muscle, bones and cartilages."""
+    want = {
+        "VHF_Right_Muscle_Illiacus_smooth": "iliacus",  # misspelt in the data
+        "VHF_Right_Muscle_Semitendonosus_smooth": "semitendinosus",  # likewise
+        "VHF_Right_Muscle_PsoasMajor_smooth": "psoas",
+        "VHF_Left_Muscle_BicepsFemorisLong_smooth": "biceps_femoris_long",
+        "VHF_Right_Muscle_BicepsFemorisShortHead_smooth": "biceps_femoris_short",
+        "VHF_Right_Muscle_TensorFasciaeLatae_smooth": "tensor_fasciae_latae",
+        "LHDL_R_GluteusMaximus": "gluteus_maximus",
+    }
+    files = sorted((data_dir / "vhf").glob("*.stl")) + sorted((data_dir / "lhdl").glob("*/*.vtk"))
+    files += sorted((data_dir / "opensim" / "Geometry").glob("*.vtp"))
+    for f in files:
+        stem = f.name.rsplit(".", 1)[0]
+        m, b = match_muscle(stem), match_bone(stem)
+        if "Muscle" in stem or "LHDL_R_G" in stem or stem in ("LHDL_R_Iliacus", "LHDL_R_Psoas"):
+            assert m is not None and b is None, stem
+            if stem in want:
+                assert m.name == want[stem], stem
+        else:
+            assert m is None and b is not None, stem
+    assert match_bone("VHF_Right_Cartilage_FemurHead_smooth") == (
+        match_bone("VHF_Right_Cartilage_FemurHead_smooth")[0],  # type: ignore[index]
+        True,
+    )
+    assert match_bone("VHF_Right_Cartilage_FemurHead_smooth")[0].name == "femoral_head"  # type: ignore[index]
+    assert match_bone("LHDL_R_Iliac")[0].name == "iliac"  # type: ignore[index]
+    # muscles that differ in one word are not taken for each other
+    assert match_muscle("GluteusMinimus").name == "gluteus_minimus"  # type: ignore[union-attr]
+    assert match_muscle("VastusMedialis").name == "vastus_medialis"  # type: ignore[union-attr]
+    assert match_muscle("scan_0042") is None
+
+
+# ---------------------------------------------------------------------------- init
+def _folder_of(scene, where: Path) -> Path:
+    """A folder holding (links to) just the meshes a scene names."""
+    where.mkdir(parents=True, exist_ok=True)
+    files = [m.mesh for m in scene.muscles] + [b.mesh for b in scene.bones]
+    if scene.registration is not None:
+        files += [lm.mesh for lm in scene.registration.landmarks]
+    for f in set(files):
+        (where / f.name).symlink_to(f)
+    return where
+
+
+def _mapping(scene) -> dict:
+    return {
+        "muscles": {m.name: (m.paths, m.body, m.mesh.resolve()) for m in scene.muscles},
+        "bones": {b.name: (b.body, b.mesh.resolve()) for b in scene.bones},
+        "units": (scene.mesh_unit, scene.model_unit),
+        "coordinates": scene.coordinates,
+        "rest": {k: round(v, 3) for k, v in scene.rest_pose.items()},
+        "output": scene.output_frame,
+        "frames": sorted({m.frame for m in scene.muscles}),
+        "registration": None
+        if scene.registration is None
+        else (
+            scene.registration.axes,
+            [(lm.name, lm.fit, lm.body, lm.mesh.resolve()) for lm in scene.registration.landmarks],
+        ),
+    }
+
+
+@pytest.mark.parametrize("example", sorted(p.name for p in EXAMPLES.glob("*.toml")))
+def test_init_writes_the_hand_written_scene(data_dir, tmp_path, example):
+    hand = load_scene(EXAMPLES / example)
+    folder = _folder_of(hand, tmp_path / "meshes")
+    r = init_scene(hand.osim, folder, tmp_path / "scene.toml", motion=hand.motions[0])
+    assert not r.unplaced
+    made = load_scene(r.scene)
+    assert _mapping(made) == _mapping(hand)
+    text = r.scene.read_text()
+    assert "by name (exact)" in text and "inside it" in text  # each guess says how sure
+    rep = check_scene(made)
+    assert rep.ok, [str(f) for f in rep.errors]
+
+
+@pytest.mark.parametrize("example", ["lhdl_walk.toml", "gait2392_walk.toml"])
+def test_init_scene_runs_as_the_hand_written_one(data_dir, tmp_path, example):
+    """The same files, frame for frame (the hand-tuned cage of the LHDL iliacus carried over)."""
+    hand = load_scene(EXAMPLES / example)
+    folder = _folder_of(hand, tmp_path / "meshes")
+    r = init_scene(hand.osim, folder, tmp_path / "scene.toml", motion=hand.motion)
+    text = r.scene.read_text()
+    for m in hand.muscles:  # the example's own tuning, which no guess can know
+        if m.cage_size != 300:
+            text = text.replace(
+                f"[muscles.{m.name}]\n", f"[muscles.{m.name}]\ncage_size = {m.cage_size}\n"
+            )
+    r.scene.write_text(text)
+    made = load_scene(r.scene)
+    a, b = tmp_path / "hand", tmp_path / "made"
+    for sc, out in ((hand, a), (made, b)):
+        run_scene(sc, out, frames="0:211:105", render=False, progress=None)
+    for m in hand.muscles:
+        fa = sorted((a / m.name).glob("*.vtp"))
+        fb = sorted((b / m.name).glob("*.vtp"))
+        assert [f.name for f in fa] == [f.name for f in fb] and fa
+        from musclewrap.mesh import read_mesh
+
+        for x, y in zip(fa, fb, strict=True):
+            Va, Fa = read_mesh(x)
+            Vb, Fb = read_mesh(y)
+            assert np.array_equal(Fa, Fb)
+            assert np.abs(Va - Vb).max() <= 1e-9 * np.ptp(Va, axis=0).max()
+
+
+def test_init_on_the_vhf_folder_finds_every_gait2392_muscle(data_dir, tmp_path):
+    r = init_scene(
+        data_dir / "opensim/models/subject01_simbody.osim",
+        data_dir / "vhf",
+        tmp_path / "vhf.toml",
+        motion=data_dir / "opensim/motions/subject01_walk1_ik.mot",
+    )
+    sc = load_scene(r.scene)
+    # all 20 muscle files of the folder: the 19 right ones and the left long head of the
+    # biceps femoris, on its left path
+    assert len(sc.muscles) == 20 and not r.unplaced
+    paths = {m.name: m.paths for m in sc.muscles}
+    assert paths["biceps_femoris_long_left"] == ("bifemlh_l",)
+    assert paths["adductor_magnus"] == ("add_mag1_r", "add_mag2_r", "add_mag3_r")
+    assert paths["iliacus"] == ("iliacus_r",) and paths["semitendinosus"] == ("semiten_r",)
+    assert paths["tensor_fasciae_latae"] == ("tfl_r",)
+    assert sc.registration is not None and sc.registration.axes == ("y", "z", "x")
+    assert [lm.name for lm in sc.registration.landmarks] == ["hip", "knee"]
+    assert {b.name: b.body for b in sc.bones} == {
+        "patella": "tibia_r", "tibia": "tibia_r", "femur_distal": "femur_r",
+        "femoral_head": "femur_r", "acetabulum": "pelvis",
+    }  # fmt: skip
+    assert "knee_angle_l" in sc.coordinates  # the left muscle's joints are driven too
+    rep = check_scene(sc)
+    assert rep.ok, [str(f) for f in rep.errors]
+
+
+def test_init_lists_what_it_cannot_place(data_dir, tmp_path):
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    for f in ("muscles/LHDL_R_Psoas.vtk", "bones/LHDL_R_Femur.vtk"):
+        (folder / Path(f).name).symlink_to(data_dir / "lhdl" / f)
+    # a muscle the LHDL model has no path for, and a file whose name says nothing
+    (folder / "VHF_Right_Muscle_Sartorius_smooth.stl").symlink_to(
+        data_dir / "vhf/VHF_Right_Muscle_Sartorius_smooth.stl"
+    )
+    (folder / "scan_0042.stl").symlink_to(data_dir / "vhf/VHF_Right_Bone_Patella_smooth.stl")
+    r = init_scene(data_dir / "lhdl/model/LHDL_hip_r.osim", folder, tmp_path / "s.toml")
+    assert set(r.muscles) == {"psoas"} and r.bones == {"femur": "femur_r"}
+    assert len(r.unplaced) == 2
+    assert any("Sartorius" in u and "no path for it" in u for u in r.unplaced)
+    assert any("scan_0042" in u and "names no muscle" in u for u in r.unplaced)
+    text = r.scene.read_text()
+    assert "NOT PLACED (2)" in text and "scan_0042.stl" in text
+    # no motion given: a sweep of the hip's coordinates over their ranges
+    assert r.motion_written is not None and r.motion_written.is_file()
+    assert load_scene(r.scene).motion == r.motion_written
+
+
+def test_init_refuses_a_folder_without_meshes(tmp_path, data_dir):
+    with pytest.raises(ValueError, match="no mesh files"):
+        init_scene(data_dir / "lhdl/model/LHDL_hip_r.osim", tmp_path, tmp_path / "s.toml")
+    code = main(
+        [
+            "init",
+            str(data_dir / "lhdl/model/LHDL_hip_r.osim"),
+            str(tmp_path / "nowhere"),
+            "-o",
+            str(tmp_path / "s.toml"),
+        ]
+    )
+    assert code == 2 and not (tmp_path / "s.toml").exists()
+
+
+# ---------------------------------------------------------------------------- check
+def _broken(data_dir: Path, tmp_path: Path, case: str) -> Path:
+    src = (EXAMPLES / "gait2392_walk.toml").read_text()
+    src = src.replace("../../shared/data", data_dir.as_posix())
+    if case == "units":
+        src = src.replace('mesh = "mm"\nmodel = "m"', 'mesh = "m"\nmodel = "mm"')
+    elif case == "body":
+        src = src.replace(
+            'Tibia_smooth.stl"\nbody = "tibia_r"', 'Tibia_smooth.stl"\nbody = "femur_r"'
+        )
+    elif case == "path":
+        src = src.replace('paths = ["semiten_r"]', 'paths = ["vas_lat_r"]')
+    elif case == "registration":
+        a, b = src.index("\n[registration]"), src.index("\n[muscles.")
+        src = src[:a] + src[b:]
+        src = "\n".join(x for x in src.splitlines() if not x.startswith("mesh_frame"))
+    elif case == "motion":
+        mot = (data_dir / "opensim/motions/subject01_walk1_ik.mot").read_text().splitlines()
+        k = next(i for i, x in enumerate(mot) if x.strip().startswith("time"))
+        j = mot[k].split("\t").index("knee_angle_r")
+        rows = [mot[i].split("\t") for i in range(k, len(mot))]
+        mot = mot[:k] + ["\t".join(r[:j] + r[j + 1 :]) for r in rows]
+        (tmp_path / "no_knee.mot").write_text("\n".join(mot) + "\n")
+        src = re.sub(r'motion = ".*?"', f'motion = "{(tmp_path / "no_knee.mot").as_posix()}"', src)
+    p = tmp_path / f"{case}.toml"
+    p.write_text(src)
+    return p
+
+
+@pytest.mark.parametrize(
+    ("case", "subject", "says", "fix"),
+    [
+        (
+            "units",
+            "scene",
+            "registration scales the meshes by 1.18e-06",
+            "mesh = 'mm', model = 'm'",
+        ),
+        (
+            "body",
+            "tibia",
+            "carried by 'femur_r', but 24 path points of 'tibia_r'",
+            "body = 'tibia_r'",
+        ),
+        ("path", "semitendinosus", "do not run along it at rest", "semiten_r"),
+        ("registration", "scene", "no muscle lies along its lines", "[registration]"),
+        (
+            "motion",
+            "knee_angle_r",
+            "no column 'knee_angle_r'",
+            "take it out of [model] coordinates",
+        ),
+    ],
+)
+def test_check_catches_a_broken_scene(data_dir, tmp_path, case, subject, says, fix):
+    rep = check_scene(_broken(data_dir, tmp_path, case))
+    assert not rep.ok
+    hit = [f for f in rep.errors if f.subject == subject and says in f.message]
+    assert hit, [str(f) for f in rep.findings]
+    assert fix in hit[0].fix
+
+
+def test_check_and_run_refuse_a_broken_scene_alike(data_dir, tmp_path, capsys):
+    p = _broken(data_dir, tmp_path, "path")
+    assert main(["check", str(p)]) == 2
+    said = capsys.readouterr().out
+    assert "error: semitendinosus: its lines (vas_lat_r) do not run along it" in said
+    assert main(["run", str(p), "-o", str(tmp_path / "out"), "--frames", "0:1"]) == 2
+    err = capsys.readouterr().err
+    assert "error: semitendinosus: its lines (vas_lat_r) do not run along it" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_check_passes_an_example_and_draws_it(data_dir, tmp_path, capsys):
+    png = tmp_path / "check.png"
+    assert main(["check", str(EXAMPLES / "lhdl_walk.toml"), "-o", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "0 errors" in out and "gluteus_maximus: lines 71 % inside" in out
+    from PIL import Image
+
+    im = np.asarray(Image.open(png).convert("RGB"))
+    assert im.shape == (900, 1600, 3)
+    # both views show something besides the white background
+    for half in (im[:, :800], im[:, 800:]):
+        assert (half.sum(axis=2) < 600).mean() > 0.02
+
+
+def test_cli_init_then_check(data_dir, tmp_path, capsys):
+    hand = load_scene(EXAMPLES / "lhdl_walk.toml")
+    folder = _folder_of(hand, tmp_path / "meshes")
+    out = tmp_path / "lhdl.toml"
+    osim = str(hand.osim)
+    assert main(["init", osim, str(folder), "--motion", str(hand.motion), "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert (
+        "4 muscles, 3 bones" in said
+        and "gluteus_maximus: glut_max1_r, glut_max2_r, glut_max3_r" in said
+    )
+    assert main(["init", osim, str(folder), "-o", str(out)]) == 2  # exists: --force
+    assert main(["check", str(out)]) == 0
+    shutil.rmtree(folder)
