@@ -195,8 +195,8 @@ def test_init_scene_runs_as_the_hand_written_one(data_dir, tmp_path, example):
     for sc, out in ((hand, a), (made, b)):
         run_scene(sc, out, frames="0:211:105", render=False, progress=None)
     for m in hand.muscles:
-        fa = sorted((a / m.name).glob("*.vtp"))
-        fb = sorted((b / m.name).glob("*.vtp"))
+        fa = sorted((a / m.name).glob(f"{m.name}_[0-9]*.vtp"))
+        fb = sorted((b / m.name).glob(f"{m.name}_[0-9]*.vtp"))
         assert [f.name for f in fa] == [f.name for f in fb] and fa
         from musclewrap.mesh import read_mesh
 
