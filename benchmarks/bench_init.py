@@ -65,8 +65,7 @@ def _paths(scenes: list[str]) -> None:
 
     from musclewrap.mesh import mean_thickness
     from musclewrap.scene import OpenSimModel, drive_scene, load_scene
-    from musclewrap.scene._check import _set_rest
-    from musclewrap.scene._drive import apply
+    from musclewrap.scene._drive import apply, rest_pose
     from musclewrap.scene._fit import line_fits
     from musclewrap.scene._read import _read_muscle, default_cache_dir
     from musclewrap.subject import path_anatomy
@@ -76,7 +75,7 @@ def _paths(scenes: list[str]) -> None:
         sc = load_scene(f)
         model = OpenSimModel(sc.osim)
         drive = drive_scene(sc, "0:1", {})
-        _set_rest(sc, model)
+        model.set_pose(rest_pose(sc, model))
         for m in sc.muscles:
             V, F, _, _ = _read_muscle(m, default_cache_dir())
             V = apply(drive.to_body[m.name], V)

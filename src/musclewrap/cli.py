@@ -434,11 +434,12 @@ def _cmd_run(a: argparse.Namespace) -> int:
     from .scene import load_scene, run_batch
 
     scenes = [load_scene(p) for p in a.scene]
+    cache: Path | bool = False if a.no_cache else (Path(a.cache_dir) if a.cache_dir else True)
     if not a.no_check:
         from .scene import check_scene
 
         for sc in scenes:
-            rep = check_scene(sc)
+            rep = check_scene(sc, cache_dir=cache)  # the run's cache: --no-cache writes none
             if not rep.ok:
                 print(
                     f"error: {sc.path}: the scene's check found what would make the run wrong:",
@@ -468,7 +469,6 @@ def _cmd_run(a: argparse.Namespace) -> int:
     workers = a.workers if a.workers is not None else min(os.cpu_count() or 1, muscles)
     if workers < 1:
         raise ValueError(f"--workers must be at least 1, got {workers}")
-    cache: Path | bool = False if a.no_cache else (Path(a.cache_dir) if a.cache_dir else True)
     runs, folders = [], []
     for scene, out in zip(scenes, outs, strict=True):
         if a.no_fibres:

@@ -19,7 +19,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray, PathLike
 from ._config import UNITS, Scene, load_scene
 from ._errors import SceneError
-from ._fit import LineFit, line_fits, outside_distance
+from ._fit import LineFit, line_fit, line_fits, outside_distance
 
 __all__ = ["CheckReport", "Finding", "check_scene"]
 
@@ -104,9 +104,7 @@ def check_scene(
     rep = CheckReport(scene.path)
     try:
         _check(scene, rep, picture, cache_dir, say)
-    except SceneError as exc:
-        rep.add("error", "scene", str(exc))
-    except ImportError as exc:
+    except (SceneError, ImportError) as exc:
         rep.add("error", "scene", str(exc))
     return rep
 
@@ -188,14 +186,17 @@ def _check(
     _check_lines(scene, model, drive, body_m, rep)
     if model is not None:
         _check_bone_bodies(scene, model, body_b, rep)
-    _check_overlaps(scene, model, drive, body_m, body_b, rep)
+    # every mesh placed in the output frame at rest, once for the overlaps and the picture
+    to_out = _rest_to_output(scene, model)
+    rest_m = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_m.items()}
+    rest_b = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_b.items()}
+    _check_overlaps(scene, drive, body_m, rest_m, rest_b, rep)
     if picture is not None:
         from ..output._check_picture import draw_check
 
         say("drawing the rest pose")
-        rep.picture = draw_check(
-            Path(picture), _picture_data(scene, model, drive, body_m, body_b, rep)
-        )
+        data = _picture_data(scene, model, drive, body_m, to_out, rep)
+        rep.picture = draw_check(Path(picture), {**data, "muscles": rest_m, "bones": rest_b})
 
 
 # ---------------------------------------------------------------------------- model, motion
@@ -205,39 +206,18 @@ def _check_model(scene: Scene, model: Any, rep: CheckReport) -> bool:
     from ._motion import read_motion
 
     ok = True
-    for m in scene.muscles:
-        if m.body != "ground" and m.body not in model.body_names:
-            rep.add(
-                "error",
-                m.name,
-                f"the model has no body '{m.body}'",
-                suggest(m.body, model.body_names),
-            )
-            ok = False
-        for p in m.paths:
-            if p not in model.path_names:
-                rep.add(
-                    "error",
-                    m.name,
-                    f"the model has no muscle path '{p}'",
-                    suggest(p, model.path_names),
-                )
+    for x in (*scene.muscles, *scene.bones):
+        named = [("body", x.body)] + [("path", p) for p in getattr(x, "paths", ())]
+        for kind, name in named:
+            try:
+                (model.check_body if kind == "body" else model.check_path)(name)
+            except SceneError as exc:
+                rep.add("error", x.name, str(exc))
                 ok = False
-    for b in scene.bones:
-        if b.body != "ground" and b.body not in model.body_names:
-            rep.add(
-                "error",
-                b.name,
-                f"the model has no body '{b.body}'",
-                suggest(b.body, model.body_names),
-            )
-            ok = False
     if not ok:
         return False
-    bodies = {m.body for m in scene.muscles} | {b.body for b in scene.bones}
-    for m in scene.muscles:
-        for p in m.paths:
-            bodies |= set(model.path_point_bodies(p))
+    bodies = {x.body for x in (*scene.muscles, *scene.bones)}
+    bodies |= model.path_bodies([p for m in scene.muscles for p in m.paths])
     moving, _ = model.coordinates_between(sorted(bodies - {"ground"}), scene.output_frame)
     for motion in scene.motions:
         mot = read_motion(motion)
@@ -307,7 +287,7 @@ def _check_lines(
                 "check its paths (musclewrap init matches them by name)",
             )  # fmt: skip
         V, F = body_m[m.name]
-        fit = line_fits(V, F, [dict(drive.rest_lines[m.name])])[0]
+        fit = line_fit(V, F, dict(drive.rest_lines[m.name]))
         rep.fits[m.name] = fit
         thick = float(mean_thickness(V, F))
         rep.thickness[m.name] = thick
@@ -336,11 +316,9 @@ def _check_lines(
             )  # fmt: skip
     if not far:
         return
-    if (
-        len(far) == len(scene.muscles)
-        and len(far) > 1
-        or (len(far) == 1 and len(scene.muscles) == 1 and scene.registration is None)
-    ):
+    # every muscle off its lines: the meshes are misplaced, not the paths misnamed (one
+    # muscle alone cannot tell: its message names the paths nearest it)
+    if len(far) == len(scene.muscles) > 1:
         gaps = ", ".join(f"{n} {rep.fits[n].near:.3g}" for n in far)
         rep.add(
             "error", "scene",
@@ -356,7 +334,7 @@ def _check_lines(
             continue
         spec = next(m for m in scene.muscles if m.name == n)
         fit = rep.fits[n]
-        better = _nearest_paths(model, drive, spec, body_m[n], scene) if model is not None else []
+        better = _nearest_paths(model, spec, body_m[n], scene) if model is not None else []
         fix = (
             "the model's paths that run nearest it: "
             + ", ".join(f"{p} ({g:.3g} {scene.mesh_unit})" for p, g in better)
@@ -374,27 +352,36 @@ def _check_lines(
 
 
 def _nearest_paths(
-    model: Any, drive: Any, spec: Any, mesh: tuple[FloatArray, IntArray], scene: Scene
+    model: Any, spec: Any, mesh: tuple[FloatArray, IntArray], scene: Scene
 ) -> list[tuple[str, float]]:
     """The three model paths whose nearest quarter comes closest to the muscle at rest."""
-    s = scene.scale
+    from ._drive import rest_pose
+
     names = list(model.path_names)
-    lines = []
-    _set_rest(scene, model)
-    for p in names:
-        P = model.path_points(p, spec.body) * s
-        lines.append({p: P})
-    fits = line_fits(mesh[0], mesh[1], lines)
+    model.set_pose(rest_pose(scene, model))
+    fits = line_fits(*mesh, [{p: model.path_points(p, spec.body) * scene.scale} for p in names])
     order = np.argsort([f.near for f in fits])[:3]
     return [(names[i], fits[i].near) for i in order]
 
 
-def _set_rest(scene: Scene, model: Any) -> None:
-    pose = model.default_pose()
-    for c, v in scene.rest_pose.items():
-        if c in pose:
-            pose[c] = np.radians(v) if model.is_rotational(c) else v
-    model.set_pose(pose)
+def _body(scene: Scene, name: str) -> str:
+    return next(x.body for x in (*scene.muscles, *scene.bones) if x.name == name)
+
+
+def _rest_to_output(scene: Scene, model: Any) -> dict[str, FloatArray]:
+    """Per body of the scene (and 'ground'): its frame to the output frame at rest, mesh units."""
+    from ._drive import rest_pose
+
+    bodies = {x.body for x in (*scene.muscles, *scene.bones)} | {"ground"}
+    if model is None:
+        return {b: np.eye(4) for b in bodies}
+    model.set_pose(rest_pose(scene, model))
+    out = {}
+    for b in bodies:
+        T = model.transform(b, scene.output_frame)
+        T[:3, 3] *= scene.scale
+        out[b] = T
+    return out
 
 
 # ---------------------------------------------------------------------------- bodies
@@ -402,25 +389,26 @@ def _check_bone_bodies(
     scene: Scene, model: Any, body_b: dict[str, tuple[FloatArray, IntArray]], rep: CheckReport
 ) -> None:
     """Each bone against the attachments of the model's paths: whose lie on it."""
-    _set_rest(scene, model)
+    from ._drive import rest_pose
+
+    model.set_pose(rest_pose(scene, model))
     s = scene.scale
-    by_body: dict[str, list[FloatArray]] = {}
+    owner: list[str] = []
+    pts = []
     for p in model.path_names:
-        bodies = model.path_point_bodies(p)
-        for b, P in zip(bodies, model.path_points(p, "ground"), strict=True):
-            by_body.setdefault(b, []).append(P)
-    if not by_body:
+        owner += model.path_point_bodies(p)
+        pts.append(model.path_points(p, "ground"))
+    if not owner:
         return
+    G = np.vstack(pts)
+    owner_a = np.array(owner)
     for spec in scene.bones:
         if spec.name not in body_b or spec.body == "ground":
             continue
-        V, F = body_b[spec.name]
-        T = model.transform(spec.body, "ground")
-        Ti = np.linalg.inv(T)
-        count = {}
-        for b, pts in by_body.items():
-            P = (np.array(pts) @ Ti[:3, :3].T + Ti[:3, 3]) * s  # into the bone's body, mesh units
-            count[b] = int((outside_distance(P, V, F) <= ATTACHED_M * s).sum())
+        Ti = np.linalg.inv(model.transform(spec.body, "ground"))
+        P = (G @ Ti[:3, :3].T + Ti[:3, 3]) * s  # into the bone's body, mesh units
+        on = owner_a[outside_distance(P, *body_b[spec.name]) <= ATTACHED_M * s]
+        count = {b: int((on == b).sum()) for b in set(owner)}
         best = max(count, key=lambda b: count[b])
         mine = count.get(spec.body, 0)
         if best != spec.body and count[best] >= 3 and mine * 3 < count[best]:
@@ -434,15 +422,16 @@ def _check_bone_bodies(
 
 # ---------------------------------------------------------------------------- overlaps
 def _check_overlaps(
-    scene: Scene, model: Any, drive: Any,
+    scene: Scene, drive: Any,
     body_m: dict[str, tuple[FloatArray, IntArray]],
-    body_b: dict[str, tuple[FloatArray, IntArray]],
+    rest_m: dict[str, tuple[FloatArray, IntArray]],
+    rest_b: dict[str, tuple[FloatArray, IntArray]],
     rep: CheckReport,
 ) -> None:  # fmt: skip
+    """Rest overlaps (meshes in the output frame at rest): what the run refuses or resolves."""
+    from ._read import check_muscles_apart
     from ._verify import inside_depth, muscle_overlaps
 
-    rest_m = _in_output(scene, model, drive, body_m)
-    rest_b = _in_output(scene, model, drive, body_b)
     unit = scene.mesh_unit
     for m in scene.muscles:
         V = rest_m[m.name][0]
@@ -465,71 +454,38 @@ def _check_overlaps(
                     "the run pushes them out once, volume kept"
                     + (" (rest_overlap = 'keep': kept)" if scene.rest_overlap == "keep" else ""),
                 )  # fmt: skip
-    if len(rest_m) > 1:
-        over = muscle_overlaps(rest_m)
-        for name, (n, depth, other) in over.items():
-            if n == len(rest_m[name][0]):
-                rep.add(
-                    "error", name, f"lies entirely inside '{other}' at rest",
-                    "check both muscles' files, frames and units",
-                )  # fmt: skip
-            elif n:
-                rep.add(
-                    "note", name,
-                    f"{n} vertices inside '{other}' at rest, up to {depth:.3g} {unit}: the run "
-                    "takes them apart once, volumes kept",
-                )  # fmt: skip
-
-
-def _in_output(
-    scene: Scene, model: Any, drive: Any, meshes: dict[str, tuple[FloatArray, IntArray]]
-) -> dict[str, tuple[FloatArray, IntArray]]:
-    """Meshes (in their bodies' frames) placed together in the output frame at rest."""
-    from ._drive import apply
-
-    specs = {x.name: x for x in (*scene.muscles, *scene.bones)}
-    out = {}
-    if model is not None:
-        _set_rest(scene, model)
-    for n, (V, F) in meshes.items():
-        body = specs[n].body
-        if model is None or body == scene.output_frame:
-            out[n] = (V, F)
-            continue
-        T = model.transform(body, scene.output_frame)
-        T[:3, 3] *= scene.scale
-        out[n] = (apply(T, V), F)
-    return out
+    if not scene.muscle_collisions:
+        return
+    try:  # what the run refuses: the same mesh twice, a muscle inside another
+        check_muscles_apart(scene, drive, body_m)
+    except SceneError as exc:
+        rep.add("error", "scene", str(exc))
+        return
+    for name, (n, depth, other) in muscle_overlaps(rest_m).items():
+        if n:
+            rep.add(
+                "note", name,
+                f"{n} vertices inside '{other}' at rest, up to {depth:.3g} {unit}: the run "
+                "takes them apart once, volumes kept",
+            )  # fmt: skip
 
 
 def _picture_data(
-    scene: Scene, model: Any, drive: Any, body_m: dict, body_b: dict, rep: CheckReport
+    scene: Scene, model: Any, drive: Any, body_m: dict, to_out: dict, rep: CheckReport
 ) -> dict[str, Any]:  # noqa: ANN401
+    """The action lines in the output frame at rest, with their distances; the view."""
     from ._drive import apply
     from ._fit import resample_polyline
 
-    rest_m = _in_output(scene, model, drive, body_m)
-    rest_b = _in_output(scene, model, drive, body_b)
     lines = []
     for m in scene.muscles:
-        V, F = body_m[m.name]
-        T = np.eye(4)
-        if model is not None and m.body != scene.output_frame:
-            _set_rest(scene, model)
-            T = model.transform(m.body, scene.output_frame)
-            T[:3, 3] *= scene.scale
         for L in drive.rest_lines[m.name].values():
             P = resample_polyline(L, rep.fits[m.name].extent / 100)
-            lines.append((apply(T, P), outside_distance(P, V, F)))
-    front, up = np.array([1.0, 0, 0]), np.array([0, 1.0, 0])
-    if model is not None:  # OpenSim's ground: x forward, y up; in the output frame
-        _set_rest(scene, model)
-        R = model.transform("ground", scene.output_frame)[:3, :3]
-        front, up = R @ front, R @ up
+            lines.append((apply(to_out[m.body], P), outside_distance(P, *body_m[m.name])))
+    # OpenSim's ground: x forward, y up; in the output frame
+    R = to_out["ground"][:3, :3]
     return {
-        "view": np.array([front, up]),
-        "muscles": {n: rest_m[n] for n in rest_m},
-        "bones": rest_b,
+        "view": np.array([R @ [1.0, 0, 0], R @ [0, 1.0, 0]]),
         "lines": lines,
         "unit": scene.mesh_unit,
         "title": f"{scene.name}: rest pose",

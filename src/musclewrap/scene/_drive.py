@@ -45,23 +45,16 @@ def invert_rigid(T: FloatArray) -> FloatArray:
 def _register(scene: Scene, g: dict[str, FloatArray], s: float, notes: list[str]) -> FloatArray:
     """Similarity from the registration's mesh frame to ground (mesh units), with a note."""
     from ..mesh import read_mesh, tidy_mesh
-    from ._register import axes_rotation, check_landmarks, fit_sphere, similarity, surface_centroid
+    from ._register import axes_rotation, check_landmarks, landmark_point, similarity
 
     reg = scene.registration
     assert reg is not None
     P, Q, names, fits = [], [], [], []
     for lm in reg.landmarks:
         V, F, _ = tidy_mesh(*read_mesh(lm.mesh))
-        if lm.fit == "sphere":
-            c, r, rms = fit_sphere(V)
-            if not rms < 0.25 * r:
-                raise SceneError(
-                    f"{lm.mesh}: landmark '{lm.name}': the mesh is not sphere-like (fit radius "
-                    f"{r:.3g}, rms distance {rms:.3g}); use fit = 'centroid'"
-                )
-            fits.append(f"{lm.name} sphere r {r:.1f} (rms {rms:.2f})")
-        else:
-            c = surface_centroid(V, F)
+        c, said = landmark_point(V, F, lm.fit, lm.name, lm.mesh)
+        if said:
+            fits.append(said)
         P.append(c)
         Q.append(apply(g[lm.body], np.array(lm.point)[None] * s)[0])
         names.append(lm.name)
@@ -341,6 +334,20 @@ def drive_scene(
     raise SceneError(f"{scene.path}: nothing drives the scene (no motion, no line CSV)")
 
 
+def rest_pose(scene: Scene, model: OpenSimModel) -> dict[str, float]:
+    """Every coordinate at the scene's rest pose (model units: radians or metres)."""
+    names = model.coordinate_names
+    rest = model.default_pose()
+    for c, v in scene.rest_pose.items():
+        if c not in names:
+            raise SceneError(
+                f"{scene.path}: [model] rest_pose names '{c}', not a coordinate of "
+                f"{model.path.name}; " + suggest(c, names)
+            )
+        rest[c] = np.radians(v) if model.is_rotational(c) else v
+    return rest
+
+
 def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Drive:
     model = OpenSimModel(scene.osim)
     motion = read_motion(scene.motion)
@@ -376,14 +383,7 @@ def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Dr
         )
     deg, how = _angle_in_degrees(scene, motion, model, coords)
     notes.append(how)
-    rest = model.default_pose()
-    for c, v in scene.rest_pose.items():
-        if c not in names:
-            raise SceneError(
-                f"{scene.path}: [model] rest_pose names '{c}', not a coordinate of "
-                f"{model.path.name}; " + suggest(c, names)
-            )
-        rest[c] = np.radians(v) if model.is_rotational(c) else v
+    rest = rest_pose(scene, model)
     pos = parse_frames(frames_text, motion.n_frames, source=str(motion.path))
     s = scene.scale
     for spec in scene.muscles:

@@ -101,6 +101,10 @@ class OpenSimModel:
             )
         return out
 
+    def path_bodies(self, paths: Sequence[str]) -> set[str]:
+        """The bodies the points of ``paths`` are fixed in (at the current pose)."""
+        return {b for p in paths for b in self.path_point_bodies(p)}
+
     def coordinates_between(self, bodies: Sequence[str], frame: str) -> tuple[list[str], list[str]]:
         """The coordinates that move ``bodies`` relative to ``frame``, in the model's order.
 

@@ -11,7 +11,7 @@ from ..conditions._rotation import _minimal_rotation, kabsch
 from ..mesh import face_areas
 from ._errors import SceneError
 
-__all__ = ["axes_rotation", "fit_sphere", "similarity", "surface_centroid"]
+__all__ = ["axes_rotation", "fit_sphere", "landmark_point", "similarity", "surface_centroid"]
 
 
 def fit_sphere(P: FloatArray) -> tuple[FloatArray, float, float]:
@@ -37,6 +37,26 @@ def surface_centroid(V: FloatArray, F: np.ndarray) -> FloatArray:
     """Area-weighted centroid of a triangle surface (independent of vertex density)."""
     area = face_areas(V, F)
     return (V[F].mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
+
+
+def landmark_point(
+    V: FloatArray, F: np.ndarray, fit: str, name: str, source: object
+) -> tuple[FloatArray, str]:
+    """A landmark's point on its mesh: a fitted sphere's centre, or the surface centroid.
+
+    Returns the point and, for a sphere, a few words on the fit. Raises `SceneError`
+    (naming ``source``) for a mesh that is not sphere-like (rms distance from the
+    sphere over a quarter of its radius).
+    """
+    if fit != "sphere":
+        return surface_centroid(V, F), ""
+    c, r, rms = fit_sphere(V)
+    if not rms < 0.25 * r:
+        raise SceneError(
+            f"{source}: landmark '{name}': the mesh is not sphere-like (fit radius "
+            f"{r:.3g}, rms distance {rms:.3g}); use fit = 'centroid'"
+        )
+    return c, f"{name} sphere r {r:.1f} (rms {rms:.2f})"
 
 
 def axes_rotation(axes: Sequence[str]) -> FloatArray:

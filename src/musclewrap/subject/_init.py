@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..mesh import atomic_path
 from ..scene._config import UNITS
 from ..scene._errors import SceneError
 from ..scene._fit import LineFit, line_fits
@@ -63,9 +64,7 @@ class MeshInfo:
     V: FloatArray
     F: IntArray
     closed: bool
-    thickness: float
     why: str = ""
-    sphere_rms: float = np.inf
 
     @property
     def stem(self) -> str:
@@ -74,8 +73,7 @@ class MeshInfo:
 
 def survey(folder: Path) -> list[MeshInfo]:
     """Every mesh of ``folder`` (not its subfolders), read and classified."""
-    from ..mesh import check_mesh, mean_thickness, read_mesh, tidy_mesh
-    from ..scene._register import fit_sphere
+    from ..mesh import check_mesh, read_mesh, tidy_mesh
 
     if not folder.is_dir():
         raise SceneError(f"{folder}: no such folder of meshes")
@@ -87,8 +85,6 @@ def survey(folder: Path) -> list[MeshInfo]:
         V, F, _ = tidy_mesh(*read_mesh(p))
         chk = check_mesh(V, F)
         closed = chk.boundary_edges == 0
-        thick = float(mean_thickness(V, F)) if closed else 0.0
-        _, r, rms = fit_sphere(V)
         stem = p.name.rsplit(".", 1)[0]
         words, side = mesh_name_tokens(stem)
         m, b = match_muscle(stem), match_bone(stem)
@@ -110,7 +106,7 @@ def survey(folder: Path) -> list[MeshInfo]:
                 None,
                 f"named like a muscle ({m.name}) but not closed ({chk.boundary_edges} boundary edges)",
             )
-        out.append(MeshInfo(p, kind, match, side, V, F, closed, thick, why, rms / r))
+        out.append(MeshInfo(p, kind, match, side, V, F, closed, why))
     return out
 
 
@@ -205,7 +201,6 @@ def init_scene(
     meshes = survey(Path(mesh_dir))
     by_anatomy = _paths_by_anatomy(model)
     unplaced: list[str] = []
-    notes: list[str] = []
     for mi in meshes:
         if mi.kind is None:
             unplaced.append(f"{mi.path.name}: {mi.why}")
@@ -286,9 +281,7 @@ def init_scene(
     # ---------------------------------------------------------------- coordinates
     output_frame = "pelvis" if "pelvis" in model.body_names else "ground"
     used = {m.body for m in muscles} | {b for _, _, b in bones}
-    for m in muscles:
-        for p in m.paths:
-            used |= set(model.path_point_bodies(p))
+    used |= model.path_bodies([p for m in muscles for p in m.paths])
     coords, locked = model.coordinates_between(sorted(used), output_frame)
     lacking: list[str] = []
     if motion is not None:
@@ -376,17 +369,15 @@ def init_scene(
         [units_note, place_note],
         written is not None,
     )
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".part")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(out)
+    with atomic_path(out) as part:
+        part.write_text(text, encoding="utf-8")
     return InitResult(
         out,
         text,
         {m.name: tuple(m.paths) for m in muscles},
         {n: b for _, n, b in bones},
         unplaced,
-        notes + [units_note, place_note],
+        [units_note, place_note],
         written,
     )
 
@@ -414,6 +405,11 @@ class _Placement:
 _ALIKE_DEG = 15.0
 
 
+def _rotation(T: FloatArray) -> FloatArray:
+    """The rotation of a similarity (its scale divided out)."""
+    return T[:3, :3] / np.cbrt(np.linalg.det(T[:3, :3]))
+
+
 def _turn(R: FloatArray) -> float:
     """A rotation's angle, degrees."""
     return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
@@ -438,9 +434,7 @@ def _choose(cands: list[_Placement], scores: list[float]) -> tuple[int, int, int
             return False
         if a.T is None or b.T is None:
             return a.T is None and b.T is None
-        Ra = a.T[:3, :3] / np.cbrt(np.linalg.det(a.T[:3, :3]))
-        Rb = b.T[:3, :3] / np.cbrt(np.linalg.det(b.T[:3, :3]))
-        return _turn(Ra @ Rb.T) < _ALIKE_DEG
+        return _turn(_rotation(a.T) @ _rotation(b.T).T) < _ALIKE_DEG
 
     group = [i for i in order if same(i, best)]
     pick = min(group, key=lambda i: (cands[i].correction, order.index(i)))
@@ -450,10 +444,11 @@ def _choose(cands: list[_Placement], scores: list[float]) -> tuple[int, int, int
 
 def _coincident_pose(
     model, bodies: list[str], root: str, coords: list[str]
-) -> dict[str, float] | None:  # noqa: ANN001
+) -> tuple[dict[str, float], float] | None:  # noqa: ANN001
     """The pose where every body of ``bodies`` coincides with ``root``, if there is one.
 
     A model built in its scan's frame (the LHDL hip model) has one: the scanned pose.
+    Returns the pose and the largest residual (rotation entries and metres).
     """
     from scipy.optimize import least_squares
 
@@ -473,10 +468,11 @@ def _coincident_pose(
     q0 = np.array([base[c] for c in coords])
     sol = least_squares(residual, q0, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     model.set_pose(base)
-    # within 1e-4 (rad, m): the bodies' frames meet; the LHDL model's meet to 7e-6
-    if np.abs(sol.fun).max() > 1e-4:
+    # within 1e-4 (rad, m): the bodies' frames meet; the LHDL model's meet to 1e-6
+    miss = float(np.abs(sol.fun).max())
+    if miss > 1e-4:
         return None
-    return {**base, **dict(zip(coords, sol.x.tolist(), strict=True))}
+    return {**base, **dict(zip(coords, sol.x.tolist(), strict=True))}, miss
 
 
 def _candidates(
@@ -485,7 +481,7 @@ def _candidates(
     muscles: list[_Muscle],
     coords: list[str],  # noqa: ANN001
     default: dict[str, float],
-    coincident: dict[str, float] | None,
+    coincident: tuple[dict[str, float], float] | None,
     s: float,
     side: str,
 ) -> list[_Placement]:
@@ -494,7 +490,9 @@ def _candidates(
         _Placement("ground", default, "the default pose"),
     ]
     if coincident is not None:
-        out.insert(0, _Placement("body", coincident, "the pose where the scene's bodies coincide"))
+        pose, miss = coincident
+        why = f"the pose where the scene's bodies coincide (to {miss:.2g} rad and m)"
+        out.insert(0, _Placement("body", pose, why))
     marks = _landmarks(model, meshes, side)
     if len(marks) >= 2:
         from ..scene._register import axes_rotation, similarity
@@ -512,7 +510,7 @@ def _candidates(
                     "the default pose",
                     T,
                     axes,
-                    _turn(T[:3, :3] / np.cbrt(np.linalg.det(T[:3, :3])) @ R0.T),
+                    _turn(_rotation(T) @ R0.T),
                     [(n, mi, fit, b) for n, mi, _, b, fit in marks],
                 )
             )
@@ -523,21 +521,30 @@ def _landmarks(
     model, meshes: list[MeshInfo], side: str
 ) -> list[tuple[str, MeshInfo, FloatArray, str, str]]:  # noqa: ANN001
     """The hip and knee landmarks found among the meshes: (name, mesh, point, body, fit)."""
-    from ..scene._register import fit_sphere, surface_centroid
+    from ..scene._register import landmark_point
 
+    # landmark surface -> (landmark, fit, the body whose origin it marks)
+    marks = {
+        "femoral_head": ("hip", "sphere", "femur"),
+        "acetabulum": ("hip", "sphere", "femur"),
+        "femur_distal": ("knee", "centroid", "tibia"),
+    }
     found: dict[str, tuple[str, MeshInfo, FloatArray, str, str]] = {}
     for mi in meshes:
         if mi.kind != "landmark" or (mi.side or side) != side or mi.match is None:
             continue
-        n = mi.match.name
-        if n == "femoral_head" or (n == "acetabulum" and "hip" not in found):
-            body = f"femur_{side}"
-            if body in model.body_names:
-                found["hip"] = ("hip", mi, fit_sphere(mi.V)[0], body, "sphere")
-        elif n == "femur_distal":
-            body = f"tibia_{side}"
-            if body in model.body_names:
-                found["knee"] = ("knee", mi, surface_centroid(mi.V, mi.F), body, "centroid")
+        if mi.match.name not in marks:
+            continue
+        name, fit, bone = marks[mi.match.name]
+        body = f"{bone}_{side}"
+        # the femoral head before the acetabulum; a surface that is no sphere is no hip
+        if body not in model.body_names or (name in found and mi.match.name == "acetabulum"):
+            continue
+        try:
+            point, _ = landmark_point(mi.V, mi.F, fit, name, mi.path)
+        except SceneError:
+            continue
+        found[name] = (name, mi, point, body, fit)
     return [found[k] for k in ("hip", "knee") if k in found]
 
 
