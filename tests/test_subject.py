@@ -372,3 +372,23 @@ def test_cli_init_then_check(data_dir, tmp_path, capsys):
     assert main(["init", osim, str(folder), "-o", str(out)]) == 2  # exists: --force
     assert main(["check", str(out)]) == 0
     shutil.rmtree(folder)
+
+
+def test_init_on_another_model_rajagopal(data_dir, tmp_path):
+    """The VHF folder on Rajagopal 2016 with the OpenCap squat: its names, its missing pectineus."""
+    r = init_scene(
+        data_dir / "opensim/models/Rajagopal2016.osim",
+        data_dir / "vhf",
+        tmp_path / "raj.toml",
+        motion=data_dir / "opensim/motions/opencap_squat_videoAndMocap.mot",
+    )
+    assert len(r.muscles) == 19
+    assert r.muscles["adductor_magnus"] == (
+        "addmagDist_r", "addmagIsch_r", "addmagMid_r", "addmagProx_r",
+    )  # fmt: skip
+    assert r.muscles["biceps_femoris_long_left"] == ("bflh_l",)
+    assert [u for u in r.unplaced if "Pectineus" in u and "no path for it" in u]
+    sc = load_scene(r.scene)
+    assert sc.registration is not None and sc.registration.axes == ("y", "z", "x")
+    assert "knee_angle_r_beta" not in sc.coordinates and "knee_angle_r" in sc.coordinates
+    assert check_scene(sc).ok
