@@ -172,11 +172,16 @@ def test_demo_writes_the_series(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "-o", str(out), "--frames", "3"]) == 0
     names = {p.name for p in out.iterdir()}
-    assert {"scene.pvd", "report.csv", "volume_error.png", "muscle", "thigh", "shank"} <= names
-    assert len(list((out / "muscle").glob("muscle_0*.vtp"))) == 3
-    assert len(list((out / "muscle").glob("muscle_lines_*.vtp"))) == 3
+    assert {"scene.pvd", "report.csv", "penetration.png", "medial", "lateral"} <= names
+    assert {"femur", "tibia", "input"} <= names
+    for m in ("medial", "lateral"):
+        assert len(list((out / m).glob(f"{m}_0*.vtp"))) == 3
+        assert len(list((out / m).glob(f"{m}_lines_*.vtp"))) == 3
+    # the scene it ran is there to run again
+    assert (out / "input" / "knee.toml").is_file()
     # the pictures of a scene run, or (no off-screen OpenGL here) a note saying why not
-    err = capsys.readouterr().err
+    captured = capsys.readouterr()
+    err = captured.out + captured.err
     if "scene.gif not written" in err:
         assert "no working off-screen rendering backend" in err
         assert not (out / "scene.gif").exists()
@@ -246,8 +251,8 @@ def test_a_first_run_says_once_that_it_compiles(files, capsys, monkeypatch):
 
 
 def test_pictures_are_the_same_from_one_or_several_renderers(tmp_path):
-    # the frames are shared out among renderer processes, each placing the camera from the
-    # first time step: the GIF is the same picture by picture
+    # the frames are shared out among renderer processes, all with the series' camera:
+    # the GIF is the same picture by picture
     from PIL import Image, ImageChops
 
     from musclewrap.output import render_series
@@ -259,7 +264,11 @@ def test_pictures_are_the_same_from_one_or_several_renderers(tmp_path):
         try:
             gifs.append(
                 render_series(
-                    out / "scene.pvd", tmp_path / f"k{k}.gif", bones=("thigh", "shank"), processes=k
+                    out / "scene.pvd",
+                    tmp_path / f"k{k}.gif",
+                    bones=("femur", "tibia"),
+                    colour="stretch",
+                    processes=k,
                 )
             )
         except RuntimeError as exc:

@@ -20,8 +20,9 @@ import numpy as np
 import vtkmodules.vtkRenderingFreeType  # noqa: F401  # the time label's fonts
 import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  # the OpenGL implementation
 from vtkmodules.util.numpy_support import vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+from vtkmodules.vtkCommonCore import vtkLookupTable, vtkUnsignedCharArray
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
 from vtkmodules.vtkRenderingCore import (
     vtkActor,
     vtkLightKit,
@@ -44,8 +45,12 @@ def _read(path: str) -> object:
 class _Scene:
     """One request's scene in the window: what it shows, read once per file."""
 
-    def __init__(self, window: vtkRenderWindow, folder: str, w: int, h: int) -> None:
+    def __init__(
+        self, window: vtkRenderWindow, folder: str, w: int, h: int, stretch_range: list
+    ) -> None:
         self.window, self.folder, self.w, self.h = window, folder, w, h
+        self.stretch_range = (float(stretch_range[0]), float(stretch_range[1]))
+        self.lut: vtkLookupTable | None = None
         self.ren = vtkRenderer()
         self.ren.SetBackground(1.0, 1.0, 1.0)
         self.ren.AutomaticLightCreationOff()
@@ -76,12 +81,21 @@ class _Scene:
                 continue
             mapper = vtkPolyDataMapper()
             mapper.SetInputData(mesh)
+            mapper.ScalarVisibilityOff()
             actor = vtkActor()
             actor.SetMapper(mapper)
             p = actor.GetProperty()
             if kind == "line":
                 p.SetColor(0.0, 0.0, 0.0)
                 p.SetLineWidth(3.0)
+            elif kind == "stretch":
+                mapper.SetLookupTable(self.stretch_colours())
+                mapper.SetScalarModeToUsePointFieldData()
+                mapper.SelectColorArray("area_stretch")
+                mapper.SetScalarRange(*self.stretch_range)
+                mapper.UseLookupTableScalarRangeOn()
+                mapper.ScalarVisibilityOn()
+                p.BackfaceCullingOn()
             else:
                 p.SetColor(*(float(c) for c in kind.split(",")))
                 # muscles and bones are closed and face outward: the same picture
@@ -90,28 +104,49 @@ class _Scene:
             self.ren.AddActor(actor)
             self.shown[part] = (f, mapper)
 
-    def place_camera(self) -> None:
-        """Along the shown scene's thinnest extent, its longest one up.
+    def stretch_colours(self) -> vtkLookupTable:
+        """Blue (compressed) through white to red (stretched), in equal ratios; a bar."""
+        if self.lut is None:
+            lo, hi = self.stretch_range
+            lut = vtkLookupTable()
+            lut.SetScaleToLog10()
+            lut.SetRange(lo, hi)
+            lut.SetNumberOfTableValues(256)
+            for i in range(256):
+                t = i / 255 * 2 - 1  # -1 .. 1
+                w = 1 - abs(t)
+                c = (0.23, 0.30, 0.75) if t < 0 else (0.71, 0.02, 0.15)
+                lut.SetTableValue(i, *(w * 0.97 + (1 - w) * x for x in c), 1.0)
+            lut.Build()
+            bar = vtkScalarBarActor()
+            bar.SetLookupTable(lut)
+            bar.SetTitle("area stretch")
+            bar.SetNumberOfLabels(5)
+            bar.SetLabelFormat("%.2f")
+            bar.SetOrientationToHorizontal()
+            bar.SetPosition(0.62, 0.03)
+            bar.SetWidth(0.35)
+            bar.SetHeight(0.09)
+            for prop in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty()):
+                prop.SetColor(0.0, 0.0, 0.0)
+                prop.ShadowOff()
+                prop.ItalicOff()
+            self.ren.AddViewProp(bar)
+            self.lut = lut
+        return self.lut
 
-        A side view of a limb whatever the frame's convention; placed from the
-        series' first time step, the same for every request of a series.
-        """
-        b = np.array(self.ren.ComputeVisiblePropBounds(), dtype=float).reshape(3, 2)
-        ext = np.diff(b, axis=1).ravel()
-        centre = b.mean(axis=1)
-        look, up = np.zeros(3), np.zeros(3)
-        look[int(np.argmin(ext))] = 1.0
-        up[int(np.argmax(ext))] = 1.0
+    def place_camera(self, view: dict) -> None:
+        """The series' camera (`._render.View`), the same for every request of a series."""
         cam = self.ren.GetActiveCamera()
-        cam.SetFocalPoint(*centre)
-        cam.SetPosition(*(centre + look))
-        cam.SetViewUp(*up)
-        self.ren.ResetCamera()
-        cam.Zoom(1.05)
+        cam.SetFocalPoint(*view["focal"])
+        cam.SetPosition(*view["position"])
+        cam.SetViewUp(*view["up"])
+        cam.SetViewAngle(view["angle"])
 
     def picture(self, t: float) -> np.ndarray:
         """Render once, labelled with the time, and read the back buffer (just drawn)."""
         self.label.SetInput(f"t = {t:.3f}")
+        self.ren.ResetCameraClippingRange()
         self.window.Render()
         self.window.GetPixelData(0, 0, self.w - 1, self.h - 1, 0, self.pixels, 0)
         return vtk_to_numpy(self.pixels).reshape(self.h, self.w, 3)[::-1]  # rows run bottom-up
@@ -120,9 +155,8 @@ class _Scene:
 def draw(window: vtkRenderWindow, req: dict) -> None:
     """A request: its pictures, into the ``.npy`` file it names."""
     w, h = req["size"]
-    scene = _Scene(window, req["folder"], w, h)
-    scene.show(req["camera"])
-    scene.place_camera()
+    scene = _Scene(window, req["folder"], w, h, req.get("stretch_range", (0.74, 1.35)))
+    scene.place_camera(req["view"])
     pictures = np.empty((len(req["steps"]), h, w, 3), dtype=np.uint8)
     for i, (t, files) in enumerate(req["steps"]):
         scene.show(files)

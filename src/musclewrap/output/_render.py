@@ -36,6 +36,8 @@ __all__ = [
     "Pictures",
     "Renderer",
     "RenderingError",
+    "View",
+    "frame_view",
     "label_files",
     "render_series",
     "save_gif",
@@ -59,8 +61,90 @@ _INSTALL = (
 _SERVER = Path(__file__).with_name("_picture_server.py")
 
 #: a file shown in a picture: (part, how it is drawn, file relative to the series' folder);
-#: drawn as "line", or in a colour "r,g,b"
+#: drawn as "line", "stretch" (its ``area_stretch`` array in colours) or in a colour "r,g,b"
 Shown = tuple[str, str, str]
+
+#: the colours of ``area_stretch``: this range (a factor of 1.35 either side of 1, in
+#: equal ratios) from blue through white to red; beyond it the ends' colours
+STRETCH_RANGE = (1 / 1.35, 1.35)
+
+
+@dataclass(frozen=True)
+class View:
+    """A camera: where it looks from and at, which way is up, its vertical view angle.
+
+    The pictures of a series share one (`frame_view`), so they do not depend on how
+    they are shared out among renderers; `project` says where a point lands in them.
+    """
+
+    focal: tuple[float, float, float]
+    position: tuple[float, float, float]
+    up: tuple[float, float, float]
+    angle: float = 30.0
+
+    def project(self, P: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+        """Pixel (column, row; row 0 at the top) of each point ``P`` in a picture of ``size``."""
+        P = np.atleast_2d(np.asarray(P, dtype=np.float64))
+        pos, focal = np.array(self.position), np.array(self.focal)
+        fwd = focal - pos
+        fwd /= np.linalg.norm(fwd)
+        up = np.array(self.up) - (np.array(self.up) @ fwd) * fwd
+        up /= np.linalg.norm(up)
+        right = np.cross(fwd, up)
+        d = P - pos
+        depth = d @ fwd
+        t = np.tan(np.radians(self.angle) / 2) * depth
+        w, h = size
+        x = (d @ right) / (t * w / h)  # -1 .. 1 across the picture
+        y = (d @ up) / t
+        return np.stack([(x + 1) / 2 * w, (1 - y) / 2 * h], axis=1)
+
+    def as_dict(self) -> dict[str, Any]:
+        """What a renderer is sent."""
+        return {"focal": self.focal, "position": self.position, "up": self.up, "angle": self.angle}
+
+
+def frame_view(
+    lo: Sequence[float],
+    hi: Sequence[float],
+    turn: tuple[float, float] = (0.0, 0.0),
+    size: tuple[int, int] = (800, 600),
+) -> View:
+    """The camera that frames the box ``lo``-``hi`` whole, seen from the side.
+
+    It looks along the box's thinnest extent with its longest one up (the side of a
+    limb, whatever the frame's convention), turned by ``turn`` = (azimuth, elevation)
+    in degrees: about the up direction, then up over the box, at its centre. Its
+    distance is the least that puts every corner of the box inside a picture of
+    ``size`` with a view angle of 30 degrees, 4 % of the picture to spare each side.
+    """
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    ext = hi - lo
+    centre = (lo + hi) / 2
+    look, up = np.zeros(3), np.zeros(3)  # look: from the centre towards the camera
+    look[int(np.argmin(ext))] = 1.0
+    up[int(np.argmax(ext))] = 1.0
+    az, el = np.radians(turn[0]), np.radians(turn[1])
+    side = np.cross(up, look)
+    look = np.cos(az) * look + np.sin(az) * side
+    look = np.cos(el) * look + np.sin(el) * up
+    up = up - (up @ look) * look
+    up /= np.linalg.norm(up)
+    right = np.cross(look, up)  # as the picture's columns run, seen from the camera
+    corners = centre + (np.indices((2, 2, 2)).reshape(3, -1).T - 0.5) * ext
+    c = corners - centre
+    half = np.tan(np.radians(15.0)) * 0.92  # the picture's half height at distance 1
+    aspect = size[0] / size[1]
+    distance = max(
+        float(np.max(c @ look + np.abs(c @ right) / (half * aspect))),
+        float(np.max(c @ look + np.abs(c @ up) / half)),
+        1e-9,
+    )
+    return View(
+        tuple(float(v) for v in centre),  # type: ignore[arg-type]
+        tuple(float(v) for v in centre + distance * look),  # type: ignore[arg-type]
+        tuple(float(v) for v in up),  # type: ignore[arg-type]
+    )
 
 
 class RenderingError(RuntimeError):
@@ -226,9 +310,9 @@ class PictureTask:
     ----------
     folder : str
         The series' folder (absolute: the task may run in another process).
-    camera : tuple of Shown
-        The series' first time step, which places the camera (the same in every
-        task of a series, so the pictures do not depend on how they are shared out).
+    view : View
+        The series' camera (the same in every task of a series, so the pictures do
+        not depend on how they are shared out).
     steps : tuple of (time, tuple of Shown)
         What each picture shows, labelled with its time.
     first : int
@@ -242,7 +326,7 @@ class PictureTask:
     """
 
     folder: str
-    camera: tuple[Shown, ...]
+    view: View
     steps: tuple[tuple[float, tuple[Shown, ...]], ...]
     first: int
     still: int | None
@@ -253,9 +337,10 @@ class PictureTask:
         """What a renderer is sent (`Renderer.draw`): it draws the pictures into ``out``."""
         return {
             "folder": self.folder,
-            "camera": [list(s) for s in self.camera],
+            "view": self.view.as_dict(),
             "steps": [[t, [list(s) for s in shown]] for t, shown in self.steps],
             "size": list(self.size),
+            "stretch_range": list(STRETCH_RANGE),
             "out": str(out),
         }
 
@@ -290,14 +375,18 @@ def to_256_colours(rgb: np.ndarray) -> tuple[np.ndarray, list[bytes]]:
 
 
 def label_files(
-    files: Sequence[str], bones: Sequence[str], colours: dict[str, str]
+    files: Sequence[str],
+    bones: Sequence[str],
+    colours: dict[str, str],
+    colour: str = "muscle",
 ) -> tuple[Shown, ...]:
     """What a time step shows: each file with its part and how it is drawn.
 
     Files under a folder of ``bones`` are bones (ivory); ``*_lines_*`` files are
     action lines (black); ``*_fibres_*`` files are left out (inside the muscle,
     hidden by it); every other folder is a muscle, coloured in the order the
-    folders first come (``colours``, filled in as they come).
+    folders first come (``colours``, filled in as they come), or with ``colour =
+    "stretch"`` by its ``area_stretch`` (`STRETCH_RANGE`).
     """
     shown = []
     for f in files:
@@ -309,6 +398,8 @@ def label_files(
             continue
         if folder in bones:
             kind = _rgb(_BONE)
+        elif colour == "stretch":
+            kind = "stretch"
         else:
             kind = colours.setdefault(folder, _rgb(_PALETTE[len(colours) % len(_PALETTE)]))
         shown.append((folder, kind, f))
@@ -377,6 +468,8 @@ def render_series(
     every: int = 1,
     size: tuple[int, int] = (800, 600),
     bones: tuple[str, ...] = (),
+    colour: str = "muscle",
+    turn: tuple[float, float] = (0.0, 0.0),
     timeout: float = 900.0,
     processes: int | None = None,
     progress: TextIO | None = None,
@@ -385,8 +478,8 @@ def render_series(
 
     The middle picture is also written as a PNG beside it (same name). The
     pictures are shared out, in contiguous runs, among ``processes`` renderers;
-    each places the camera from the first time step, so the pictures are the same
-    whatever their number.
+    all share one camera (`frame_view` of the muscles' box over every time step
+    drawn), so the pictures are the same whatever their number.
 
     Parameters
     ----------
@@ -401,6 +494,11 @@ def render_series(
     bones : tuple of str, optional
         Folder names drawn as bones (ivory); ``*_lines_*`` files are action
         lines; everything else is a muscle.
+    colour : str, optional
+        The muscles in one colour each (``"muscle"``) or by their ``area_stretch``
+        (``"stretch"``).
+    turn : (float, float), optional
+        The camera's azimuth and elevation from the side view, degrees (`frame_view`).
     timeout : float, optional
         Seconds before a renderer is stopped.
     processes : int, optional
@@ -427,14 +525,14 @@ def render_series(
     if not steps:
         raise RenderingError(f"{pvd}: the collection has no time steps")
     colours: dict[str, str] = {}
-    camera = label_files(steps[0][1], bones, colours)
-    shown = [(t, label_files(files, bones, colours)) for t, files in steps[::every]]
+    shown = [(t, label_files(files, bones, colours, colour)) for t, files in steps[::every]]
+    view = frame_view(*_muscles_box(pvd.parent, shown), turn, size)
     k = processes or min(os.cpu_count() or 1, 4)
     runs = contiguous_runs(len(shown), k)
     middle = len(shown) // 2
     tasks = [
         PictureTask(
-            str(pvd.parent), camera, tuple(shown[r.start : r.stop]), r.start, middle, size, timeout
+            str(pvd.parent), view, tuple(shown[r.start : r.stop]), r.start, middle, size, timeout
         )
         for r in runs
     ]
@@ -460,6 +558,19 @@ def render_series(
         progress.write(f"rendered {n} pictures in {time.perf_counter() - t0:.1f} s\n")
         progress.flush()
     return Path(gif)
+
+
+def _muscles_box(
+    folder: Path, shown: Sequence[tuple[float, tuple[Shown, ...]]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The box round every muscle of every time step shown (or everything, without muscles)."""
+    from ..mesh import read_mesh
+
+    files = [f for _, parts in shown for _, kind, f in parts if kind not in ("line", _rgb(_BONE))]
+    if not files:
+        files = [f for _, parts in shown for _, _, f in parts]
+    pts = np.vstack([read_mesh(folder / f)[0] for f in dict.fromkeys(files)])
+    return pts.min(axis=0), pts.max(axis=0)
 
 
 def _timesteps(pvd: Path) -> list[tuple[float, list[str]]]:

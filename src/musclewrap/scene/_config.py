@@ -140,6 +140,12 @@ class Scene:
     muscle_collisions: bool = False
     muscle_pairs: tuple[tuple[str, str], ...] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    #: with a line CSV: the bodies' poses per frame (``[lines] bodies``)
+    bodies_csv: Path | None = None
+    #: how the pictures colour the muscles: "muscle" or "stretch"
+    colour: str = "muscle"
+    #: the pictures' camera turned from the side view: azimuth, elevation (degrees)
+    view: tuple[float, float] = (0.0, 0.0)
 
     @property
     def motion(self) -> Path | None:
@@ -278,6 +284,9 @@ def load_scene(path: PathLike) -> Scene:
 
     lines_csv = _file(base, lines["csv"], "[lines] csv", src) if "csv" in lines else None
     rest_frame = _get(lines, "rest_frame", int, "[lines]", src) if "rest_frame" in lines else 0
+    bodies_csv = _file(base, lines["bodies"], "[lines] bodies", src) if "bodies" in lines else None
+    if bodies_csv is not None and lines_csv is None:
+        raise SceneError(f"{src}: [lines] bodies needs [lines] csv (the action lines per frame)")
 
     out = _table(raw.get("output", {}), "output", src)
     _keys(out, _OUTPUT, "[output]", src)
@@ -289,6 +298,22 @@ def load_scene(path: PathLike) -> Scene:
     paper_frames = _get(out, "paper_frames", int, "[output]", src) if "paper_frames" in out else 2
     gif = _get(out, "gif", bool, "[output]", src) if "gif" in out else True
     gif_every = _get(out, "gif_every", int, "[output]", src) if "gif_every" in out else 1
+    view = out.get("view", [0, 0])
+    if not (
+        isinstance(view, list)
+        and len(view) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in view)
+        and all(np.isfinite(v) and abs(v) <= 360 for v in view)
+    ):
+        raise SceneError(
+            f"{src}: [output] view must be [azimuth, elevation] in degrees, e.g. [30, 15]"
+        )
+    colour = out.get("colour", "muscle")
+    if colour not in ("muscle", "stretch"):
+        raise SceneError(
+            f"{src}: [output] colour = {colour!r}; use 'muscle' (one colour each) or "
+            "'stretch' (the surface's local stretch)"
+        )
     size = out.get("image_size", [800, 600])
     if not (
         isinstance(size, list)
@@ -308,8 +333,13 @@ def load_scene(path: PathLike) -> Scene:
         if "mesh" not in b:
             raise SceneError(f"{src}: [bones.{bname}] needs 'mesh'")
         body = b.get("body", "ground")
-        if osim is None and body != "ground":
-            raise SceneError(f"{src}: [bones.{bname}] body needs an OpenSim model ([model] osim)")
+        if not isinstance(body, str):
+            raise SceneError(f"{src}: [bones.{bname}] body must be a body's name")
+        if osim is None and bodies_csv is None and body != "ground":
+            raise SceneError(
+                f"{src}: [bones.{bname}] body needs an OpenSim model ([model] osim) or the "
+                "bodies' poses per frame ([lines] bodies)"
+            )
         frame = b.get("frame", mesh_frame)
         bones.append(
             BoneSpec(
@@ -423,6 +453,9 @@ def load_scene(path: PathLike) -> Scene:
         output_frame=output_frame,
         lines_csv=lines_csv,
         rest_frame=rest_frame,
+        bodies_csv=bodies_csv,
+        colour=colour,
+        view=(float(view[0]), float(view[1])),
         muscles=tuple(muscles),
         bones=tuple(bones),
         bone_display_faces=bone_faces,

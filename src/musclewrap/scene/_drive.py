@@ -754,14 +754,29 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
             L[m.name] = lines
         return L, R
 
+    pos = parse_frames(frames_text, len(order), source=str(p))
+    # the bodies' poses: the rest frame's and the selected frames' (ground does not move)
+    moving = sorted({b.body for b in scene.bones} - {"ground"})
+    wanted = [scene.rest_frame] + [order[k] for k in pos]
+    poses = _body_poses(scene, moving, wanted, times)
+    rest_inv = {b: invert_rigid(poses[b][0]) for b in moving}
+    body_of = {b.name: b.body for b in scene.bones}
+    frame_of = {b.name: b.frame for b in scene.bones}
+
+    def placed(bone: str, i: int) -> FloatArray:
+        # a bone's mesh coordinates to the scene's at ``wanted[i]``
+        body = body_of[bone]
+        if body == "ground":
+            return np.eye(4)
+        return poses[body][i] @ (rest_inv[body] if frame_of[bone] == "ground" else np.eye(4))
+
     rest_lines, rest_ref = frame_lines(scene.rest_frame)
     for m in scene.muscles:
         if m.reference is not None and rest_ref[m.name] is None:
             rest_ref[m.name] = centroids[m.reference]
-    pos = parse_frames(frames_text, len(order), source=str(p))
     lines = {m.name: [] for m in scene.muscles}
     refs = {m.name: [] for m in scene.muscles}
-    for k in pos:
+    for i, k in enumerate(pos, start=1):
         L, R = frame_lines(order[k])
         for m in scene.muscles:
             if set(L[m.name]) != set(rest_lines[m.name]):
@@ -772,13 +787,27 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
             lines[m.name].append(L[m.name])
             ref = R[m.name]
             if ref is None and m.reference is not None:
-                ref = centroids[m.reference]  # a bone without a model does not move
+                ref = apply(placed(m.reference, i), centroids[m.reference])
             if (ref is None) != (rest_ref[m.name] is None):
                 raise SceneError(
                     f"{p}: muscle '{m.name}' has a reference point in some frames only"
                 )
             refs[m.name].append(ref)
     eye = np.broadcast_to(np.eye(4), (len(pos), 4, 4)).copy()
+    to_body = {x.name: np.eye(4) for x in (*scene.muscles, *scene.bones)}
+    for b in scene.bones:
+        # a mesh in the scene's frame at the rest frame, or in its body's own frame
+        if b.body != "ground" and b.frame == "ground":
+            to_body[b.name] = rest_inv[b.body]
+        elif b.frame not in (b.body, "ground"):
+            raise SceneError(
+                f"{scene.path}: [bones.{b.name}] frame = '{b.frame}': without a model a mesh "
+                "is in its body's frame ('body') or the scene's at the rest frame ('ground')"
+            )
+    notes = [f"action lines from {p.name} (rest frame {scene.rest_frame})"]
+    if moving:
+        assert scene.bodies_csv is not None
+        notes.append(f"poses of {', '.join(moving)} from {scene.bodies_csv.name}")
     return Drive(
         frames=[order[k] for k in pos],
         times=np.array([times[order[k]] for k in pos]),
@@ -786,7 +815,74 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
         lines=lines,
         rest_reference=rest_ref,
         references=refs,
-        to_body={x.name: np.eye(4) for x in (*scene.muscles, *scene.bones)},
-        to_output={"ground": eye},
-        notes=[f"action lines from {p.name} (rest frame {scene.rest_frame})"],
+        to_body=to_body,
+        to_output={"ground": eye, **{b: np.stack(poses[b][1:]) for b in moving}},
+        notes=notes,
     )
+
+
+_BODIES_HEADER = ["frame", "time", "body"] + [f"r{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
+_BODIES_HEADER += ["x", "y", "z"]
+
+
+def _body_poses(
+    scene: Scene, bodies: list[str], frames: list[int], times: dict[int, float]
+) -> dict[str, list[FloatArray]]:
+    """Each body's pose (4 x 4, body frame to the scene's) at each of ``frames``.
+
+    From ``[lines] bodies``: every body a bone names, at every frame wanted, once, a
+    rotation (orthonormal to 1e-6, determinant +1) and a translation, at the line CSV's
+    time of that frame.
+    """
+    if not bodies:
+        return {}
+    p = scene.bodies_csv
+    if p is None:
+        raise SceneError(
+            f"{scene.path}: bones on {', '.join(bodies)} need the bodies' poses per frame "
+            "([lines] bodies)"
+        )
+    got: dict[tuple[int, str], FloatArray] = {}
+    for row_no, row in csv_rows(p, _BODIES_HEADER, error=SceneError):
+        try:
+            frame, t = int(row[0]), float(row[1])
+            values = np.array([float(v) for v in row[3:]])
+        except ValueError:
+            raise SceneError(
+                f"{p}: row {row_no} has a non-numeric frame, time or pose value"
+            ) from None
+        body = row[2].strip()
+        if not np.isfinite(values).all() or not np.isfinite(t):
+            raise SceneError(f"{p}: row {row_no} has a NaN or infinite value")
+        if (frame, body) in got:
+            raise SceneError(f"{p}: row {row_no} gives body '{body}' at frame {frame} again")
+        if frame in times and not np.isclose(times[frame], t, rtol=0.0, atol=1e-9):
+            raise SceneError(
+                f"{p}: row {row_no}: frame {frame} at time {t:g}, the line CSV's at "
+                f"{times[frame]:g}"
+            )
+        R = values[:9].reshape(3, 3)
+        if np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+            raise SceneError(
+                f"{p}: row {row_no}: the rotation of '{body}' at frame {frame} is not a "
+                "rotation (orthonormal rows, determinant +1, to 1e-6)"
+            )
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, values[9:]
+        got[(frame, body)] = T
+    named = {b for _, b in got}
+    out: dict[str, list[FloatArray]] = {}
+    for b in bodies:
+        if b not in named:
+            raise SceneError(
+                f"{p}: no poses of body '{b}' (a bone's body in {scene.path.name}); "
+                + suggest(b, sorted(named))
+            )
+        missing = [f for f in frames if (f, b) not in got]
+        if missing:
+            raise SceneError(
+                f"{p}: body '{b}' has no pose at frame(s) {', '.join(map(str, missing[:5]))}"
+                + (" ..." if len(missing) > 5 else "")
+            )
+        out[b] = [got[(f, b)] for f in frames]
+    return out

@@ -47,6 +47,10 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "csv": "Action lines per frame: header ``frame,time,muscle,line,point,x,y,z``, mesh "
         "units; a line named ``reference`` with one point gives the reference point.",
         "rest_frame": "The frame of the CSV file that is the rest pose (default 0).",
+        "bodies": "The bodies' poses per frame, for bones that move: header "
+        "``frame,time,body,r11,r12,r13,r21,r22,r23,r31,r32,r33,x,y,z`` (the rotation row by "
+        "row and the translation that take the body's frame into the scene's, mesh units); a "
+        "bone names its body with ``body``.",
     },
     "output": {
         "bone_display_faces": "Faces of the bones' display copies (default 10000; for "
@@ -56,6 +60,12 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "gif": "Draw ``scene.gif`` and its middle picture ``scene.png`` (default true).",
         "gif_every": "Draw every n-th frame (default 1).",
         "image_size": "Pictures' size in pixels, ``[width, height]`` (default [800, 600]).",
+        "view": "The pictures' camera turned from the side view, ``[azimuth, elevation]`` in "
+        "degrees (default [0, 0]: along the thinnest extent of the muscles' box through the "
+        "motion, its longest one up).",
+        "colour": "How the pictures colour the muscles: ``muscle`` (one colour each, the "
+        "default) or ``stretch`` (the surface's local stretch against the rest mesh, the "
+        "files' ``stretch`` array).",
     },
     "muscles.NAME": {
         "mesh": "The muscle's surface mesh (STL, VTK, VTP, PLY or OBJ).",

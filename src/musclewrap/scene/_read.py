@@ -638,7 +638,7 @@ def input_files(scene: Scene) -> list[Path]:
     """Every file the scene reads."""
     files = [scene.path, *scene.motions, *(m.mesh for m in scene.muscles)]
     files += [b.mesh for b in scene.bones]
-    files += [p for p in (scene.osim, scene.lines_csv) if p is not None]
+    files += [p for p in (scene.osim, scene.lines_csv, scene.bodies_csv) if p is not None]
     if scene.registration is not None:
         files += [lm.mesh for lm in scene.registration.landmarks]
     return files

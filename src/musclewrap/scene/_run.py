@@ -22,16 +22,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..output._render import (
     Pictures,
     PictureTask,
     RenderingError,
+    View,
     close_renderer,
+    frame_view,
     label_files,
     save_gif,
 )
 from ._config import Scene
+from ._drive import apply
 from ._errors import SceneError
 from ._execute import Executor, LocalExecutor, Node, ProcessExecutor, Runner
 from ._journal import Journal
@@ -270,6 +274,7 @@ class _SceneRun:
     parts: list[range] = field(init=False)
     tag: int = field(init=False)
     bone_entries: list[tuple[int, str]] = field(init=False)
+    _view: View | None = field(init=False, default=None)
 
     def plan(
         self,
@@ -600,6 +605,7 @@ class _SceneRun:
         scene, drive = self.scene, self.inputs.drive
         bones = tuple(b.name for b in scene.bones)
         order = [s.name for s in scene.muscles]
+        view = self.view()
 
         def make(results: dict[Any, Any]) -> PictureTask:
             files: dict[int, list[str]] = {}
@@ -611,14 +617,17 @@ class _SceneRun:
                     for k, f in part.entries:
                         files.setdefault(k, []).append(f)
             colours: dict[str, str] = {}
-            camera = label_files(files[0], bones, colours)
+            label_files(files[0], bones, colours)  # the muscles' colours in the scene's order
             steps = tuple(
-                (float(drive.times[shown[i]]), label_files(files[shown[i]], bones, colours))
+                (
+                    float(drive.times[shown[i]]),
+                    label_files(files[shown[i]], bones, colours, scene.colour),
+                )
                 for i in pictures
             )
             return PictureTask(
                 str(self.outdir.resolve()),
-                camera,
+                view,
                 steps,
                 pictures[0],
                 len(shown) // 2,
@@ -626,6 +635,34 @@ class _SceneRun:
             )
 
         return make
+
+    def view(self) -> View:
+        """The pictures' camera, framed on the muscles through the whole motion.
+
+        Known before any frame is solved, so the pictures are drawn beside the
+        deformation: the box round every frame's action lines in the output frame,
+        widened by the farthest any muscle's rest mesh lies from its rest lines.
+        """
+        if self._view is None:
+            from ._fit import resample_polyline
+
+            scene, inputs = self.scene, self.inputs
+            drive = inputs.drive
+            pts, reach = [], 0.0
+            for spec in scene.muscles:
+                rest = drive.rest_lines[spec.name].values()
+                length = sum(float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum()) for P in rest)
+                samples = np.vstack([resample_polyline(P, length / 200) for P in rest])
+                d, _ = cKDTree(samples).query(inputs.muscles[spec.name][0])
+                reach = max(reach, float(d.max()))
+                T = drive.to_output[spec.body]
+                for k, lines in enumerate(drive.lines[spec.name]):
+                    pts += [apply(T[k], np.asarray(P, dtype=np.float64)) for P in lines.values()]
+            P = np.vstack(pts)
+            self._view = frame_view(
+                P.min(axis=0) - reach, P.max(axis=0) + reach, scene.view, scene.image_size
+            )
+        return self._view
 
     @staticmethod
     def _pictures_done(bar: Progress | None, n: int) -> Callable[[Pictures], Pictures]:

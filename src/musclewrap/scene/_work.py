@@ -481,7 +481,15 @@ class _MuscleFrames:
                 n_in += n
                 depth = max(depth, dep)
             fname = f"{name}/{name}_{frame:04d}.vtp"
-            write_mesh(out / fname, Vo, muscle.F, point_data={"input_id": muscle.input_id})
+            write_mesh(
+                out / fname,
+                Vo,
+                muscle.F,
+                point_data={
+                    "input_id": muscle.input_id,
+                    "area_stretch": muscle.area_stretch(res.V),
+                },
+            )
             result.entries.append((span.start + k, fname))
         lname = f"{name}/{name}_lines_{frame:04d}.vtp"
         P, segs, o = [], [], 0

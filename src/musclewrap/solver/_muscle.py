@@ -54,6 +54,7 @@ from ..mesh import (
     clean_mesh,
     combine_pair,
     cubic_root_near,
+    face_areas,
     mean_edge_length,
     mean_rows,
     mean_thickness,
@@ -223,6 +224,33 @@ class Muscle:
         if V.shape != self.V.shape:
             raise ValueError(f"V has shape {V.shape}, the muscle has {self.V.shape}")
         return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / edge
+
+    def area_stretch(self, V: npt.ArrayLike) -> FloatArray:
+        """Per-vertex stretch of the surface: its area around the vertex over the rest one.
+
+        A vertex's area is a third of its triangles'. 1 under a rigid motion; above 1
+        where the surface is stretched (the outside of a bend, a muscle lengthened at
+        constant volume: ``sqrt`` of its stretch), below where it is compressed.
+
+        Parameters
+        ----------
+        V : (n, 3) array_like
+            Deformed positions of the fine vertices.
+
+        Returns
+        -------
+        (n,) float64 array
+        """
+        V = as_vertices(V, "V")
+        if V.shape != self.V.shape:
+            raise ValueError(f"V has shape {V.shape}, the muscle has {self.V.shape}")
+        n, F = len(self.V), self.F
+        if getattr(self, "_rest_areas", None) is None:
+            self._rest_areas = np.bincount(
+                F.ravel(), np.repeat(face_areas(self.V, F), 3), minlength=n
+            )
+        now = np.bincount(F.ravel(), np.repeat(face_areas(V, F), 3), minlength=n)
+        return now / self._rest_areas
 
     @property
     def vertex_faces(self) -> tuple[IntArray, IntArray]:

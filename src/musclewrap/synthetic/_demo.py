@@ -1,4 +1,4 @@
-"""The embedded default: a fusiform muscle spanning a knee-like joint in flexion."""
+"""A single fusiform muscle spanning a knee-like joint beside two rods, driven from Python."""
 
 from __future__ import annotations
 
