@@ -308,7 +308,9 @@ def test_a_first_run_compiles_every_kernel_a_demo_calls(tmp_path):
         "    def on_end(self, e): pass\n"
         "event.register('numba:compile', Compiled())\n"
         "from musclewrap.cli import main\n"
-        f"assert main(['demo', '-o', {str(tmp_path / 'demo')!r}, '--frames', '3', '--no-gif']) == 0\n"
+        # one worker: every kernel compiles in this process, where the listener sees it
+        f"assert main(['demo', '-o', {str(tmp_path / 'demo')!r}, '--frames', '3', '--no-gif', "
+        "'--workers', '1']) == 0\n"
         "print('compiled:', sorted(set(seen)))\n"
     )
     r = subprocess.run([sys.executable, "-c", demo], env=env, capture_output=True, text=True)

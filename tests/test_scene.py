@@ -942,7 +942,10 @@ def test_the_gif_is_drawn_by_the_runs_tasks_the_same_on_one_or_two_workers(tmp_p
             pytest.skip(f"no off-screen rendering here: {not_written[0]}")
         assert "6/6 pictures drawn" in stream.getvalue()
         assert tmp_path / f"w{w}" / "scene.gif" in s.files
-    render_series(tmp_path / "w1" / "scene.pvd", tmp_path / "alone.gif", every=8, bones=("thigh",))
+    # drawn alone with the run's camera
+    render_series(
+        tmp_path / "w1" / "scene.pvd", tmp_path / "alone.gif", every=8, bones=("thigh",), view=s.view
+    )
     gifs = [_gif_frames(p) for p in (tmp_path / "w1" / "scene.gif", tmp_path / "w2" / "scene.gif")]
     alone = _gif_frames(tmp_path / "alone.gif")
     assert len(alone) == 6
@@ -980,12 +983,14 @@ def test_a_renderer_that_crashes_leaves_the_run_whole_without_a_gif(tmp_path, mo
 
 def test_a_renderer_that_hangs_is_stopped(tmp_path, monkeypatch):
     from musclewrap.output import PictureTask, _render
+    from musclewrap.output._render import View
 
     hang = tmp_path / "hang.py"
     hang.write_text("import time\nprint('ready', flush=True)\ntime.sleep(600)\n")
     monkeypatch.setattr(_render, "_SERVER", hang)
     r = _render.Renderer()
-    task = PictureTask(str(tmp_path), (), ((0.0, ()),), 0, None, (64, 48), timeout=1.0)
+    view = View((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, 1.0, 0.0))
+    task = PictureTask(str(tmp_path), view, ((0.0, ()),), 0, None, (64, 48), timeout=1.0)
     got = task.run(r)
     assert got.error == "a renderer took more than 1 s to draw" and len(got) == 0
     assert not r.alive

@@ -29,9 +29,9 @@ def kernels_cached() -> bool:
         return True
 
 
-#: the kernels of a pose and of a preparation, each with the signature it is called with.
-#: On a first run a second process compiles the pose's while the run prepares its muscles
-#: (compiling the preparation's as it goes). Kernels that only these call are compiled
+#: the kernels of a pose, of a preparation and of the contact, each with the signature it is
+#: called with. On a first run a second process compiles the pose's and the contact's while
+#: the run prepares its muscles (compiling the preparation's as it goes). Kernels that only these call are compiled
 #: with them. A test checks that the demo compiles nothing else.
 _A2, _A1, _I2, _I1 = "float64[:, ::1]", "float64[::1]", "int64[:, ::1]", "int64[::1]"
 _A3, _F2 = "float64[:, :, ::1]", "float32[:, ::1]"
@@ -62,6 +62,28 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("conditions._lines", "_arclength_kernel", f"({_A2},)"),
         ("conditions._lines", "_polyline_at_kernel", f"({_A2}, {_A1}, {_A2})"),
     ),
+    # a scene with bones or muscles in contact (the demo's): the bones' distance grids,
+    # which muscle vertices are near them, winding numbers, the nearest triangles
+    "contact": (
+        ("contact._obstacle", "_signed_kernel",
+         f"({_A2}, {_A2}, {_I1}, {_A1}, {_A2}, {_I2}, {_A2}, {_A2}, {_A2}, {_I2}, {_A1}, {_A2})"),
+        ("contact._obstacle", "_convexity_kernel", f"({_A2}, {_A2}, {_I1}, {_I1}, {_A1})"),
+        ("contact._obstacle", "_bounds_kernel",
+         f"({_A2}, {_A1}, float64, {_I1}, float32[::1], float32[::1], {_A1}, {_A1})"),
+        ("contact._obstacle", "_interpolate_kernel",
+         f"({_A2}, {_A1}, float64, {_I1}, float32[::1], float32[::1], float64, {_I1}, {_A1}, "
+         f"{_A2})"),
+        ("contact._obstacle", "_nearest_within_kernel",
+         f"({_A2}, {_A2}, {_A1}, float64, {_I1}, {_I1}, {_A1}, {_I1})"),
+        ("contact._near", "_within_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_I1})"),
+        ("contact._inside", "_nearest_face_kernel",
+         f"({_A2}, {_I2}, {_A2}, {_I2}, {_I1}, {_I1}, {_I1}, {_I1}, int64, {_A1}, {_A2}, {_I1})"),
+        ("contact._muscles", "_closest_kernel", f"({_A2}, {_A2}, {_I2}, {_A1}, {_A2}, {_I1})"),
+        ("mesh._geometry", "_normals_kernel", f"({_A2}, {_I2}, {_A2})"),
+        ("mesh._winding", "_grid_kernel", f"({_A2}, {_I2}, int64)"),
+        ("mesh._winding", "_query_kernel",
+         f"({_A2}, {_A2}, {_I2}, int64, float64, float64, float64, float64, {_I1}, {_I1}, {_I1})"),
+    ),
 }  # fmt: skip
 
 
@@ -82,13 +104,17 @@ def compile_kernels(group: str | None = None) -> None:
                 kernel.compile(tuple(normalize_signature(signature)[0]))
 
 
-_COMPILE_POSE = "from musclewrap._jit import compile_kernels; compile_kernels('pose')"
+_COMPILE_POSE = (
+    "from musclewrap._jit import compile_kernels; compile_kernels('pose'); "
+    "compile_kernels('contact')"
+)
 
 
 def compile_if_first_run(stream: TextIO | None = None) -> subprocess.Popen[bytes] | None:
     """On a first run, say so once and start compiling the kernels of a pose meanwhile.
 
-    Returns the process that compiles them (`KERNELS` ``"pose"``) into Numba's cache
+    Returns the process that compiles them (`KERNELS` ``"pose"``, then ``"contact"``) into
+    Numba's cache
     while this one reads, prepares and compiles what that needs; the first pose then
     finds them in the cache (6.0 s against 7.4 s for the preparation's own:
     ``benchmarks/bench_first_run.py --kernels``; a pose that comes first compiles what

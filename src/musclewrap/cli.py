@@ -186,6 +186,9 @@ def _parser() -> argparse.ArgumentParser:
     dm.add_argument("-o", "--output", default="musclewrap_demo", help="output folder")
     dm.add_argument("--frames", type=int, default=61, help="number of frames (at least 2)")
     dm.add_argument("--no-gif", action="store_true", help="skip scene.gif and scene.png")
+    dm.add_argument(
+        "--workers", type=int, help="worker processes (default: one per muscle, at most the CPUs)"
+    )
 
     be = sub.add_parser("bench", help="run a benchmark")
     be.add_argument("name", choices=("capsule",), help="benchmark to run")
@@ -361,10 +364,13 @@ def _cmd_demo(a: argparse.Namespace) -> int:
     # the demo is an ordinary scene, made by the package: written, then run as any other
     toml = write_knee_scene(out / "input", a.frames)
     scene = load_scene(toml)
+    workers = a.workers if a.workers is not None else min(os.cpu_count() or 1, len(scene.muscles))
+    if workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {workers}")
     (summary,) = run_batch(
         [scene],
         [out],
-        workers=min(os.cpu_count() or 1, len(scene.muscles)),
+        workers=workers,
         progress=sys.stderr,
         render=False if a.no_gif else None,
         log=lambda m: print(m, file=sys.stderr),

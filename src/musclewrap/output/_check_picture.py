@@ -74,9 +74,11 @@ def _main(src: str, png: str) -> None:
     # the colours span the 95th percentile: a tendon running on far past its muscle
     # would otherwise leave every other line one colour
     ds = [g["d"] for (k, _, _), g in groups.items() if k == "line"]
-    dmax = max(float(np.quantile(np.concatenate(ds), 0.95)) if ds else 0.0, 1e-9)
     allV = np.vstack([g["V"] for (k, _, _), g in groups.items() if k == "muscles"])
     size = float(np.linalg.norm(np.ptp(allV, axis=0)))
+    # at least 1 % of the muscles' size: lines all inside read as inside, not as a range
+    # of rounding errors
+    dmax = max(float(np.quantile(np.concatenate(ds), 0.95)) if ds else 0.0, 0.01 * size)
     centre = allV.mean(axis=0)
     for col, view in enumerate((front, right)):
         pl.subplot(0, col)

@@ -470,6 +470,7 @@ def render_series(
     bones: tuple[str, ...] = (),
     colour: str = "muscle",
     turn: tuple[float, float] = (0.0, 0.0),
+    view: View | None = None,
     timeout: float = 900.0,
     processes: int | None = None,
     progress: TextIO | None = None,
@@ -499,6 +500,9 @@ def render_series(
         (``"stretch"``).
     turn : (float, float), optional
         The camera's azimuth and elevation from the side view, degrees (`frame_view`).
+    view : View, optional
+        The camera instead (a scene run's is its summary's ``view``: the same pictures
+        as its ``scene.gif``).
     timeout : float, optional
         Seconds before a renderer is stopped.
     processes : int, optional
@@ -526,7 +530,8 @@ def render_series(
         raise RenderingError(f"{pvd}: the collection has no time steps")
     colours: dict[str, str] = {}
     shown = [(t, label_files(files, bones, colours, colour)) for t, files in steps[::every]]
-    view = frame_view(*_muscles_box(pvd.parent, shown), turn, size)
+    if view is None:
+        view = frame_view(*_muscles_box(pvd.parent, shown), turn, size)
     k = processes or min(os.cpu_count() or 1, 4)
     runs = contiguous_runs(len(shown), k)
     middle = len(shown) // 2

@@ -374,7 +374,12 @@ def _rest_to_output(scene: Scene, model: Any) -> dict[str, FloatArray]:
 
     bodies = {x.body for x in (*scene.muscles, *scene.bones)} | {"ground"}
     if model is None:
-        return {b: np.eye(4) for b in bodies}
+        from ._drive import body_poses
+
+        # a line CSV's bodies: at their poses of the rest frame (ground does not move)
+        moving = sorted(bodies - {"ground"})
+        poses = body_poses(scene, moving, [scene.rest_frame], {})
+        return {b: poses[b][0] if b in poses else np.eye(4) for b in bodies}
     model.set_pose(rest_pose(scene, model))
     out = {}
     for b in bodies:
@@ -482,10 +487,17 @@ def _picture_data(
         for L in drive.rest_lines[m.name].values():
             P = resample_polyline(L, rep.fits[m.name].extent / 100)
             lines.append((apply(to_out[m.body], P), outside_distance(P, *body_m[m.name])))
-    # OpenSim's ground: x forward, y up; in the output frame
-    R = to_out["ground"][:3, :3]
+    if model is not None:
+        # OpenSim's ground: x forward, y up; in the output frame
+        R = to_out["ground"][:3, :3]
+        view = np.array([R @ [1.0, 0, 0], R @ [0, 1.0, 0]])
+    else:
+        # no model, no convention: from the muscles' thinnest extent, their longest one up
+        P = np.vstack([apply(to_out[m.body], body_m[m.name][0]) for m in scene.muscles])
+        ext = np.ptp(P, axis=0)
+        view = np.eye(3)[[int(np.argmin(ext)), int(np.argmax(ext))]]
     return {
-        "view": np.array([R @ [1.0, 0, 0], R @ [0, 1.0, 0]]),
+        "view": view,
         "lines": lines,
         "unit": scene.mesh_unit,
         "title": f"{scene.name}: rest pose",

@@ -758,7 +758,7 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
     # the bodies' poses: the rest frame's and the selected frames' (ground does not move)
     moving = sorted({b.body for b in scene.bones} - {"ground"})
     wanted = [scene.rest_frame] + [order[k] for k in pos]
-    poses = _body_poses(scene, moving, wanted, times)
+    poses = body_poses(scene, moving, wanted, times)
     rest_inv = {b: invert_rigid(poses[b][0]) for b in moving}
     body_of = {b.name: b.body for b in scene.bones}
     frame_of = {b.name: b.frame for b in scene.bones}
@@ -825,7 +825,7 @@ _BODIES_HEADER = ["frame", "time", "body"] + [f"r{i}{j}" for i in (1, 2, 3) for 
 _BODIES_HEADER += ["x", "y", "z"]
 
 
-def _body_poses(
+def body_poses(
     scene: Scene, bodies: list[str], frames: list[int], times: dict[int, float]
 ) -> dict[str, list[FloatArray]]:
     """Each body's pose (4 x 4, body frame to the scene's) at each of ``frames``.

@@ -219,6 +219,33 @@ def run_batch(
 _AHEAD = 3
 
 
+def picture_view(
+    scene: Scene, drive: Any, muscles: dict[str, tuple[np.ndarray, np.ndarray]]
+) -> View:
+    """A scene's pictures' camera, framed on the muscles through the whole motion.
+
+    Known before any frame is solved, so the pictures are drawn beside the
+    deformation: the box round every frame's action lines in the output frame,
+    widened by the farthest any muscle's rest mesh (``muscles``, in its body's frame)
+    lies from its rest lines; seen as `frame_view` places it, turned by ``[output]
+    view``.
+    """
+    from ._fit import resample_polyline
+
+    pts, reach = [], 0.0
+    for spec in scene.muscles:
+        rest = drive.rest_lines[spec.name].values()
+        length = sum(float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum()) for P in rest)
+        samples = np.vstack([resample_polyline(P, length / 200) for P in rest])
+        d, _ = cKDTree(samples).query(muscles[spec.name][0])
+        reach = max(reach, float(d.max()))
+        T = drive.to_output[spec.body]
+        for k, lines in enumerate(drive.lines[spec.name]):
+            pts += [apply(T[k], np.asarray(P, dtype=np.float64)) for P in lines.values()]
+    P = np.vstack(pts)
+    return frame_view(P.min(axis=0) - reach, P.max(axis=0) + reach, scene.view, scene.image_size)
+
+
 def _part(result: Any, name: str) -> ChunkResult:
     """A muscle's chunk: the task's result, or its part of a group's."""
     return result[name] if isinstance(result, dict) else result  # type: ignore[no-any-return]
@@ -546,6 +573,7 @@ class _SceneRun:
             cache_hits=[r.name for r in results if r.cache_hit],
             notes=self.notes,
             files=files,
+            view=self.view(),
         )
         self.finished = True
 
@@ -637,31 +665,9 @@ class _SceneRun:
         return make
 
     def view(self) -> View:
-        """The pictures' camera, framed on the muscles through the whole motion.
-
-        Known before any frame is solved, so the pictures are drawn beside the
-        deformation: the box round every frame's action lines in the output frame,
-        widened by the farthest any muscle's rest mesh lies from its rest lines.
-        """
+        """The pictures' camera (`picture_view`), once."""
         if self._view is None:
-            from ._fit import resample_polyline
-
-            scene, inputs = self.scene, self.inputs
-            drive = inputs.drive
-            pts, reach = [], 0.0
-            for spec in scene.muscles:
-                rest = drive.rest_lines[spec.name].values()
-                length = sum(float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum()) for P in rest)
-                samples = np.vstack([resample_polyline(P, length / 200) for P in rest])
-                d, _ = cKDTree(samples).query(inputs.muscles[spec.name][0])
-                reach = max(reach, float(d.max()))
-                T = drive.to_output[spec.body]
-                for k, lines in enumerate(drive.lines[spec.name]):
-                    pts += [apply(T[k], np.asarray(P, dtype=np.float64)) for P in lines.values()]
-            P = np.vstack(pts)
-            self._view = frame_view(
-                P.min(axis=0) - reach, P.max(axis=0) + reach, scene.view, scene.image_size
-            )
+            self._view = picture_view(self.scene, self.inputs.drive, self.inputs.muscles)
         return self._view
 
     @staticmethod

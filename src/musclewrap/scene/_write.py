@@ -66,6 +66,8 @@ class RunSummary:
     cache_hits: list[str]
     notes: list[str] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
+    #: the pictures' camera (`musclewrap.output.View`), whether or not they were drawn
+    view: Any = None
 
     def text(self) -> str:
         """Human-readable summary."""
