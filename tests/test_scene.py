@@ -944,7 +944,11 @@ def test_the_gif_is_drawn_by_the_runs_tasks_the_same_on_one_or_two_workers(tmp_p
         assert tmp_path / f"w{w}" / "scene.gif" in s.files
     # drawn alone with the run's camera
     render_series(
-        tmp_path / "w1" / "scene.pvd", tmp_path / "alone.gif", every=8, bones=("thigh",), view=s.view
+        tmp_path / "w1" / "scene.pvd",
+        tmp_path / "alone.gif",
+        every=8,
+        bones=("thigh",),
+        view=s.view,
     )
     gifs = [_gif_frames(p) for p in (tmp_path / "w1" / "scene.gif", tmp_path / "w2" / "scene.gif")]
     alone = _gif_frames(tmp_path / "alone.gif")
