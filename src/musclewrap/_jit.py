@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-#: what compiling the kernels of a pose took on a first run (BENCHMARKS.md, issue 15)
-FIRST_RUN_SECONDS = "6-10 s"
+#: what compiling the kernels took on the demo's first run (BENCHMARKS.md, issue 15)
+FIRST_RUN_SECONDS = "10-15 s"
 
 
 def kernels_cached() -> bool:
