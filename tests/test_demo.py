@@ -126,6 +126,15 @@ def test_a_bone_on_a_moving_body_follows_its_poses(tmp_path):
     moved.write_text(text.replace("[lines]\n", "[lines]\nrest_frame = 4\n"))
     d2 = drive_scene(load_scene(moved), None, {n: V.mean(axis=0) for n, (V, _) in bones.items()})
     np.testing.assert_allclose(d2.to_body["tibia"], np.linalg.inv(demo.tibia_pose(4)), atol=1e-11)
+    # the muscles' frame to the tibia's at rest (the rest overlap, the contact's sides): its
+    # pose at the rest frame undone, whichever frame its mesh is given in
+    body = tmp_path / "knee" / "body.toml"
+    body.write_text(toml.read_text().replace("[lines]\n", "[lines]\nrest_frame = 4\n"))
+    for sc in (moved, body):
+        d = drive_scene(load_scene(sc), None, {n: V.mean(axis=0) for n, (V, _) in bones.items()})
+        T = d.rest_between("ground", "tibia")
+        np.testing.assert_allclose(T, np.linalg.inv(demo.tibia_pose(4)), atol=1e-11)
+    np.testing.assert_array_equal(d.to_body["tibia"], np.eye(4))  # given in its own frame
     # the bones' files of a run: the tibia's turned by its pose, the femur's still
     out = tmp_path / "out"
     run_scene(scene, out, cache_dir=tmp_path / "c", progress=None, render=False)

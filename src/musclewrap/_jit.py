@@ -104,7 +104,7 @@ def compile_kernels(group: str | None = None) -> None:
                 kernel.compile(tuple(normalize_signature(signature)[0]))
 
 
-_COMPILE_POSE = (
+_COMPILE_HELPER = (
     "from musclewrap._jit import compile_kernels; compile_kernels('pose'); "
     "compile_kernels('contact')"
 )
@@ -132,7 +132,7 @@ def compile_if_first_run(stream: TextIO | None = None) -> subprocess.Popen[bytes
     if (os.cpu_count() or 1) < 2:
         return None
     return subprocess.Popen(
-        [sys.executable, "-c", _COMPILE_POSE],
+        [sys.executable, "-c", _COMPILE_HELPER],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )

@@ -354,6 +354,14 @@ def _cmd_deform(a: argparse.Namespace) -> int:
     return 0
 
 
+def _workers(a: argparse.Namespace, muscles: int) -> int:
+    """``--workers``, or one per muscle, at most the CPUs."""
+    workers = a.workers if a.workers is not None else min(os.cpu_count() or 1, muscles)
+    if workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {workers}")
+    return workers
+
+
 def _cmd_demo(a: argparse.Namespace) -> int:
     from .scene import load_scene, run_batch
     from .synthetic import write_knee_scene
@@ -364,13 +372,10 @@ def _cmd_demo(a: argparse.Namespace) -> int:
     # the demo is an ordinary scene, made by the package: written, then run as any other
     toml = write_knee_scene(out / "input", a.frames)
     scene = load_scene(toml)
-    workers = a.workers if a.workers is not None else min(os.cpu_count() or 1, len(scene.muscles))
-    if workers < 1:
-        raise ValueError(f"--workers must be at least 1, got {workers}")
     (summary,) = run_batch(
         [scene],
         [out],
-        workers=workers,
+        workers=_workers(a, len(scene.muscles)),
         progress=sys.stderr,
         render=False if a.no_gif else None,
         log=lambda m: print(m, file=sys.stderr),
@@ -422,10 +427,7 @@ def _cmd_run(a: argparse.Namespace) -> int:
         outs = [base] if len(scenes) == 1 else [base / s for s in stems]
     else:
         outs = [scenes[0].path.parent / f"{scenes[0].path.stem}_out"]
-    muscles = sum(len(sc.muscles) for sc in scenes)
-    workers = a.workers if a.workers is not None else min(os.cpu_count() or 1, muscles)
-    if workers < 1:
-        raise ValueError(f"--workers must be at least 1, got {workers}")
+    workers = _workers(a, sum(len(sc.muscles) for sc in scenes))
     runs, folders = [], []
     for scene, out in zip(scenes, outs, strict=True):
         if a.no_fibres:

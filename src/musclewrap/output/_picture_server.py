@@ -155,7 +155,7 @@ class _Scene:
 def draw(window: vtkRenderWindow, req: dict) -> None:
     """A request: its pictures, into the ``.npy`` file it names."""
     w, h = req["size"]
-    scene = _Scene(window, req["folder"], w, h, req.get("stretch_range", (0.74, 1.35)))
+    scene = _Scene(window, req["folder"], w, h, req["stretch_range"])
     scene.place_camera(req["view"])
     pictures = np.empty((len(req["steps"]), h, w, 3), dtype=np.uint8)
     for i, (t, files) in enumerate(req["steps"]):

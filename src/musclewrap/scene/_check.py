@@ -187,7 +187,10 @@ def _check(
     if model is not None:
         _check_bone_bodies(scene, model, body_b, rep)
     # every mesh placed in the output frame at rest, once for the overlaps and the picture
-    to_out = _rest_to_output(scene, model)
+    to_out = {
+        b: drive.rest_between(b, scene.output_frame)
+        for b in {x.body for x in (*scene.muscles, *scene.bones)} | {"ground"}
+    }
     rest_m = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_m.items()}
     rest_b = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_b.items()}
     _check_overlaps(scene, drive, body_m, rest_m, rest_b, rep)
@@ -366,27 +369,6 @@ def _nearest_paths(
 
 def _body(scene: Scene, name: str) -> str:
     return next(x.body for x in (*scene.muscles, *scene.bones) if x.name == name)
-
-
-def _rest_to_output(scene: Scene, model: Any) -> dict[str, FloatArray]:
-    """Per body of the scene (and 'ground'): its frame to the output frame at rest, mesh units."""
-    from ._drive import rest_pose
-
-    bodies = {x.body for x in (*scene.muscles, *scene.bones)} | {"ground"}
-    if model is None:
-        from ._drive import body_poses
-
-        # a line CSV's bodies: at their poses of the rest frame (ground does not move)
-        moving = sorted(bodies - {"ground"})
-        poses = body_poses(scene, moving, [scene.rest_frame], {})
-        return {b: poses[b][0] if b in poses else np.eye(4) for b in bodies}
-    model.set_pose(rest_pose(scene, model))
-    out = {}
-    for b in bodies:
-        T = model.transform(b, scene.output_frame)
-        T[:3, 3] *= scene.scale
-        out[b] = T
-    return out
 
 
 # ---------------------------------------------------------------------------- bodies

@@ -128,6 +128,12 @@ class Drive:
     swept: str | None = None
     #: the unit of each of ``coordinate_values``: "deg" or "mm"
     coordinate_units: dict[str, str] = field(default_factory=dict)
+    #: each body's frame to the ground's (the scene's, without a model) at the rest pose
+    rest_poses: dict[str, FloatArray] = field(default_factory=dict)
+
+    def rest_between(self, a: str, b: str) -> FloatArray:
+        """Body ``a``'s frame to body ``b``'s at the rest pose (4 x 4, mesh units)."""
+        return invert_rigid(self.rest_poses[b]) @ self.rest_poses[a]
 
 
 @dataclass
@@ -408,7 +414,7 @@ def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Dr
     reg = scene.registration
     bodies = sorted({m.body for m in scene.muscles} | {b.body for b in scene.bones} | {
         x.frame for x in (*scene.muscles, *scene.bones) if x.frame != "registration"} | {
-        lm.body for lm in (reg.landmarks if reg else ())} | {"ground"})  # fmt: skip
+        lm.body for lm in (reg.landmarks if reg else ())} | {"ground", scene.output_frame})  # fmt: skip
     model.set_pose(rest)
     for b in bodies:
         model.check_body(b)
@@ -509,6 +515,7 @@ def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Dr
         to_body=to_body,
         to_output=out_T,
         notes=notes,
+        rest_poses={b: T for b, T in g.items() if b != "registration"},
         moment_arms=ma,
         waypoints=path,
         coordinate_values=shown_values,
@@ -757,23 +764,28 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
     pos = parse_frames(frames_text, len(order), source=str(p))
     # the bodies' poses: the rest frame's and the selected frames' (ground does not move)
     moving = sorted({b.body for b in scene.bones} - {"ground"})
-    wanted = [scene.rest_frame] + [order[k] for k in pos]
-    poses = body_poses(scene, moving, wanted, times)
-    rest_inv = {b: invert_rigid(poses[b][0]) for b in moving}
+    poses = _body_poses(scene, moving, [scene.rest_frame] + [order[k] for k in pos], times)
+    poses["ground"] = [np.eye(4)] * (1 + len(pos))
+    to_body = {x.name: np.eye(4) for x in (*scene.muscles, *scene.bones)}
+    for b in scene.bones:
+        # a mesh in its body's own frame, or in the scene's at the rest frame
+        if b.frame == "ground":
+            to_body[b.name] = invert_rigid(poses[b.body][0])
+        elif b.frame != b.body:
+            raise SceneError(
+                f"{scene.path}: [bones.{b.name}] frame = '{b.frame}': without a model a mesh "
+                "is in its body's frame ('body') or the scene's at the rest frame ('ground')"
+            )
     body_of = {b.name: b.body for b in scene.bones}
-    frame_of = {b.name: b.frame for b in scene.bones}
 
-    def placed(bone: str, i: int) -> FloatArray:
-        # a bone's mesh coordinates to the scene's at ``wanted[i]``
-        body = body_of[bone]
-        if body == "ground":
-            return np.eye(4)
-        return poses[body][i] @ (rest_inv[body] if frame_of[bone] == "ground" else np.eye(4))
+    def centroid(bone: str, i: int) -> FloatArray:
+        # a bone's centroid in the scene's frame at the rest frame (0) or at frame pos[i - 1]
+        return apply(poses[body_of[bone]][i] @ to_body[bone], centroids[bone])
 
     rest_lines, rest_ref = frame_lines(scene.rest_frame)
     for m in scene.muscles:
         if m.reference is not None and rest_ref[m.name] is None:
-            rest_ref[m.name] = centroids[m.reference]
+            rest_ref[m.name] = centroid(m.reference, 0)
     lines = {m.name: [] for m in scene.muscles}
     refs = {m.name: [] for m in scene.muscles}
     for i, k in enumerate(pos, start=1):
@@ -787,23 +799,12 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
             lines[m.name].append(L[m.name])
             ref = R[m.name]
             if ref is None and m.reference is not None:
-                ref = apply(placed(m.reference, i), centroids[m.reference])
+                ref = centroid(m.reference, i)
             if (ref is None) != (rest_ref[m.name] is None):
                 raise SceneError(
                     f"{p}: muscle '{m.name}' has a reference point in some frames only"
                 )
             refs[m.name].append(ref)
-    eye = np.broadcast_to(np.eye(4), (len(pos), 4, 4)).copy()
-    to_body = {x.name: np.eye(4) for x in (*scene.muscles, *scene.bones)}
-    for b in scene.bones:
-        # a mesh in the scene's frame at the rest frame, or in its body's own frame
-        if b.body != "ground" and b.frame == "ground":
-            to_body[b.name] = rest_inv[b.body]
-        elif b.frame not in (b.body, "ground"):
-            raise SceneError(
-                f"{scene.path}: [bones.{b.name}] frame = '{b.frame}': without a model a mesh "
-                "is in its body's frame ('body') or the scene's at the rest frame ('ground')"
-            )
     notes = [f"action lines from {p.name} (rest frame {scene.rest_frame})"]
     if moving:
         assert scene.bodies_csv is not None
@@ -816,8 +817,9 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
         rest_reference=rest_ref,
         references=refs,
         to_body=to_body,
-        to_output={"ground": eye, **{b: np.stack(poses[b][1:]) for b in moving}},
+        to_output={b: np.stack(poses[b][1:]) for b in poses},
         notes=notes,
+        rest_poses={b: T[0] for b, T in poses.items()},
     )
 
 
@@ -825,7 +827,7 @@ _BODIES_HEADER = ["frame", "time", "body"] + [f"r{i}{j}" for i in (1, 2, 3) for 
 _BODIES_HEADER += ["x", "y", "z"]
 
 
-def body_poses(
+def _body_poses(
     scene: Scene, bodies: list[str], frames: list[int], times: dict[int, float]
 ) -> dict[str, list[FloatArray]]:
     """Each body's pose (4 x 4, body frame to the scene's) at each of ``frames``.

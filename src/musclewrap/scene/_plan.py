@@ -513,9 +513,7 @@ def path_span(inputs: Any, name: str) -> PathSpan:
     scene, drive = inputs.scene, inputs.drive
     spec = next(s for s in scene.muscles if s.name == name)
     wp = drive.waypoints
-    rest_T = {
-        b.name: drive.to_body[b.name] @ np.linalg.inv(drive.to_body[name]) for b in scene.bones
-    }
+    rest_T = {b.name: drive.rest_between(spec.body, b.body) for b in scene.bones}
     if wp is None:
         empty = np.zeros((0, 4, 4))
         return PathSpan(

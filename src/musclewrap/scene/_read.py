@@ -25,7 +25,7 @@ from ..constants import defaults
 from ..contact import Obstacle
 from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, vertex_origins
 from ._config import Scene
-from ._drive import Drive, apply, drive_scene
+from ._drive import Drive, apply, drive_scene, invert_rigid
 from ._errors import SceneError
 from ._execute import Node
 from ._plan import BoneMesh
@@ -380,7 +380,7 @@ def _rest_overlap(
             V,
             F,
             {b: bones[b] for b in names},
-            {b: drive.to_body[b] @ np.linalg.inv(drive.to_body[spec.name]) for b in names},
+            {b: drive.rest_between(spec.body, body_of[b]) for b in names},
             drive.rest_lines[spec.name],
             body_of,
             cache_str,
@@ -429,9 +429,9 @@ def _apart_at_rest(
     from ..contact import apart_at_rest
 
     names = sorted(muscles)
-    rest = {
-        n: (apply(np.linalg.inv(drive.to_body[n]), muscles[n][0]), muscles[n][1]) for n in names
-    }
+    # every muscle in the ground's frame at rest (each is in its body's)
+    to_g = {m.name: drive.rest_poses[m.body] for m in scene.muscles}
+    rest = {n: (apply(to_g[n], muscles[n][0]), muscles[n][1]) for n in names}
     keep = scene.rest_overlap == "keep"
     V, found, rounds = apart_at_rest(rest, scene.muscle_pairs, resolve=not keep)
     unit = scene.mesh_unit
@@ -453,7 +453,7 @@ def _apart_at_rest(
     out = dict(muscles)
     for n in names:
         if V[n] is not rest[n][0]:
-            out[n] = (apply(drive.to_body[n], V[n]), muscles[n][1])
+            out[n] = (apply(invert_rigid(to_g[n]), V[n]), muscles[n][1])
     return out
 
 
@@ -469,7 +469,7 @@ def check_muscles_apart(
 
     specs = {m.name: m for m in scene.muscles}
     names = list(specs)
-    rest = {n: apply(np.linalg.inv(drive.to_body[n]), muscles[n][0]) for n in names}
+    rest = {n: apply(drive.rest_poses[specs[n].body], muscles[n][0]) for n in names}
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             Va, Vb = rest[a], rest[b]

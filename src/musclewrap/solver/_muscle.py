@@ -220,10 +220,15 @@ class Muscle:
                 mean_edge_length(self.V, self.F),
             )
         U, d0, edge = self._umbrella
+        V = self._positions(V)
+        return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / edge
+
+    def _positions(self, V: npt.ArrayLike) -> FloatArray:
+        """``V`` checked as positions of the fine vertices (the rest mesh's shape)."""
         V = as_vertices(V, "V")
         if V.shape != self.V.shape:
             raise ValueError(f"V has shape {V.shape}, the muscle has {self.V.shape}")
-        return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / edge
+        return V
 
     def area_stretch(self, V: npt.ArrayLike) -> FloatArray:
         """Per-vertex stretch of the surface: its area around the vertex over the rest one.
@@ -241,9 +246,7 @@ class Muscle:
         -------
         (n,) float64 array
         """
-        V = as_vertices(V, "V")
-        if V.shape != self.V.shape:
-            raise ValueError(f"V has shape {V.shape}, the muscle has {self.V.shape}")
+        V = self._positions(V)
         n, F = len(self.V), self.F
         if getattr(self, "_rest_areas", None) is None:
             self._rest_areas = np.bincount(
