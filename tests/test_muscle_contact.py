@@ -352,9 +352,9 @@ def test_a_muscle_inside_another_at_rest_is_refused(tmp_path):
 
     big, small = _sphere(10.0, [0, 0, 0]), _sphere(3.0, [2, 0, 0])
     near = _sphere(10.0, [19, 0, 0])  # overlaps big by 1: allowed (pushed apart per frame)
-    spec = lambda n: SimpleNamespace(name=n, mesh=tmp_path / f"{n}.stl")  # noqa: E731
+    spec = lambda n: SimpleNamespace(name=n, mesh=tmp_path / f"{n}.stl", body="ground")  # noqa: E731
     scene = SimpleNamespace(muscles=[spec("big"), spec("small"), spec("near")])
-    drive = SimpleNamespace(to_body={n: np.eye(4) for n in ("big", "small", "near")})
+    drive = SimpleNamespace(rest_poses={"ground": np.eye(4)})
     with pytest.raises(SceneError, match=r"'small' \(.*small.stl\) lies entirely inside 'big'"):
         check_muscles_apart(scene, drive, {"big": big, "small": small, "near": near})
     scene.muscles = [spec("big"), spec("near")]
