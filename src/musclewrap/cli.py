@@ -190,6 +190,30 @@ def _parser() -> argparse.ArgumentParser:
         "--workers", type=int, help="worker processes (default: one per muscle, at most the CPUs)"
     )
 
+    vw = sub.add_parser(
+        "view",
+        help="drag a joint in the browser and watch the muscles wrap (needs the [view] extra)",
+        description=(
+            "A local web page at http://127.0.0.1:PORT/ with a slider per coordinate the "
+            "scene drives and a time slider; each change is solved as 'run' solves that pose "
+            "(contact included) and drawn in the browser, with the update time, the volume "
+            "error and the deepest penetration. Given a run's output folder instead of a "
+            "scene, it plays the run's scene.pvd (time slider, play/pause) without solving."
+        ),
+    )
+    vw.add_argument("source", help="scene file (.toml), or a run's output folder (with scene.pvd)")
+    vw.add_argument("--port", type=int, help="port on 127.0.0.1 (default: a free one)")
+    vw.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    vw.add_argument(
+        "-o", "--output", default="musclewrap_poses",
+        help="where 'Write this pose' writes its pose_NNN/ folders",
+    )  # fmt: skip
+    vw.add_argument(
+        "--cache-dir", help="where preparations are cached (default ~/.cache/musclewrap)"
+    )
+    vw.add_argument("--no-collisions", action="store_true", help="as for run")
+    vw.add_argument("--no-check", action="store_true", help="as for run")
+
     be = sub.add_parser("bench", help="run a benchmark")
     be.add_argument("name", choices=("capsule",), help="benchmark to run")
     be.add_argument("--repeats", type=int, default=41, help="timed repeats per case")
@@ -403,15 +427,9 @@ def _cmd_run(a: argparse.Namespace) -> int:
         for sc in scenes:
             rep = check_scene(sc, cache_dir=cache)  # the run's cache: --no-cache writes none
             if not rep.ok:
-                print(
-                    f"error: {sc.path}: the scene's check found what would make the run wrong:",
-                    file=sys.stderr,
-                )
-                _print_findings(rep, sys.stderr)
-                print(
-                    "(musclewrap check SCENE -o check.png shows it; --no-check runs anyway)",
-                    file=sys.stderr,
-                )
+                from .scene._live import refusal
+
+                print(f"error: {refusal(sc, rep)}", file=sys.stderr)
                 return 2
     if len(scenes) > 1 and not a.output:
         raise ValueError("several scenes: give the batch's output folder with -o")
@@ -540,6 +558,30 @@ def _cmd_check(a: argparse.Namespace) -> int:
     return 0 if rep.ok else 2
 
 
+def _cmd_view(a: argparse.Namespace) -> int:
+    from .view import viewer
+
+    if a.port is not None and not 0 < a.port < 65536:
+        raise ValueError(f"--port must be 1..65535, got {a.port}")
+    src = Path(a.source)
+    kw = {}
+    if not src.is_dir():
+        kw = {
+            "cache_dir": Path(a.cache_dir) if a.cache_dir else True,
+            "check": not a.no_check,
+            "collisions": False if a.no_collisions else None,
+            "log": lambda m: print(m, file=sys.stderr),
+        }
+    from .view import open_source
+
+    t = time.perf_counter()
+    source = open_source(src, **kw)  # a scene's check and reading: before the server starts
+    app = viewer(source, output=a.output)
+    print(f"{a.source}: ready in {time.perf_counter() - t:.1f} s", file=sys.stderr)
+    app.start(a.port, open_browser=not a.no_browser)
+    return 0
+
+
 def _cmd_bench(a: argparse.Namespace) -> int:
     from ._bench import capsule_benchmark
 
@@ -581,7 +623,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     args = _parser().parse_args(argv)
     helper = None
-    if args.command in ("prepare", "deform", "run", "demo"):
+    if args.command in ("prepare", "deform", "run", "demo", "view"):
         from ._jit import compile_if_first_run
 
         helper = compile_if_first_run()  # a first run: a pose's kernels compile meanwhile
@@ -593,6 +635,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "bench": _cmd_bench,
         "init": _cmd_init,
         "check": _cmd_check,
+        "view": _cmd_view,
     }
     try:
         return handlers[args.command](args)

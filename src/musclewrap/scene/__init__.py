@@ -6,6 +6,7 @@ from ._drive import Drive, drive_scene, parse_frames
 from ._errors import SceneError
 from ._execute import Executor, LocalExecutor, ProcessExecutor
 from ._keys import OUTPUT_COLUMNS, SCENE_KEYS
+from ._live import CheckError, Coordinate, LiveScene, PoseResult
 from ._motion import Motion, random_motion, read_motion, write_motion
 from ._opensim import OpenSimModel
 from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_batch, run_scene
@@ -15,14 +16,18 @@ __all__ = [
     "REPORT_FIELDS",
     "SCENE_KEYS",
     "BoneSpec",
+    "CheckError",
     "CheckReport",
+    "Coordinate",
     "Drive",
     "Executor",
     "Finding",
+    "LiveScene",
     "LocalExecutor",
     "Motion",
     "MuscleSpec",
     "OpenSimModel",
+    "PoseResult",
     "ProcessExecutor",
     "RunSummary",
     "Scene",

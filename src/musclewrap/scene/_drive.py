@@ -19,6 +19,7 @@ from ._plan import CENTRAL, Stencil
 __all__ = [
     "Drive",
     "MomentArmPoses",
+    "Poser",
     "Waypoints",
     "apply",
     "drive_scene",
@@ -130,6 +131,8 @@ class Drive:
     coordinate_units: dict[str, str] = field(default_factory=dict)
     #: each body's frame to the ground's (the scene's, without a model) at the rest pose
     rest_poses: dict[str, FloatArray] = field(default_factory=dict)
+    #: the model, posable at any coordinates (`drive_scene(keep_poser=True)` only)
+    poser: Poser | None = field(default=None, repr=False, compare=False)
 
     def rest_between(self, a: str, b: str) -> FloatArray:
         """Body ``a``'s frame to body ``b``'s at the rest pose (4 x 4, mesh units)."""
@@ -315,6 +318,7 @@ def drive_scene(
     bone_centroids: dict[str, FloatArray],
     *,
     waypoints: bool = False,
+    keep_poser: bool = False,
 ) -> Drive:
     """Compute every muscle's action lines for the selected frames.
 
@@ -334,7 +338,7 @@ def drive_scene(
         a model's scene only: a line CSV has no poses in between).
     """
     if scene.osim is not None and scene.motion is not None:
-        return _drive_opensim(scene, frames, waypoints)
+        return _drive_opensim(scene, frames, waypoints, keep_poser)
     if scene.lines_csv is not None:
         return _drive_csv(scene, frames, bone_centroids)
     raise SceneError(f"{scene.path}: nothing drives the scene (no motion, no line CSV)")
@@ -354,7 +358,98 @@ def rest_pose(scene: Scene, model: OpenSimModel) -> dict[str, float]:
     return rest
 
 
-def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Drive:
+class Poser:
+    """A scene's model, posed at any coordinates: the lines and bodies a run takes there.
+
+    ``coordinates`` are those the scene drives (in the motion's order), ``degrees``
+    whether the motion gives their angles in degrees, ``rest`` every coordinate at the
+    rest pose (model units). `pose` turns values in the motion's units into a pose, as
+    a run does for each frame; `at` gives that pose's lines and output transforms.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        model: OpenSimModel,
+        bodies: list[str],
+        coordinates: list[str],
+        degrees: bool,
+        rest: dict[str, float],
+    ) -> None:
+        self.scene, self.model, self.bodies = scene, model, bodies
+        self.coordinates, self.degrees, self.rest = coordinates, degrees, rest
+        self.s = scene.scale
+        #: per coordinate, its values at the frames driven (the motion's units)
+        self.motion_values: dict[str, FloatArray] = {}
+        model.set_pose(rest)
+        # every body's orientation at the rest pose: a path point's body turns from there
+        self.rest_R = {
+            b: model.transform(b, "ground")[:3, :3] for b in (*model.body_names, "ground")
+        }
+
+    def transform(self, body: str, frame: str) -> FloatArray:
+        """Body's frame to ``frame`` at the model's current pose (mesh units)."""
+        T = self.model.transform(body, frame)
+        T[:3, 3] *= self.s
+        return T
+
+    def pose(self, values: dict[str, float]) -> dict[str, float]:
+        """The rest pose with ``values`` (the motion's units) of driven coordinates set."""
+        pose = dict(self.rest)
+        for c, v in values.items():
+            pose[c] = np.radians(v) if (self.degrees and self.model.is_rotational(c)) else v
+        return pose
+
+    def lines_now(
+        self,
+    ) -> tuple[
+        dict[str, dict[str, FloatArray]], dict[str, FloatArray | None], dict[str, FloatArray]
+    ]:
+        """Every muscle's lines (`PathLines`) and every body's frame to ground, as posed now."""
+        scene, model, rest_R, s = self.scene, self.model, self.rest_R, self.s
+        to_g = {b: self.transform(b, "ground") for b in self.bodies}
+        turned: dict[str, FloatArray] = {}  # body -> its rotation from the rest pose (ground)
+
+        def turn(b: str) -> FloatArray:
+            if b not in turned:
+                G = to_g[b][:3, :3] if b in to_g else model.transform(b, "ground")[:3, :3]
+                turned[b] = G @ rest_R[b].T
+            return turned[b]
+
+        L, R = {}, {}
+        for m in scene.muscles:
+            # per point, its body's rotation from the rest pose in the muscle's body frame
+            mb = rest_R[m.body].T @ turn(m.body).T
+            L[m.name] = PathLines(
+                {p: model.path_points(p, m.body) * s for p in m.paths},
+                {
+                    p: np.array([mb @ turn(b) @ rest_R[m.body] for b in model.path_point_bodies(p)])
+                    for p in m.paths
+                },
+            )
+            R[m.name] = None  # the points' bodies turn it: no reference point
+        return L, R, to_g
+
+    def output_transforms(self, to_g: dict[str, FloatArray]) -> dict[str, FloatArray]:
+        """Each body's frame to the output frame, from each body's frame to ground."""
+        out = self.scene.output_frame
+        out_inv = invert_rigid(to_g[out]) if out != "ground" else np.eye(4)
+        return {b: out_inv @ to_g[b] for b in self.bodies}
+
+    def at(
+        self, pose: dict[str, float]
+    ) -> tuple[
+        dict[str, dict[str, FloatArray]], dict[str, FloatArray | None], dict[str, FloatArray]
+    ]:
+        """The lines, reference points and bodies' output transforms at ``pose``."""
+        self.model.set_pose(pose)
+        L, R, to_g = self.lines_now()
+        return L, R, self.output_transforms(to_g)
+
+
+def _drive_opensim(
+    scene: Scene, frames_text: str | None, waypoints: bool, keep_poser: bool = False
+) -> Drive:
     model = OpenSimModel(scene.osim)
     motion = read_motion(scene.motion)
     names = model.coordinate_names
@@ -406,11 +501,6 @@ def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Dr
                 "the muscle turns with the bodies its path's points are fixed in"
             )
 
-    def transform(body: str, frame: str) -> FloatArray:
-        T = model.transform(body, frame)
-        T[:3, 3] *= s
-        return T
-
     reg = scene.registration
     bodies = sorted({m.body for m in scene.muscles} | {b.body for b in scene.bones} | {
         x.frame for x in (*scene.muscles, *scene.bones) if x.frame != "registration"} | {
@@ -418,58 +508,26 @@ def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Dr
     model.set_pose(rest)
     for b in bodies:
         model.check_body(b)
+    poser = Poser(scene, model, bodies, list(coords), deg, rest)
+    transform = poser.transform
     g = {b: transform(b, "ground") for b in bodies}
     if reg is not None:
         g["registration"] = _register(scene, g, s, notes)
     to_body = {x.name: invert_rigid(g[x.body]) @ g[x.frame] for x in (*scene.muscles, *scene.bones)}
-    # every body's orientation at the rest pose: a path point's body turns from there
-    rest_R = {b: model.transform(b, "ground")[:3, :3] for b in (*model.body_names, "ground")}
-
-    def lines_now() -> tuple[
-        dict[str, dict[str, FloatArray]], dict[str, FloatArray | None], dict[str, FloatArray]
-    ]:
-        to_g = {b: transform(b, "ground") for b in bodies}
-        turned: dict[str, FloatArray] = {}  # body -> its rotation from the rest pose (ground)
-
-        def turn(b: str) -> FloatArray:
-            if b not in turned:
-                G = to_g[b][:3, :3] if b in to_g else model.transform(b, "ground")[:3, :3]
-                turned[b] = G @ rest_R[b].T
-            return turned[b]
-
-        L, R = {}, {}
-        for m in scene.muscles:
-            # per point, its body's rotation from the rest pose in the muscle's body frame
-            mb = rest_R[m.body].T @ turn(m.body).T
-            L[m.name] = PathLines(
-                {p: model.path_points(p, m.body) * s for p in m.paths},
-                {
-                    p: np.array([mb @ turn(b) @ rest_R[m.body] for b in model.path_point_bodies(p)])
-                    for p in m.paths
-                },
-            )
-            R[m.name] = None  # the points' bodies turn it: no reference point
-        return L, R, to_g
+    lines_now, output_transforms = poser.lines_now, poser.output_transforms
 
     rest_lines, rest_ref, _ = lines_now()
     lines = {m.name: [] for m in scene.muscles}
     refs = {m.name: [] for m in scene.muscles}
     out_T = {b: np.empty((len(pos), 4, 4)) for b in bodies}
     values = {c: motion.columns[c] for c in coords}
+    # the driven values of the frames run, as read (the live viewer poses frames from them)
+    poser.motion_values = {c: np.asarray(values[c])[pos] for c in coords}
     ma = _moment_arm_poses(scene, model, len(pos), bodies)
-
-    def output_transforms(to_g: dict[str, FloatArray]) -> dict[str, FloatArray]:
-        out_inv = (
-            invert_rigid(to_g[scene.output_frame]) if scene.output_frame != "ground" else np.eye(4)
-        )
-        return {b: out_inv @ to_g[b] for b in bodies}
 
     driven = np.empty((len(pos), len(coords)))
     for k, i in enumerate(pos):
-        pose = dict(rest)
-        for c in coords:
-            v = values[c][i]
-            pose[c] = np.radians(v) if (deg and model.is_rotational(c)) else v
+        pose = poser.pose({c: values[c][i] for c in coords})
         driven[k] = [pose[c] for c in coords]
         model.set_pose(pose)
         L, R, to_g = lines_now()
@@ -506,6 +564,7 @@ def _drive_opensim(scene: Scene, frames_text: str | None, waypoints: bool) -> Dr
         path = _waypoints(scene, model, coords, rest, driven, bodies, lines_now, output_transforms)
         model.set_pose(rest)
     return Drive(
+        poser=poser if keep_poser else None,
         frames=pos,
         times=motion.time[pos],
         rest_lines=rest_lines,

@@ -66,6 +66,7 @@ def read_inputs(
     notes: list[str],
     runner: Any = None,
     muscles_apart: bool = False,
+    keep_poser: bool = False,
 ) -> Inputs:
     """Read every mesh of ``scene``, drive it over ``frames``, settle the rest overlap.
 
@@ -75,7 +76,8 @@ def read_inputs(
     (cleaning or repairing a muscle, reading and closing a bone, each muscle's rest
     overlap) runs as tasks through ``runner`` (a
     `._execute.Runner`: on the run's workers, while they deform the scenes read
-    before), or here when it is None; the motion is driven here.
+    before), or here when it is None; the motion is driven here. ``keep_poser``: the
+    drive keeps the model, posable at any coordinates (`._drive.Poser`).
     """
     c = None if cache is None else str(cache)
     nodes = [
@@ -102,7 +104,7 @@ def read_inputs(
             say(n)
         bones[b.name] = (V, F)
     centroids = {n: V.mean(axis=0) for n, (V, _) in bones.items()}
-    drive = drive_scene(scene, frames, centroids, waypoints=collisions)
+    drive = drive_scene(scene, frames, centroids, waypoints=collisions, keep_poser=keep_poser)
     notes += drive.notes
     # every mesh in the frame of the body that carries it
     muscles = {m: (apply(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}

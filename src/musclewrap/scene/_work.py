@@ -208,51 +208,81 @@ class FollowPath:
     span: PathSpan
 
     def run(self) -> PathStates:
-        from ..contact import Placed, SideReference
+        from ..contact import SideReference
 
         job, span = self.job, self.span
         muscle, d, hit, note, seconds = _deformer(job)
         probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]
-        contact = job.contact or {}
         K, n = len(span), len(muscle.V)
         cages = np.empty((K, len(muscle.cage.C), 3))
         T = {b: np.empty((K, 4, 4)) for _, b in probes}
         reasons = []
-
-        def placed(place: dict[str, FloatArray], allow: bool) -> list[Any]:
-            return [
-                Placed(probe, place[b], contact[b] if allow else None, b)
-                for probe, b in probes
-                if b in contact
-            ]
-
-        rest = SideReference(muscle.V, placed(span.rest_T, False))
-        refs: dict[int, Any] = {-1: rest}
+        refs: dict[int, Any] = {-1: SideReference(muscle.V, placed_bones(job, probes, span.rest_T))}
         for k in range(K):
             place = span.placement(k)
             for b in T:
                 T[b][k] = place[b]
             parent = int(span.parent[k])
-            res = d.deform(
-                span.lines[k],
-                reference_point=span.references[k],
-                obstacles=placed(place, True),
-                margin=job.margin,
-                sides=refs[parent],
-                finish=False,
-                method=job.method,
-                max_iterations=job.max_iterations,
-            )
-            x = res.cage
-            if not np.isfinite(x).all():
-                x = muscle.cage.C if parent < 0 else cages[parent]
+            x, res = waypoint_cage(
+                job, d, probes, span.lines[k], span.references[k], place, refs[parent],
+                muscle.cage.C if parent < 0 else cages[parent],
+            )  # fmt: skip
             if not res.converged:
                 reasons.append((k, res.reason))
             cages[k] = x
-            refs[k] = SideReference(lambda rows, x=x: muscle.W[rows] @ x, placed(place, False), n)
+            refs[k] = SideReference(
+                lambda rows, x=x: muscle.W[rows] @ x, placed_bones(job, probes, place), n
+            )
         return PathStates(
             cages, T, dict(span.rest_T), reasons, Prepared(job.name, seconds, hit, note)
         )
+
+
+def placed_bones(
+    job: MuscleJob, probes: list[tuple[Any, str]], place: dict[str, FloatArray], allow: bool = False
+) -> list[Any]:
+    """The muscle's bones in contact, placed (``place``: the muscle's frame into each bone's).
+
+    ``allow``: with each bone's allowance (the obstacles of a solve), else without (the
+    bones a `musclewrap.contact.SideReference` takes the sides of).
+    """
+    from ..contact import Placed
+
+    contact = job.contact or {}
+    return [
+        Placed(probe, place[b], contact[b] if allow else None, b)
+        for probe, b in probes
+        if b in contact
+    ]
+
+
+def waypoint_cage(
+    job: MuscleJob,
+    d: Any,
+    probes: list[tuple[Any, str]],
+    lines: dict[str, FloatArray],
+    reference: FloatArray | None,
+    place: dict[str, FloatArray],
+    sides: Any,
+    fallback: FloatArray,
+) -> tuple[FloatArray, Any]:
+    """The muscle's cage at a waypoint, against its bones with the sides of the one before.
+
+    ``fallback``: the cage kept where the solve gives no finite positions (the waypoint
+    before's). Returns the cage and the solve's result.
+    """
+    res = d.deform(
+        lines,
+        reference_point=reference,
+        obstacles=placed_bones(job, probes, place, True),
+        margin=job.margin,
+        sides=sides,
+        finish=False,
+        method=job.method,
+        max_iterations=job.max_iterations,
+    )
+    x = res.cage
+    return (x if np.isfinite(x).all() else fallback), res
 
 
 def side_reference(muscle: Any, probes: list[tuple[Any, str]], path: PathStates, w: int) -> Any:
@@ -438,18 +468,49 @@ class _MuscleFrames:
             sides=self.sides_of(k),
         )
 
+    def bones_here(self, k: int) -> dict[str, Any]:
+        """Every bone placed in frame ``k`` (the muscle's frame into the bone's)."""
+        from ..contact import Placed
+
+        span, T = self.span, self.span.to_output[k]
+        return {
+            bname: Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
+            for probe, bname in self.probes
+        }
+
+    def penetration(self, res: Any, here: dict[str, Any]) -> tuple[float, float, float]:
+        """The muscle's vertices inside bones (count, deepest) and the bones' deepest in it.
+
+        The bones in contact as the contact's finish counted them (exactly); the others
+        measured. The bone vertices inside the muscle are found by the contact only
+        (without it, not looked for: the whole overlap of every bone, flooded, costs
+        more than the pose): NaN there.
+        """
+        nan = float("nan")
+        if not np.isfinite(res.V).all():
+            return nan, nan, nan
+        contact = self.contact
+        n_in, depth, bone_depth = 0, 0.0, nan
+        if contact is not None:
+            n_in, depth = res.penetration_vertices, res.penetration_depth
+            bone_depth = res.bone_inside_depth
+        for b, pl in here.items():
+            if contact is None or b not in contact:
+                n, dep = pl.obstacle.measure(pl.to_obstacle(res.V))
+                n_in += n
+                depth = max(depth, dep)
+        return n_in, depth, bone_depth
+
     def emit(self, k: int, res: Any, overlap: float | None = None) -> None:
         """Frame ``k``'s result measured, its files written, its row added.
 
         ``overlap``: the deepest vertex of this muscle inside another (muscles in
         contact; NaN otherwise).
         """
-        from ..contact import Placed, line_inside_depth
+        from ..contact import line_inside_depth
 
         job, span, muscle, d = self.job, self.span, self.muscle, self.d
-        contact, probes, out, name, result = (
-            self.contact, self.probes, self.out, job.name, self.result
-        )  # fmt: skip
+        contact, out, name, result = self.contact, self.out, job.name, self.result
         fb = self.fb
         frame = span.frames[k]
         T = span.to_output[k]
@@ -457,29 +518,13 @@ class _MuscleFrames:
         ok_values = np.isfinite(res.V).all()
         shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
         nan = float("nan")
-        n_in, depth = (0, 0.0) if ok_values else (nan, nan)
-        # the bone vertices inside the muscle: found by the contact (without it, not
-        # looked for: the whole overlap of every bone, flooded, costs more than the pose)
-        bone_depth = nan
-        # the bones as placed in this frame; those the contact did not keep the muscle out of
-        here = {
-            bname: Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
-            for probe, bname in probes
-        }
-        measured = [pl for b, pl in here.items() if contact is None or b not in contact]
+        here = self.bones_here(k)
         line_depth = line_inside_depth(
             list(span.lines[k].values()), list(here.values()), 0.25 * d._fine_edge
         )
+        n_in, depth, bone_depth = self.penetration(res, here)
         if ok_values:
             Vo = apply(T, res.V)
-            if contact is not None:
-                # the contact finish counted its bones exactly
-                n_in, depth = res.penetration_vertices, res.penetration_depth
-                bone_depth = res.bone_inside_depth
-            for pl in measured:
-                n, dep = pl.obstacle.measure(pl.to_obstacle(res.V))
-                n_in += n
-                depth = max(depth, dep)
             fname = f"{name}/{name}_{frame:04d}.vtp"
             write_mesh(
                 out / fname,
@@ -574,7 +619,7 @@ class DeformGroup:
     pairs: tuple[tuple[str, str], ...] | None = None
 
     def run(self) -> dict[str, ChunkResult]:
-        from ..solver import facing_at_rest, meet
+        from ..solver import facing_at_rest
 
         order = sorted(range(len(self.jobs)), key=lambda i: self.jobs[i].name)
         ms = {
@@ -594,18 +639,35 @@ class DeformGroup:
         facing = kept[key]
         margin = self.jobs[0].margin
         for k in range(len(self.spans[0])):
-            final = meet(
-                ds,
-                {n: m.solve_frame(k, finish=False) for n, m in ms.items()},
-                {n: m.span.lines[k] for n, m in ms.items()},
-                frames={n: m.span.to_output[k] for n, m in ms.items()},
-                reference_points={n: m.span.references[k] for n, m in ms.items()},
-                obstacles={n: m.frame_obstacles(k) for n, m in ms.items()},
-                margin=margin,
-                sides={n: m.sides_of(k) for n, m in ms.items()},
-                facing=facing,
-                pairs=self.pairs,
-            )
+            final = meet_frame(ms, k, facing, margin, self.pairs)
             for n, m in ms.items():
                 m.emit(k, final[n], final[n].muscle_overlap)
         return {n: m.result for n, m in ms.items()}
+
+
+def meet_frame(
+    ms: dict[str, _MuscleFrames],
+    k: int,
+    facing: Any,
+    margin: float,
+    pairs: tuple[tuple[str, str], ...] | None,
+) -> dict[str, Any]:
+    """Frame ``k`` of muscles in contact, solved together.
+
+    Each against its bones, then they meet (`musclewrap.solver.meet`); ``ms`` in the
+    order of their names.
+    """
+    from ..solver import meet
+
+    return meet(  # type: ignore[no-any-return]
+        {n: m.d for n, m in ms.items()},
+        {n: m.solve_frame(k, finish=False) for n, m in ms.items()},
+        {n: m.span.lines[k] for n, m in ms.items()},
+        frames={n: m.span.to_output[k] for n, m in ms.items()},
+        reference_points={n: m.span.references[k] for n, m in ms.items()},
+        obstacles={n: m.frame_obstacles(k) for n, m in ms.items()},
+        margin=margin,
+        sides={n: m.sides_of(k) for n, m in ms.items()},
+        facing=facing,
+        pairs=pairs,
+    )

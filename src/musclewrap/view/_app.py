@@ -1,0 +1,618 @@
+"""The viewer's web page (trame): sliders and a time slider, the muscles wrapping live.
+
+One page serves two sources:
+
+- a scene (`musclewrap.scene.LiveScene`): every slider change is solved as a run
+  solves that pose, in one solver thread that always takes the latest request (a
+  drag is not queued behind itself), and the muscles, bones, lines and fibres are
+  sent to the browser, where vtk.js draws them;
+- a finished run's ``scene.pvd`` (`._playback.Series`): the time slider and
+  play/pause step through its files.
+
+The browser measures each update, from the slider's input event to the picture
+drawn (two animation frames after the new geometry arrived), and writes the status
+line: ``update N ms (median M ms of the last 10; solve S, transfer X, render R)``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import contextlib
+import os
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..output._render import STRETCH_RANGE
+from ..scene._live import CONTACT_REACH, LiveScene, PoseResult
+from ._playback import Series, segments, triangles
+
+__all__ = ["Viewer", "free_port", "open_source"]
+
+#: the colour maps (vtk.js presets) and ranges of the two colourings
+COLOURS = {
+    "stretch": ("Cool to Warm", [float(STRETCH_RANGE[0]), float(STRETCH_RANGE[1])]),
+    "contact": ("Inferno (matplotlib)", [0.0, float(CONTACT_REACH)]),
+}
+
+_CSS = """
+body { margin: 0; font-family: system-ui, sans-serif; font-size: 14px; }
+.mw { display: flex; height: 100vh; }
+.mw-side { width: 330px; padding: 10px 14px; overflow-y: auto; border-right: 1px solid #ccc; }
+.mw-main { flex: 1; display: flex; flex-direction: column; min-width: 0; }
+.mw-view { flex: 1; position: relative; min-height: 200px; }
+.mw-row { margin: 6px 0 10px 0; }
+.mw-row label { display: block; font-weight: 600; }
+.mw-row input[type=range] { width: 100%; }
+.mw-value { color: #444; font-variant-numeric: tabular-nums; }
+.mw-status { padding: 6px 12px; border-top: 1px solid #ccc; background: #f6f6f6;
+  font-variant-numeric: tabular-nums; white-space: pre-wrap; }
+.mw-warn { padding: 6px 12px; background: #ffd54f; color: #000; font-weight: 600; }
+.mw-legend { height: 12px; margin: 4px 0; border: 1px solid #999; }
+button { margin: 4px 6px 4px 0; padding: 4px 10px; }
+h1 { font-size: 16px; margin: 4px 0 10px 0; }
+"""
+
+# The page's measuring: each slider input gets an id and a time; the server answers
+# with the id it drew; two animation frames after the geometry arrives, the picture
+# is on screen.
+_JS = r"""
+(function () {
+  const mw = (window.mw = window.mw || { n: 0, t: {}, totals: [], last: null });
+  document.addEventListener("input", (e) => {
+    const el = e.target;
+    if (!el || !el.dataset || !el.dataset.mw || !window.trame) return;
+    const id = ++mw.n;
+    mw.t[id] = performance.now();
+    window.trame.trigger("mw_input", [el.dataset.mw, parseFloat(el.value), id]);
+  }, true);
+  function median(a) { const s = [...a].sort((x, y) => x - y); return s[Math.floor(s.length / 2)]; }
+  function shown(s) {
+    if (!s || !s.serial) return;
+    const got = performance.now();
+    requestAnimationFrame(() => requestAnimationFrame(() => {
+      const drawn = performance.now();
+      const t0 = s.id && mw.t[s.id] !== undefined ? mw.t[s.id] : got;
+      for (const k of Object.keys(mw.t)) if (+k <= s.id) delete mw.t[k];
+      const total = drawn - t0, render = drawn - got;
+      const transfer = Math.max(0, got - t0 - s.server);
+      mw.totals.push(total); if (mw.totals.length > 10) mw.totals.shift();
+      mw.last = { serial: s.serial, id: s.id, total, render, transfer, server: s.server,
+                  solve: s.solve, drawn, count: (mw.last ? mw.last.count : 0) + 1 };
+      const el = document.getElementById("mw-update");
+      if (el) {
+        el.textContent = `update ${total.toFixed(0)} ms (median ${median(mw.totals).toFixed(0)} ms `
+          + `of the last ${mw.totals.length}; solve ${s.solve.toFixed(0)}, transfer `
+          + `${transfer.toFixed(0)}, render ${render.toFixed(0)} ms)`;
+        el.dataset.serial = String(s.serial);
+      }
+    }));
+  }
+  function hook() {
+    if (!window.trame || !window.trame.state) { setTimeout(hook, 50); return; }
+    window.trame.state.watch(["shown"], shown);
+  }
+  hook();
+})();
+"""
+
+
+def free_port() -> int:
+    """A free TCP port on the loopback interface."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _enc(a: np.ndarray, dtype: Any) -> dict[str, Any]:
+    """An array in the form the page decodes (base64 of its bytes, with its type)."""
+    b = np.ascontiguousarray(a, dtype=dtype).ravel()
+    return {
+        "bvals": base64.b64encode(b.tobytes()).decode("ascii"),
+        "dtype": str(b.dtype),
+        "shape": [b.size],
+    }
+
+
+def _cells(F: np.ndarray) -> dict[str, Any]:
+    """Cells (k, n) in VTK's legacy form: ``n, i0, ..., n, i0, ...``."""
+    F = np.asarray(F)
+    if not len(F):
+        return _enc(np.zeros(0), np.uint32)
+    return _enc(np.column_stack([np.full(len(F), F.shape[1]), F]), np.uint32)
+
+
+def _points(P: np.ndarray) -> dict[str, Any]:
+    P = np.where(np.isfinite(P), P, 0.0)
+    return _enc(P, np.float32)
+
+
+def _polylines(lines: list[np.ndarray]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Poly-lines as one point array and one cell array."""
+    if not lines:
+        return _points(np.zeros((0, 3))), _enc(np.zeros(0), np.uint32)
+    P = np.vstack(lines)
+    cells, o = [], 0
+    for pts in lines:
+        cells += [len(pts), *range(o, o + len(pts))]
+        o += len(pts)
+    return _points(P), _enc(np.array(cells), np.uint32)
+
+
+@dataclass
+class _Request:
+    kind: str  # "values", "frame", "write"
+    values: dict[str, float] = field(default_factory=dict)
+    frame: int | None = None
+    id: int = 0
+
+
+def open_source(path: str | os.PathLike[str], **kw: Any) -> LiveScene | Series:
+    """A scene file (.toml) as a `LiveScene`, or a run's folder (with scene.pvd) as a `Series`."""
+    p = Path(path)
+    if p.is_dir():
+        return Series.open(p)
+    if not p.is_file():
+        raise FileNotFoundError(f"{p}: no such scene file or run folder")
+    return LiveScene(p, **kw)
+
+
+class Viewer:
+    """The viewer's trame app over a `LiveScene` or a run's `Series`.
+
+    Parameters
+    ----------
+    source : LiveScene or Series
+        What is shown.
+    output : path, optional
+        Where "Write this pose" writes (``pose_NNN/`` folders; default
+        ``./musclewrap_poses``).
+    server : trame server, optional
+        Default: a new one (several viewers can live in one notebook).
+    """
+
+    def __init__(
+        self,
+        source: LiveScene | Series,
+        *,
+        output: str | os.PathLike[str] | None = None,
+        server: Any = None,
+    ) -> None:
+        from trame.app import get_server
+
+        self.source = source
+        self.live = isinstance(source, LiveScene)
+        self.output = Path(output) if output is not None else Path("musclewrap_poses")
+        self.server = server or get_server(f"musclewrap-{id(self)}", client_type="vue3")
+        self.state, self.ctrl = self.server.state, self.server.controller
+        self.n_frames = source.n_frames if self.live else len(source)
+        self.times = source.times if self.live else source.times
+        self.coords = source.coordinates if self.live else []
+        self._want: _Request | None = None
+        self._writes: list[_Request] = []
+        self._wake = threading.Event()
+        self._stop = False
+        self._serial = 0
+        self._bone_T: dict[str, np.ndarray] = {}
+        self._last: PoseResult | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._playing_task: asyncio.Task[Any] | None = None
+        self._drawn = threading.Event()
+        self._names = self._part_names()
+        self._init_state()
+        self._build_ui()
+        self.server.trigger("mw_input")(self._on_input)
+        self.server.trigger("mw_write")(self._on_write)
+        self.server.trigger("mw_play")(self._on_play)
+        self.server.controller.on_server_ready.add(self._on_ready)
+        self.state.change("colour")(self._on_colour)
+        self._thread = threading.Thread(target=self._work, name="musclewrap-solver", daemon=True)
+
+    # ------------------------------------------------------------------ parts
+    def _part_names(self) -> dict[str, list[str]]:
+        if self.live:
+            src: LiveScene = self.source  # type: ignore[assignment]
+            return {
+                "muscle": [j.name for j in src.jobs],
+                "bone": list(src.bone_body),
+                "lines": [j.name for j in src.jobs],
+                "fibres": [j.name for j in src.jobs] if src.scene.fibres is not None else [],
+            }
+        s: Series = self.source  # type: ignore[assignment]
+        out: dict[str, list[str]] = {"muscle": [], "bone": [], "lines": [], "fibres": []}
+        for name, kind in s.parts.items():
+            out[kind].append(name)
+        return out
+
+    def _init_state(self) -> None:
+        st = self.state
+        st.colour = "stretch"
+        st.bone_look = {"color": [0.89, 0.86, 0.79]}
+        st.lines_look = {"color": [0.1, 0.1, 0.1], "lineWidth": 2}
+        st.fibres_look = {"color": [0.55, 0.1, 0.1], "lineWidth": 1}
+        st.background = [1, 1, 1]
+        st.preset, st.crange = COLOURS["stretch"]
+        st.frame = 0
+        st.playing = False
+        st.status = "solving the first pose ..." if self.live else "reading the first frame ..."
+        st.warning = ""
+        st.written = ""
+        st.shown = {"serial": 0, "id": 0, "server": 0.0, "solve": 0.0}
+        st.time_text = self._time_text(0)
+        for i, c in enumerate(self.coords):
+            st[f"q{i}"] = 0.5 * (c.low + c.high)
+        for kind, names in self._names.items():
+            for i, _ in enumerate(names):
+                st[f"{kind}{i}_p"] = _points(np.zeros((0, 3)))
+                st[f"{kind}{i}_c"] = _enc(np.zeros(0), np.float32)
+                st[f"{kind}{i}_f"] = _enc(np.zeros(0), np.uint32)
+
+    def _time_text(self, k: int) -> str:
+        t = float(self.times[k]) if len(self.times) else 0.0
+        return f"frame {k} of {self.n_frames - 1}, t = {t:.3f} s"
+
+    # ------------------------------------------------------------------ the page
+    def _build_ui(self) -> None:
+        from trame.ui.html import DivLayout
+        from trame.widgets import client, html
+        from trame.widgets import vtk as vtkw
+
+        title = (
+            f"musclewrap view: {self.source.scene.name or self.source.scene.path.name}"
+            if self.live
+            else f"musclewrap view: {self.source.folder}"
+        )
+        with DivLayout(self.server) as layout:
+            self.ui = layout
+            client.Style(_CSS)
+            client.Script(_JS)
+            with html.Div(classes="mw"):
+                with html.Div(classes="mw-side"):
+                    html.H1(title)
+                    for i, c in enumerate(self.coords):
+                        with html.Div(classes="mw-row"):
+                            html.Label(c.name, for_=f"q{i}", __properties=[("for_", "for")])
+                            step = (c.high - c.low) / 1000.0
+                            html.Input(
+                                type="range",
+                                id=f"q{i}",
+                                min=f"{c.low:.6g}",
+                                max=f"{c.high:.6g}",
+                                step=f"{step:.6g}",
+                                value=(f"q{i}",),
+                                aria_label=c.name,
+                                data_mw=c.name,
+                                __properties=[("aria_label", "aria-label"), ("data_mw", "data-mw")],
+                            )
+                            html.Span(
+                                f"{{{{ Number(q{i}).toFixed(2) }}}} {c.unit}", classes="mw-value"
+                            )
+                    with html.Div(classes="mw-row"):
+                        html.Label("time", for_="frame", __properties=[("for_", "for")])
+                        html.Input(
+                            type="range",
+                            id="frame",
+                            min="0",
+                            max=str(max(0, self.n_frames - 1)),
+                            step="1",
+                            value=("frame",),
+                            aria_label="time",
+                            data_mw="__frame__",
+                            __properties=[("aria_label", "aria-label"), ("data_mw", "data-mw")],
+                        )
+                        html.Span("{{ time_text }}", classes="mw-value")
+                    html.Button(
+                        "{{ playing ? 'Pause' : 'Play' }}", click="trigger('mw_play')", id="play"
+                    )
+                    if self.live:
+                        html.Button("Write this pose", click="trigger('mw_write')", id="write")
+                    with html.Div(classes="mw-row"):
+                        html.Label("colour", for_="colour", __properties=[("for_", "for")])
+                        with html.Select(v_model=("colour",), id="colour"):
+                            html.Option("stretch (surface area over rest)", value="stretch")
+                            if self.live:
+                                html.Option(
+                                    f"contact (distance to a bone, 0-{CONTACT_REACH:g} mm)",
+                                    value="contact",
+                                )
+                        html.Div(
+                            classes="mw-legend",
+                            style="background: linear-gradient(to right, #3b4cc0, #dddddd, #b40426)",
+                            v_if="colour == 'stretch'",
+                        )
+                        html.Div(
+                            f"blue {STRETCH_RANGE[0]:.2f} (compressed), grey 1, red {STRETCH_RANGE[1]:.2f} (stretched)",
+                            v_if="colour == 'stretch'",
+                            classes="mw-value",
+                        )
+                        html.Div(
+                            classes="mw-legend",
+                            style="background: linear-gradient(to right, #000004, #bc3754, #fcffa4)",
+                            v_if="colour == 'contact'",
+                        )
+                        html.Div(
+                            f"black: touching a bone, yellow: {CONTACT_REACH:g} mm or more away",
+                            v_if="colour == 'contact'",
+                            classes="mw-value",
+                        )
+                    html.Div("{{ written }}", id="written", classes="mw-value")
+                with html.Div(classes="mw-main"):
+                    html.Div("{{ warning }}", classes="mw-warn", id="warning", v_if="warning")
+                    with html.Div(classes="mw-view"):
+                        with vtkw.VtkView(ref="view", background=("background",)) as view:
+                            self.view = view
+                            self._representations(vtkw)
+                    with html.Div(classes="mw-status", id="status"):
+                        html.Div("update -", id="mw-update")
+                        html.Div("{{ status }}", id="mw-figures")
+
+    def _representations(self, vtkw: Any) -> None:
+        for i, _ in enumerate(self._names["bone"]):
+            with vtkw.VtkGeometryRepresentation(property=("bone_look",)):
+                vtkw.VtkPolyData(f"bone{i}", points=(f"bone{i}_p",), polys=(f"bone{i}_f",))
+        for i, _ in enumerate(self._names["muscle"]):
+            with vtkw.VtkGeometryRepresentation(
+                color_map_preset=("preset",), color_data_range=("crange",)
+            ):  # fmt: skip
+                with vtkw.VtkPolyData(
+                    f"muscle{i}", points=(f"muscle{i}_p",), polys=(f"muscle{i}_f",)
+                ):
+                    with vtkw.VtkPointData():
+                        vtkw.VtkDataArray(
+                            registration="setScalars", name="colour", values=(f"muscle{i}_c",)
+                        )
+        for kind in ("lines", "fibres"):
+            for i, _ in enumerate(self._names[kind]):
+                with vtkw.VtkGeometryRepresentation(property=(f"{kind}_look",)):
+                    vtkw.VtkPolyData(
+                        f"{kind}{i}", points=(f"{kind}{i}_p",), lines=(f"{kind}{i}_f",)
+                    )
+
+    # ------------------------------------------------------------------ events (server loop)
+    def _on_ready(self, **_: Any) -> None:
+        self._loop = asyncio.get_event_loop()
+        if not self._thread.is_alive():
+            self._thread.start()
+        self.request(_Request("frame", frame=0))
+
+    def _on_input(self, name: str, value: float, ident: int = 0) -> None:
+        if name == "__frame__":
+            k = int(round(value))
+            self.state.frame = k
+            self.request(_Request("frame", frame=k, id=int(ident)))
+            return
+        values = {c.name: float(self.state[f"q{i}"]) for i, c in enumerate(self.coords)}
+        values[name] = float(value)
+        for i, c in enumerate(self.coords):
+            if c.name == name:
+                self.state[f"q{i}"] = float(value)
+        self.request(_Request("values", values=values, id=int(ident)))
+
+    def _on_write(self) -> None:
+        self._writes.append(_Request("write"))
+        self._wake.set()
+
+    def _on_play(self) -> None:
+        self.state.playing = not self.state.playing
+        if self.state.playing and self._playing_task is None:
+            self._playing_task = asyncio.ensure_future(self._play())
+
+    def _on_colour(self, colour: str, **_: Any) -> None:
+        if colour not in COLOURS:
+            return
+        self.state.preset, self.state.crange = COLOURS[colour]
+        if self._last is not None:
+            self._push_colours(self._last)
+
+    async def _play(self) -> None:
+        try:
+            while self.state.playing:
+                k = (int(self.state.frame) + 1) % max(1, self.n_frames)
+                self._drawn.clear()
+                with self.state:
+                    self.state.frame = k
+                self.request(_Request("frame", frame=k))
+                # the next frame once this one is sent (at most 30 a second)
+                t = time.perf_counter()
+                while not self._drawn.is_set() and self.state.playing:
+                    await asyncio.sleep(0.005)
+                await asyncio.sleep(max(0.0, 1 / 30 - (time.perf_counter() - t)))
+        finally:
+            self._playing_task = None
+
+    def request(self, r: _Request) -> None:
+        """Ask for a pose (the latest request wins)."""
+        self._want = r
+        self._wake.set()
+
+    # ------------------------------------------------------------------ the solver thread
+    def _work(self) -> None:
+        while not self._stop:
+            self._wake.wait()
+            self._wake.clear()
+            while self._writes:
+                self._writes.pop(0)
+                self._write()
+            r, self._want = self._want, None
+            if r is None:
+                continue
+            try:
+                self._show(r)
+            except Exception as exc:  # noqa: BLE001  # shown on the page, the server goes on
+                self._send({"warning": f"this pose failed: {exc}"})
+
+    def _show(self, r: _Request) -> None:
+        t0 = time.perf_counter()
+        if self.live:
+            src: LiveScene = self.source  # type: ignore[assignment]
+            res = src.solve(
+                r.values if r.kind == "values" else None,
+                frame=r.frame if r.kind == "frame" else None,
+            )
+            self._last = res
+            t_solve = time.perf_counter() - t0
+            update = self._live_state(res, r)
+        else:
+            update = self._series_state(int(r.frame or 0))
+            t_solve = time.perf_counter() - t0
+        self._serial += 1
+        update["shown"] = {
+            "serial": self._serial,
+            "id": r.id,
+            "server": 1e3 * (time.perf_counter() - t0),
+            "solve": 1e3 * t_solve,
+        }
+        self._send(update)
+
+    def _live_state(self, res: PoseResult, r: _Request) -> dict[str, Any]:
+        src: LiveScene = self.source  # type: ignore[assignment]
+        up: dict[str, Any] = {}
+        if not self._bone_T:
+            meshes = src.bone_meshes()
+            self._bone_meshes = meshes
+        for i, b in enumerate(self._names["bone"]):
+            T = res.bones.get(b, np.eye(4))
+            if b not in self._bone_T or not np.array_equal(self._bone_T[b], T):
+                V, F = self._bone_meshes[b]
+                up[f"bone{i}_p"] = _points(V @ T[:3, :3].T + T[:3, 3])
+                if b not in self._bone_T:
+                    up[f"bone{i}_f"] = _cells(F)
+                self._bone_T[b] = T
+        for i, n in enumerate(self._names["muscle"]):
+            up[f"muscle{i}_p"] = _points(res.muscles[n])
+            if r.kind != "write" and self.state[f"muscle{i}_f"]["shape"] == [0]:
+                up[f"muscle{i}_f"] = _cells(src._frames[n].muscle.F)
+            up[f"lines{i}_p"], up[f"lines{i}_f"] = _polylines(res.lines[n])
+        for i, n in enumerate(self._names["fibres"]):
+            P = res.fibres.get(n)
+            up[f"fibres{i}_p"], up[f"fibres{i}_f"] = _polylines([] if P is None else list(P))
+        up.update(self._colours(res))
+        if r.kind == "values" or r.frame is None:
+            pass
+        else:
+            up["frame"] = int(r.frame)
+        up["time_text"] = (
+            self._time_text(int(r.frame))
+            if r.frame is not None
+            else "a pose of the sliders (not a frame)"
+        )
+        for i, c in enumerate(self.coords):
+            up[f"q{i}"] = float(res.values[c.name])
+        overlap = res.overlap
+        up["status"] = (
+            f"volume error {res.volume_error:.1e} (largest of {len(res.rows)} muscles) · deepest "
+            f"in a bone {res.penetration:.3f} mm"
+            + ("" if np.isnan(overlap) else f" · deepest in another muscle {overlap:.3f} mm")
+            + f" · iterations {max(r_['iterations'] for r_ in res.rows.values())}"
+        )
+        bad = res.unconverged
+        up["warning"] = (
+            "NOT CONVERGED at this pose: "
+            + "; ".join(f"{n}: {why}" for n, why in bad.items())
+            + " (the muscles shown are the solver's last iterate)"
+            if bad
+            else ""
+        )
+        return up
+
+    def _colours(self, res: PoseResult) -> dict[str, Any]:
+        up = {}
+        for i, n in enumerate(self._names["muscle"]):
+            if self.state.colour == "contact":
+                c = np.clip(res.gap[n], 0.0, CONTACT_REACH)
+            else:
+                c = np.nan_to_num(res.stretch[n], nan=1.0)
+            up[f"muscle{i}_c"] = _enc(c, np.float32)
+        return up
+
+    def _push_colours(self, res: PoseResult) -> None:
+        with self.state:
+            self.state.update(self._colours(res))
+
+    def _series_state(self, k: int) -> dict[str, Any]:
+        s: Series = self.source  # type: ignore[assignment]
+        up: dict[str, Any] = {"frame": k, "time_text": self._time_text(k)}
+        for kind in ("muscle", "bone"):
+            for i, n in enumerate(self._names[kind]):
+                d = s.part(k, n)
+                if d is None:
+                    continue
+                up[f"{kind}{i}_p"] = _points(d["points"])
+                if self.state[f"{kind}{i}_f"]["shape"] == [0]:
+                    up[f"{kind}{i}_f"] = _cells(triangles(d))
+                if kind == "muscle":
+                    c = d.get("point:area_stretch", np.ones(len(d["points"])))
+                    up[f"muscle{i}_c"] = _enc(c, np.float32)
+        for kind in ("lines", "fibres"):
+            for i, n in enumerate(self._names[kind]):
+                d = s.part(k, n)
+                if d is None:
+                    continue
+                up[f"{kind}{i}_p"] = _points(d["points"])
+                up[f"{kind}{i}_f"] = _cells(segments(d))
+        up["status"] = f"playing back {s.folder / 'scene.pvd'} ({len(s)} frames; no solve)"
+        return up
+
+    def _write(self) -> None:
+        src = self.source
+        res = self._last
+        if not self.live or res is None:
+            return
+        self.output.mkdir(parents=True, exist_ok=True)
+        k = 0
+        while (self.output / f"pose_{k:03d}").exists():
+            k += 1
+        folder = self.output / f"pose_{k:03d}"
+        try:
+            files = src.write(res, folder)  # type: ignore[union-attr]
+        except OSError as exc:
+            self._send({"written": f"could not write {folder}: {exc}"})
+            return
+        self._send({"written": f"wrote {len(files)} files to {folder.resolve()}"})
+
+    def _send(self, update: dict[str, Any]) -> None:
+        loop = self._loop
+        if loop is None:
+            return
+
+        def push() -> None:
+            with self.state:
+                self.state.update(update)
+            if update.get("shown", {}).get("serial") == 1:
+                # once the first geometry has reached the page
+                loop.call_later(0.3, self.view.reset_camera)
+                loop.call_later(1.0, self.view.reset_camera)
+            self._drawn.set()
+
+        loop.call_soon_threadsafe(push)
+
+    # ------------------------------------------------------------------ running
+    def start(
+        self,
+        port: int | None = None,
+        *,
+        open_browser: bool = True,
+        say: Callable[[str], None] = print,
+        **kw: Any,
+    ) -> None:
+        """Serve the page at ``http://127.0.0.1:PORT/`` until interrupted (blocks)."""
+        port = free_port() if port is None else port
+        say(f"musclewrap view: http://127.0.0.1:{port}/")
+        with contextlib.suppress(KeyboardInterrupt):
+            self.server.start(
+                port=port,
+                host="127.0.0.1",
+                open_browser=open_browser,
+                show_connection_info=False,
+                **kw,
+            )
+        self._stop = True
+        self._wake.set()
