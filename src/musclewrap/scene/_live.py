@@ -382,7 +382,13 @@ class LiveScene:
         for j in self.jobs:
             m = ms[j.name]
             m.span = self._span(
-                j.name, [L[j.name]], [R[j.name]], out_T, None if paths[j.name] is None else 0
+                j.name,
+                [L[j.name]],
+                [R[j.name]],
+                out_T,
+                None if paths[j.name] is None else 0,
+                0.0 if frame is None else float(drive.times[frame]),
+                0 if frame is None else int(drive.frames[frame]),
             )
             m.path = paths[j.name]
             m.refs = {}

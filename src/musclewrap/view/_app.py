@@ -235,6 +235,7 @@ class Viewer:
     def _init_state(self) -> None:
         st = self.state
         st.colour = "stretch"
+        st.part_names = self._names
         st.bone_look = {"color": [0.89, 0.86, 0.79]}
         st.lines_look = {"color": [0.1, 0.1, 0.1], "lineWidth": 2}
         st.fibres_look = {"color": [0.55, 0.1, 0.1], "lineWidth": 1}

@@ -1,0 +1,283 @@
+"""The live viewer: a pose solved live equals the run's files; the page in a real browser.
+
+The browser tests start ``musclewrap view`` on a free loopback port and drive the OS's
+Chromium through Playwright's Python API (nothing downloaded).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from musclewrap.mesh import read_mesh
+from musclewrap.scene import LiveScene, load_scene, run_scene, write_motion
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+pytestmark = pytest.mark.realdata
+
+
+def _chromium() -> str:
+    found = shutil.which("chromium") or shutil.which("chromium-browser")
+    if found is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium not found: .ci/run installs it from the OS packages")
+        pytest.skip("chromium not installed")
+    return found
+
+
+def _scene(data_dir: Path, tmp: Path, name: str = "lhdl_walk", edit=None) -> Path:
+    src = (EXAMPLES / f"{name}.toml").read_text().replace("../../shared/data", data_dir.as_posix())
+    if edit is not None:
+        src = edit(src)
+    p = tmp / f"{name}.toml"
+    p.write_text(src)
+    return p
+
+
+def _run_pose(scene_path: Path, values: dict[str, float], out: Path) -> Path:
+    """``musclewrap run`` of the scene on a one-row motion holding ``values``."""
+    mot = out.parent / f"{out.name}.mot"
+    write_motion(mot, np.array([0.0]), {c: np.array([v]) for c, v in values.items()})
+    scene = load_scene(scene_path)
+    import dataclasses
+
+    scene = dataclasses.replace(scene, motions=(mot,))
+    run_scene(scene, out, workers=1, render=False, progress=None)
+    return out
+
+
+def _same_files(a: Path, b: Path, names: list[str]) -> None:
+    from musclewrap.view._playback import read_polydata
+
+    for n in names:
+        da, db = read_polydata(a / n), read_polydata(b / n)
+        Va, Vb = da["points"], db["points"]
+        size = float(np.ptp(Vb, axis=0).max())
+        assert Va.shape == Vb.shape, n
+        assert np.abs(Va - Vb).max() <= 1e-9 * size, (n, np.abs(Va - Vb).max())
+        for k in ("polys", "lines", "point:area_stretch"):
+            assert (k in da) == (k in db), (n, k)
+            if k in da and k != "point:area_stretch":
+                assert np.array_equal(da[k], db[k]), (n, k)
+
+
+def test_a_pose_solved_live_equals_the_run_of_that_pose(data_dir, tmp_path):
+    """Contact on (bones and muscles): a slider pose, a frame of the motion, and the same
+    pose again after others (the waypoints kept) all give the run's files to 1e-9."""
+    scene = _scene(data_dir, tmp_path)
+    live = LiveScene(scene)
+    assert [c.name for c in live.coordinates] == [
+        "hip_flexion_r", "hip_adduction_r", "hip_rotation_r"
+    ]  # fmt: skip
+    flex = next(c for c in live.coordinates if c.name == "hip_flexion_r")
+    assert (flex.low, flex.high, flex.unit) == (pytest.approx(-10), pytest.approx(90), "deg")
+    values = {"hip_flexion_r": 57.25, "hip_adduction_r": -8.5, "hip_rotation_r": 6.0}
+    r1 = live.solve(values)
+    assert abs(r1.volume_error) < 1e-12 and not r1.unconverged
+    live.write(r1, tmp_path / "live")
+    names = [f"{m}/{m}_0000.vtp" for m in live.specs] + [
+        f"{m}/{m}_lines_0000.vtp" for m in live.specs
+    ]
+    run = _run_pose(scene, values, tmp_path / "run")
+    _same_files(tmp_path / "live", run, names + ["femur/femur.vtp"])
+    pose = json.loads((tmp_path / "live" / "pose.json").read_text())
+    assert pose["values"] == values
+    # other poses, then this one again: the same
+    live.solve(frame=40)
+    r2 = live.solve(values)
+    for n in live.specs:
+        assert np.array_equal(r1.muscles[n], r2.muscles[n])
+    # a frame of the motion: the run of that frame
+    r3 = live.solve(frame=150)
+    live.write(r3, tmp_path / "live150")
+    run150 = tmp_path / "run150"
+    run_scene(load_scene(scene), run150, frames="150:151", workers=1, render=False, progress=None)
+    _same_files(tmp_path / "live150", run150, [f"{m}/{m}_0150.vtp" for m in live.specs])
+
+
+def test_bad_poses_are_refused_by_name(data_dir, tmp_path):
+    live = LiveScene(_scene(data_dir, tmp_path), check=False)
+    with pytest.raises(ValueError, match="hip_flexion"):
+        live.solve({"knee_angle_r": 10.0})
+    with pytest.raises(ValueError, match="frame 211 is not a frame"):
+        live.solve(frame=211)
+
+
+def test_an_unconverged_pose_is_reported(data_dir, tmp_path):
+    """One iteration allowed: the pose is shown with the solver's reason, never silently."""
+    scene = _scene(data_dir, tmp_path, edit=lambda s: s.replace(
+        'paths = ["psoas_r"]', 'paths = ["psoas_r"]\nmax_iterations = 1'
+    ))  # fmt: skip
+    live = LiveScene(scene, check=False)
+    r = live.solve({"hip_flexion_r": 80.0})
+    assert "psoas" in r.unconverged and r.unconverged["psoas"]
+
+
+def test_view_refuses_a_scene_check_refuses_with_runs_message(data_dir, tmp_path):
+    """Before any server starts: the same message as ``musclewrap run``, exit 2."""
+    scene = _scene(
+        data_dir,
+        tmp_path,
+        "gait2392_walk",
+        edit=lambda s: s.replace('paths = ["semiten_r"]', 'paths = ["vas_lat_r"]'),
+    )
+    cmd = [sys.executable, "-m", "musclewrap.cli"]
+    run = subprocess.run(
+        [*cmd, "run", str(scene), "-o", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    view = subprocess.run(
+        [*cmd, "view", str(scene), "--no-browser"], capture_output=True, text=True, timeout=600
+    )
+    assert run.returncode == view.returncode == 2
+    said = [x for x in run.stderr.splitlines() if x.startswith(("error:", "  "))]
+    assert said and said[0].startswith("error: ") and "would make the run wrong" in said[0]
+    assert said == [x for x in view.stderr.splitlines() if x.startswith(("error:", "  "))]
+    assert "http://" not in view.stdout
+
+
+def _serve(args: list[str], tmp_path: Path) -> tuple[subprocess.Popen[str], int]:
+    from musclewrap.view._app import free_port
+
+    port = free_port()
+    with open(tmp_path / "server.log", "w") as log:  # the child keeps its own handle
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "musclewrap.cli", "view", *args, "--port", str(port), "--no-browser"],
+            stdout=log, stderr=subprocess.STDOUT, text=True, cwd=tmp_path,
+        )  # fmt: skip
+    return proc, port
+
+
+def _page(pw, port: int, proc, tmp_path: Path):
+    browser = pw.chromium.launch(executable_path=_chromium(), headless=True)
+    page = browser.new_page(viewport={"width": 1200, "height": 800})
+    t = time.monotonic()
+    while True:
+        if proc.poll() is not None:
+            pytest.fail("the viewer exited: " + (tmp_path / "server.log").read_text())
+        try:
+            page.goto(f"http://127.0.0.1:{port}/", timeout=5000)
+            break
+        except Exception:  # noqa: BLE001  # not serving yet
+            if time.monotonic() - t > 120:
+                raise
+            time.sleep(0.3)
+    page.wait_for_function(
+        "document.getElementById('mw-update') && document.getElementById('mw-update').dataset.serial",
+        timeout=120_000,
+    )
+    return browser, page
+
+
+def _geometry(page, part: str = "muscle0_p") -> str:
+    return page.evaluate(f"window.trame.state.get('{part}').bvals")
+
+
+def _serial(page) -> str:
+    return page.eval_on_selector("#mw-update", "e => e.dataset.serial")
+
+
+def _moved(page, before: str) -> None:
+    page.wait_for_function(
+        f"document.getElementById('mw-update').dataset.serial != '{before}'", timeout=60_000
+    )
+
+
+def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path):
+    """The hip_flexion_r slider found by its label; moved, the muscles change, the status
+    line says the update time, and the written pose equals run's files of that pose."""
+    from playwright.sync_api import sync_playwright
+
+    scene = _scene(data_dir, tmp_path)
+    proc, port = _serve([str(scene), "-o", "poses"], tmp_path)
+    try:
+        with sync_playwright() as pw:
+            browser, page = _page(pw, port, proc, tmp_path)
+            slider = page.get_by_label("hip_flexion_r")
+            assert slider.count() == 1
+            assert page.get_by_text("hip_flexion_r", exact=True).is_visible()
+            before, serial = _geometry(page), _serial(page)
+            slider.fill("45")
+            _moved(page, serial)
+            assert _geometry(page) != before
+            status = page.inner_text("#status")
+            assert re.search(
+                r"update \d+ ms \(median \d+ ms of the last \d+; solve \d+, transfer \d+, render \d+ ms\)",
+                status,
+            ), status
+            assert re.search(r"volume error \S+ .* deepest in a bone [\d.]+ mm", status), status
+            assert page.eval_on_selector("#q0", "e => e.value") == "45"
+            page.get_by_role("button", name="Write this pose").click()
+            page.wait_for_function(
+                "document.getElementById('written').textContent.includes('wrote')", timeout=60_000
+            )
+            # the stretch/contact toggle recolours the muscles
+            colours = _geometry(page, "muscle0_c")
+            page.select_option("#colour", "contact")
+            page.wait_for_function(
+                f"window.trame.state.get('muscle0_c').bvals != '{colours}'", timeout=30_000
+            )
+            browser.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+    written = tmp_path / "poses" / "pose_000"
+    values = json.loads((written / "pose.json").read_text())["values"]
+    assert values["hip_flexion_r"] == 45.0
+    run = _run_pose(scene, values, tmp_path / "run")
+    names = [f"{m}/{m}_0000.vtp" for m in ("gluteus_maximus", "gluteus_medius", "iliacus", "psoas")]
+    _same_files(written, run, names)
+
+
+def test_playing_back_a_finished_run_in_a_browser(tmp_path):
+    """``musclewrap view OUTDIR``: the time slider (by its label) shows another frame of
+    the run's own files; play steps on by itself; nothing is solved."""
+    from playwright.sync_api import sync_playwright
+
+    from musclewrap.synthetic import write_knee_scene
+
+    toml = write_knee_scene(tmp_path / "input", 9)
+    out = tmp_path / "out"
+    run_scene(load_scene(toml), out, workers=1, render=False, progress=None)
+    proc, port = _serve([str(out)], tmp_path)
+    try:
+        with sync_playwright() as pw:
+            browser, page = _page(pw, port, proc, tmp_path)
+            assert page.get_by_label("hip_flexion_r").count() == 0  # no sliders to solve
+            assert page.get_by_role("button", name="Write this pose").count() == 0
+            first, serial = _geometry(page), _serial(page)
+            page.get_by_label("time").fill("8")
+            _moved(page, serial)
+            assert _geometry(page) != first
+            assert "frame 8 of 8" in page.inner_text(".mw-side")
+            assert "no solve" in page.inner_text("#status")
+            assert re.search(r"update \d+ ms", page.inner_text("#status"))
+            # the file of frame 8, as the page has it
+            pts = page.evaluate("window.trame.state.get('muscle0_p')")
+            import base64
+
+            P = np.frombuffer(base64.b64decode(pts["bvals"]), dtype=np.float32).reshape(-1, 3)
+            m = page.evaluate("window.trame.state.get('part_names')")["muscle"][0]
+            V, _ = read_mesh(out / m / f"{m}_0008.vtp")
+            assert np.abs(P - V).max() <= 1e-6 * np.ptp(V, axis=0).max()
+            serial = _serial(page)
+            page.get_by_role("button", name="Play").click()
+            _moved(page, serial)
+            serial = _serial(page)
+            _moved(page, serial)  # and on
+            page.get_by_role("button", name="Pause").click()
+            browser.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
