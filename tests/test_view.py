@@ -281,3 +281,32 @@ def test_playing_back_a_finished_run_in_a_browser(tmp_path):
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def test_the_viewer_in_a_notebook_cell(tmp_path):
+    """`Viewer.show` serves on the running event loop (as in Jupyter) and gives the cell an
+    iframe of the page; the page answers there."""
+    import asyncio
+    import urllib.request
+
+    from musclewrap.synthetic import write_knee_scene
+    from musclewrap.view import viewer
+
+    toml = write_knee_scene(tmp_path / "input", 5)
+    out = tmp_path / "out"
+    run_scene(load_scene(toml), out, workers=1, render=False, progress=None)
+    app = viewer(out)
+
+    async def cell() -> tuple[str, str]:
+        frame = app.show()
+        await asyncio.sleep(1.0)
+        loop = asyncio.get_running_loop()
+        got = await loop.run_in_executor(
+            None, lambda: urllib.request.urlopen(frame.url, timeout=10).read().decode()
+        )
+        await app.server.stop()
+        return frame._repr_html_(), got
+
+    html, page = asyncio.run(cell())
+    assert re.match(r'<iframe src="http://127\.0\.0\.1:\d+/"', html)
+    assert "<html" in page.lower()

@@ -103,6 +103,20 @@ _JS = r"""
 """
 
 
+@dataclass(frozen=True)
+class Frame:
+    """The page in a notebook cell: drawn as an iframe of ``url``."""
+
+    url: str
+    height: int = 640
+
+    def _repr_html_(self) -> str:
+        return (
+            f'<iframe src="{self.url}" width="100%" height="{self.height}" '
+            'style="border: 1px solid #ccc" title="musclewrap view"></iframe>'
+        )
+
+
 def free_port() -> int:
     """A free TCP port on the loopback interface."""
     import socket
@@ -596,6 +610,19 @@ class Viewer:
         loop.call_soon_threadsafe(push)
 
     # ------------------------------------------------------------------ running
+    def show(self, port: int | None = None, *, height: int = 640) -> Frame:
+        """In a notebook: serve the page on the notebook's event loop and show it in the cell.
+
+        Returns an object the notebook draws as the page in an iframe (the cell's output);
+        the server runs as a task of the running event loop until the kernel stops.
+        """
+        port = free_port() if port is None else port
+        self.server.start(
+            port=port, host="127.0.0.1", open_browser=False, exec_mode="task",
+            show_connection_info=False,
+        )  # fmt: skip
+        return Frame(f"http://127.0.0.1:{port}/", height)
+
     def start(
         self,
         port: int | None = None,

@@ -1,0 +1,135 @@
+"""The live viewer in a real browser: time to the first picture, updates per second.
+
+Starts ``musclewrap view SCENE --no-browser`` on a free loopback port, opens it in the OS's
+Chromium (Playwright), and measures, as the page itself does (slider input event to the
+picture drawn, two animation frames after the geometry arrived):
+
+- the first picture: from the command's start (prepared muscles cached: run once before);
+- a drag: the slider moved 1 step at a time through ``--sweep`` (each step waits for its
+  picture): the updates per second are steps over the sweep's time; each update's parts
+  (solve, transfer, render) as the status line gives them. The sweep runs twice: the first
+  time the waypoints between the rest pose and the poses are solved as they come; the
+  second ("warm") reuses them.
+
+    python benchmarks/bench_view.py examples/lhdl_walk.toml --variants all bones
+    python benchmarks/bench_view.py examples/gait2392_walk.toml --coordinate hip_flexion_r
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def scene_variant(scene: Path, variant: str, tmp: Path) -> Path:
+    """The scene as given ("all": bones and muscles kept apart) or with muscles passing."""
+    if variant == "all":
+        return scene
+    text = scene.read_text()
+    data = (scene.parent / "../../shared/data").resolve().as_posix()
+    text = text.replace("../../shared/data", data)
+    if "[collisions]" in text:
+        text = text.replace("[collisions]", "[collisions]\nmuscles = false", 1)
+    else:
+        text += "\n[collisions]\nmuscles = false\n"
+    p = tmp / f"{scene.stem}_{variant}.toml"
+    p.write_text(text)
+    return p
+
+
+def measure(scene: Path, coordinate: str, sweep: tuple[float, float, float]) -> dict[str, object]:
+    from playwright.sync_api import sync_playwright
+
+    from musclewrap.view._app import free_port
+
+    port = free_port()
+    t0 = time.monotonic()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "musclewrap.cli", "view", str(scene), "--port", str(port), "--no-browser"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    out: dict[str, object] = {}
+    try:
+        with sync_playwright() as pw:
+            exe = shutil.which("chromium") or shutil.which("chromium-browser")
+            browser = pw.chromium.launch(executable_path=exe, headless=True)
+            page = browser.new_page(viewport={"width": 1200, "height": 800})
+            while True:
+                try:
+                    page.goto(f"http://127.0.0.1:{port}/", timeout=5000)
+                    break
+                except Exception:  # noqa: BLE001
+                    if proc.poll() is not None:
+                        raise SystemExit(f"the viewer exited ({proc.returncode})") from None
+                    time.sleep(0.05)
+            page.wait_for_function("window.mw && window.mw.last", timeout=120_000, polling=10)
+            out["first_picture_s"] = time.monotonic() - t0
+            slider = page.get_by_label(coordinate)
+            lo, hi, step = sweep
+            values = [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
+            for run in ("first", "warm"):
+                rows = []
+                t = time.perf_counter()
+                for v in values:
+                    before = page.evaluate("window.mw.last.serial")
+                    slider.fill(f"{v:g}")
+                    page.wait_for_function(
+                        f"window.mw.last.serial != {before}", timeout=60_000, polling="raf"
+                    )
+                    rows.append(page.evaluate("window.mw.last"))
+                dt = time.perf_counter() - t
+                out[run] = {
+                    "updates_per_s": len(values) / dt,
+                    "update_ms": statistics.median(r["total"] for r in rows),
+                    "solve_ms": statistics.median(r["solve"] for r in rows),
+                    "transfer_ms": statistics.median(r["transfer"] for r in rows),
+                    "render_ms": statistics.median(r["render"] for r in rows),
+                    "max_ms": max(r["total"] for r in rows),
+                }
+            browser.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scene", type=Path)
+    ap.add_argument("--coordinate", default="hip_flexion_r")
+    ap.add_argument(
+        "--sweep", type=float, nargs=3, default=(0.0, 60.0, 1.0), metavar=("FROM", "TO", "STEP")
+    )
+    ap.add_argument("--variants", nargs="+", default=["all"], choices=("all", "bones"))
+    a = ap.parse_args()
+    # the muscles prepared and cached first (a run of one frame)
+    subprocess.run(
+        [sys.executable, "-m", "musclewrap.cli", "run", str(a.scene), "--frames", "0:1", "--no-gif",
+         "-o", tempfile.mkdtemp()], check=True, capture_output=True,
+    )  # fmt: skip
+    print(f"{a.scene}: {a.coordinate} {a.sweep[0]:g} to {a.sweep[1]:g} by {a.sweep[2]:g}")
+    print("contact     first picture  sweep  updates/s  update ms  solve  transfer  render  max ms")
+    with tempfile.TemporaryDirectory() as tmp:
+        for v in a.variants:
+            r = measure(
+                scene_variant(a.scene.resolve(), v, Path(tmp)), a.coordinate, tuple(a.sweep)
+            )
+            for run in ("first", "warm"):
+                x = r[run]
+                print(
+                    f"{'bones+muscles' if v == 'all' else 'bones':<12}{r['first_picture_s']:>10.2f} s  "
+                    f"{run:<6}{x['updates_per_s']:>9.1f}{x['update_ms']:>11.0f}{x['solve_ms']:>7.0f}"
+                    f"{x['transfer_ms']:>10.0f}{x['render_ms']:>8.0f}{x['max_ms']:>8.0f}"
+                )
+
+
+if __name__ == "__main__":
+    main()
