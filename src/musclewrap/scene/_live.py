@@ -109,7 +109,7 @@ class PoseResult:
 
     @property
     def volume_error(self) -> float:
-        """The largest |relative volume error| over the muscles."""
+        """The largest absolute relative volume error over the muscles."""
         return max(abs(r["relative_volume_error"]) for r in self.rows.values())
 
     @property
