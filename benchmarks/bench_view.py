@@ -13,6 +13,12 @@ picture drawn, two animation frames after the geometry arrived):
 
     python benchmarks/bench_view.py examples/lhdl_walk.toml --variants all bones
     python benchmarks/bench_view.py examples/gait2392_walk.toml --coordinate hip_flexion_r
+    python benchmarks/bench_view.py examples/lhdl_walk.toml --phases
+
+``--phases`` times, without a browser, where the first picture's time and a pose's go: the
+check, reading the scene (`LiveScene` without its check), the first pose, then per pose (medians
+over every 10th frame, warm) the waypoints, the solve and the measures, and each muscle's solve
+alone against its bones.
 """
 
 from __future__ import annotations
@@ -101,6 +107,44 @@ def measure(scene: Path, coordinate: str, sweep: tuple[float, float, float]) -> 
     return out
 
 
+def phases(scene: Path) -> None:
+    import numpy as np
+
+    from musclewrap.scene import LiveScene, check_scene, load_scene
+
+    sc = load_scene(scene)
+    t = time.perf_counter()
+    check_scene(sc)
+    print(f"check {time.perf_counter() - t:.2f} s")
+    t = time.perf_counter()
+    live = LiveScene(sc, check=False)
+    print(
+        f"reading, preparations and probes (LiveScene without check) {time.perf_counter() - t:.2f} s"
+    )
+    t = time.perf_counter()
+    r = live.solve(frame=0)
+    parts = ", ".join(f"{k} {1e3 * v:.0f} ms" for k, v in r.seconds.items())
+    print(f"first pose {time.perf_counter() - t:.2f} s ({parts})")
+    frames = range(0, live.n_frames, 10)
+    for k in frames:  # the waypoints solved
+        live.solve(frame=k)
+    got = [live.solve(frame=k).seconds for k in frames]
+    print(
+        f"a pose, warm, median of {len(got)}: "
+        + ", ".join(f"{k} {1e3 * np.median([g[k] for g in got]):.1f} ms" for k in got[0])
+    )
+    for name, m in live._frames.items():
+        alone = []
+        for k in frames:
+            live.solve(frame=k)
+            t = time.perf_counter()
+            m.solve_frame(0)
+            alone.append(time.perf_counter() - t)
+        print(
+            f"  {name} ({len(m.muscle.V)} vertices) alone against its bones: {1e3 * np.median(alone):.1f} ms"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene", type=Path)
@@ -109,7 +153,11 @@ def main() -> None:
         "--sweep", type=float, nargs=3, default=(0.0, 60.0, 1.0), metavar=("FROM", "TO", "STEP")
     )
     ap.add_argument("--variants", nargs="+", default=["all"], choices=("all", "bones"))
+    ap.add_argument("--phases", action="store_true", help="where the time goes (no browser)")
     a = ap.parse_args()
+    if a.phases:
+        phases(a.scene)
+        return
     # the muscles prepared and cached first (a run of one frame)
     subprocess.run(
         [sys.executable, "-m", "musclewrap.cli", "run", str(a.scene), "--frames", "0:1", "--no-gif",

@@ -8,6 +8,25 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
 @pytest.fixture(scope="session")
+def chromium() -> str:
+    """Chromium from the OS packages, for Playwright (``.ci/run`` installs both); required in
+    CI, skipped elsewhere when missing."""
+    import shutil
+
+    found = shutil.which("chromium") or shutil.which("chromium-browser")
+    missing = "chromium not found: .ci/run installs it from the OS packages"
+    try:
+        import playwright  # noqa: F401
+    except ImportError:
+        found, missing = None, "playwright missing: the [dev] extra installs it"
+    if found is None:
+        if os.environ.get("CI"):
+            pytest.fail(missing)
+        pytest.skip(missing)
+    return found
+
+
+@pytest.fixture(scope="session")
 def data_dir() -> Path:
     """The third-party real data; required (not skipped) in CI."""
     if not DATA.is_dir():

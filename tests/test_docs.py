@@ -92,19 +92,7 @@ def test_the_scene_keys_and_output_columns_pages_list_every_one(site):
             assert col in outputs, (name, col)
 
 
-def _chromium() -> str:
-    """Chromium from the OS packages (``.ci/run`` installs it); required in CI."""
-    import shutil
-
-    found = shutil.which("chromium") or shutil.which("chromium-browser")
-    if found is None:
-        if os.environ.get("CI"):
-            pytest.fail("chromium not found: .ci/run installs it from the OS packages")
-        pytest.skip("chromium not installed")
-    return found
-
-
-def test_the_site_opens_in_a_real_browser_and_shows_its_pictures(site):
+def test_the_site_opens_in_a_real_browser_and_shows_its_pictures(site, chromium):
     """Headless Chromium (the OS's, driven by Playwright; nothing downloaded) loads the index
     and a gallery page from a loopback server; every picture on them has loaded (a decoded
     image with its size), and the gallery page shows its example's code and its output."""
@@ -112,13 +100,9 @@ def test_the_site_opens_in_a_real_browser_and_shows_its_pictures(site):
     import http.server
     import threading
 
-    try:
-        from playwright import sync_api as playwright
-    except ImportError:
-        if os.environ.get("CI"):
-            pytest.fail("playwright missing: the [dev] extra installs it")
-        pytest.skip("playwright not installed")
-    exe = _chromium()
+    from playwright import sync_api as playwright
+
+    exe = chromium
     handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(site))
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     thread = threading.Thread(target=server.serve_forever, daemon=True)

@@ -7,9 +7,7 @@ Chromium through Playwright's Python API (nothing downloaded).
 from __future__ import annotations
 
 import json
-import os
 import re
-import shutil
 import subprocess
 import sys
 import time
@@ -23,15 +21,6 @@ from musclewrap.scene import LiveScene, load_scene, run_scene, write_motion
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 pytestmark = pytest.mark.realdata
-
-
-def _chromium() -> str:
-    found = shutil.which("chromium") or shutil.which("chromium-browser")
-    if found is None:
-        if os.environ.get("CI"):
-            pytest.fail("chromium not found: .ci/run installs it from the OS packages")
-        pytest.skip("chromium not installed")
-    return found
 
 
 def _scene(data_dir: Path, tmp: Path, name: str = "lhdl_walk", edit=None) -> Path:
@@ -159,8 +148,8 @@ def _serve(args: list[str], tmp_path: Path) -> tuple[subprocess.Popen[str], int]
     return proc, port
 
 
-def _page(pw, port: int, proc, tmp_path: Path):
-    browser = pw.chromium.launch(executable_path=_chromium(), headless=True)
+def _page(pw, port: int, proc, tmp_path: Path, chromium: str):
+    browser = pw.chromium.launch(executable_path=chromium, headless=True)
     page = browser.new_page(viewport={"width": 1200, "height": 800})
     t = time.monotonic()
     while True:
@@ -194,7 +183,7 @@ def _moved(page, before: str) -> None:
     )
 
 
-def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path):
+def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
     """The hip_flexion_r slider found by its label; moved, the muscles change, the status
     line says the update time, and the written pose equals run's files of that pose."""
     from playwright.sync_api import sync_playwright
@@ -203,7 +192,7 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path):
     proc, port = _serve([str(scene), "-o", "poses"], tmp_path)
     try:
         with sync_playwright() as pw:
-            browser, page = _page(pw, port, proc, tmp_path)
+            browser, page = _page(pw, port, proc, tmp_path, chromium)
             slider = page.get_by_label("hip_flexion_r")
             assert slider.count() == 1
             assert page.get_by_text("hip_flexion_r", exact=True).is_visible()
@@ -240,7 +229,7 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path):
     _same_files(written, run, names)
 
 
-def test_playing_back_a_finished_run_in_a_browser(tmp_path):
+def test_playing_back_a_finished_run_in_a_browser(tmp_path, chromium):
     """``musclewrap view OUTDIR``: the time slider (by its label) shows another frame of
     the run's own files; play steps on by itself; nothing is solved."""
     from playwright.sync_api import sync_playwright
@@ -253,7 +242,7 @@ def test_playing_back_a_finished_run_in_a_browser(tmp_path):
     proc, port = _serve([str(out)], tmp_path)
     try:
         with sync_playwright() as pw:
-            browser, page = _page(pw, port, proc, tmp_path)
+            browser, page = _page(pw, port, proc, tmp_path, chromium)
             assert page.get_by_label("hip_flexion_r").count() == 0  # no sliders to solve
             assert page.get_by_role("button", name="Write this pose").count() == 0
             first, serial = _geometry(page), _serial(page)

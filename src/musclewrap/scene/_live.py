@@ -13,7 +13,7 @@ same pose: `write` writes them with the run's own writer.
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 import os
 import threading
 import time
@@ -27,18 +27,11 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..mesh import write_mesh
 from ._config import Scene, load_scene
-from ._drive import apply, invert_rigid, lattice_parent
+from ._drive import apply, invert_rigid, lattice_paths
 from ._errors import SceneError
-from ._plan import FrameSpan, PathStates, muscle_jobs
+from ._plan import FrameSpan, PathStates, muscle_jobs, rest_placements
 from ._read import Inputs, default_cache_dir, read_inputs
-from ._work import (
-    Prepare,
-    _MuscleFrames,
-    bone_probe,
-    meet_frame,
-    placed_bones,
-    waypoint_cage,
-)
+from ._work import _MuscleFrames, meet_frame, sides_at, waypoint_cage
 from ._write import _bone_display
 
 __all__ = ["CheckError", "Coordinate", "LiveScene", "PoseResult"]
@@ -146,8 +139,7 @@ class LiveScene:
     log : callable, optional
         Receives the reading's notes as they come.
 
-    The solves run in whichever thread calls `solve` first; call it from one thread
-    (the muscles bound to their lines are kept per thread, as in a run's worker).
+    `solve` may be called from any thread; one pose is solved at a time.
     """
 
     def __init__(
@@ -190,16 +182,18 @@ class LiveScene:
         )
         self.specs = {m.name: m for m in scene.muscles}
         self.bone_body = {b.name: b.body for b in scene.bones}
-        with threadpool_limits(1, user_api="blas"):
-            for j in self.jobs:
-                Prepare(j).run()  # from the cache, else built into it
-            for b in inputs.bones.values():
-                bone_probe(b, None if cache is None else str(cache))
-        self._thread: int | None = None
-        self._frames: dict[str, _MuscleFrames] = {}
         self._facing: Any = None
+        # per waypoint (its lattice point), per muscle in contact: its cage and bones there
         self._nodes: dict[tuple[int, ...], dict[str, tuple[FloatArray, dict[str, FloatArray]]]] = {}
+        self._rest_T = {j.name: rest_placements(inputs, j.name) for j in self.jobs}
         self._lock = threading.Lock()
+        # each muscle's solver, as a run's chunk holds it: prepared (from the cache, else built
+        # into it), bound to its rest lines, with its bones' probes and its fibres
+        with threadpool_limits(1, user_api="blas"):
+            self._frames = {
+                j.name: _MuscleFrames(j, self._span(j.name, [{}], [None], {}), None, len(self.jobs))
+                for j in self.jobs
+            }
         self.coordinates = self._coordinates()
 
     # ------------------------------------------------------------------ what can be posed
@@ -235,102 +229,86 @@ class LiveScene:
         return {c: float(v[k]) for c, v in p.motion_values.items()}
 
     # ------------------------------------------------------------------ solving
-    def _muscle_frames(self) -> dict[str, _MuscleFrames]:
-        """Each muscle's solver (built once, in the thread that solves)."""
-        me = threading.get_ident()
-        if self._thread is None:
-            self._thread = me
-        elif self._thread != me:
-            raise RuntimeError("LiveScene.solve is called from one thread only")
-        if not self._frames:
-            for j in self.jobs:
-                span = self._span(j.name, [{}], [None], {}, None)
-                self._frames[j.name] = _MuscleFrames(j, span, None, keep=len(self.jobs))
-        return self._frames
-
     def _span(
         self,
         name: str,
         lines: list[Any],
         refs: list[Any],
         out_T: dict[str, FloatArray],
-        waypoint: int | None,
+        waypoint: int | None = None,
         time_s: float = 0.0,
         frame: int = 0,
     ) -> FrameSpan:
-        spec = self.specs[name]
-        eye = np.eye(4)[None]
+        """A one-frame span of muscle ``name`` (``out_T``: each body's output transform)."""
+        eye = np.eye(4)
         return FrameSpan(
             0,
             np.array([frame]),
             np.array([time_s]),
             lines,
             refs,
-            out_T[spec.body][None] if out_T else eye,
-            {b: (out_T[body][None] if out_T else eye) for b, body in self.bone_body.items()},
+            out_T.get(self.specs[name].body, eye)[None],
+            {b: out_T.get(body, eye)[None] for b, body in self.bone_body.items()},
             None,
             None if waypoint is None else np.array([waypoint]),
         )
 
-    def _waypoint_states(self, pose: dict[str, float]) -> dict[str, PathStates | None]:
-        """Per muscle, the cage at the pose's waypoint (the run's `FollowPath`, kept)."""
-        p = self.poser
+    def _paths(self, pose: dict[str, float] | None) -> dict[str, PathStates | None]:
+        """Per muscle in contact, its cage at the pose's waypoint (None: no contact).
+
+        The run's `FollowPath` on the lattice of `._drive.lattice_paths` from the rest
+        pose to ``pose`` (None: a line CSV's frame, which has no waypoints), each
+        waypoint solved once and kept: poses near each other share them. An empty
+        `PathStates`: the pose takes its sides from the rest pose.
+        """
+        p, wp = self.poser, self.drive.waypoints
         jobs = [j for j in self.jobs if j.contact is not None]
-        if p is None or not jobs or self.drive.waypoints is None:
-            return {
-                j.name: _rest_path(self, j) if j.contact is not None else None for j in self.jobs
-            }
-        wp = self.drive.waypoints
-        r, steps = np.asarray(wp.rest), np.asarray(wp.steps)
-        u = (np.array([pose[c] for c in wp.coordinates]) - r) / steps
-        chain = []
-        node = lattice_parent(u)
-        while np.any(node != 0):
-            chain.append(tuple(int(x) for x in node))
-            node = lattice_parent(node)
-        chain.reverse()
-        frames = self._muscle_frames()
-        for i, key in enumerate(chain):
-            if key in self._nodes:
-                continue
-            parent = chain[i - 1] if i else None
-            q = {
-                **p.rest,
-                **dict(zip(wp.coordinates, (r + np.array(key) * steps).tolist(), strict=True)),
-            }
-            L, R, out_T = p.at(q)
-            got = {}
-            for j in jobs:
-                m = frames[j.name]
-                spec = self.specs[j.name]
-                place = {
-                    b: invert_rigid(out_T[self.bone_body[b]]) @ out_T[spec.body]
-                    for b in self.bone_body
-                }
-                if parent is None:
-                    sides = _rest_sides(self, j, m)
-                    fallback = m.muscle.cage.C
-                else:
-                    cage0, place0 = self._nodes[parent][j.name]
-                    sides = _sides(j, m, cage0, place0)
-                    fallback = cage0
-                x, _ = waypoint_cage(
-                    j, m.d, m.in_contact, L[j.name], R[j.name], place, sides, fallback
-                )
-                got[j.name] = (x, place)
-            self._nodes[key] = got
-        out: dict[str, PathStates | None] = {}
-        for j in self.jobs:
-            if j.contact is None:
-                out[j.name] = None
-            elif not chain:
-                out[j.name] = _rest_path(self, j)
+        key: tuple[int, ...] | None = None
+        if pose is not None and p is not None and wp is not None and jobs:
+            r, steps = np.asarray(wp.rest), np.asarray(wp.steps)
+            u = (np.array([pose[c] for c in wp.coordinates]) - r) / steps
+            nodes, parent, at = lattice_paths(u[None])
+            keys = [tuple(int(x) for x in n) for n in nodes]
+            for k, here in enumerate(keys):
+                if here not in self._nodes:
+                    q = dict(zip(wp.coordinates, (r + nodes[k] * steps).tolist(), strict=True))
+                    before = None if parent[k] < 0 else keys[parent[k]]
+                    self._nodes[here] = self._waypoint(p.at({**p.rest, **q}), before, jobs)
+            key = None if at[0] < 0 else keys[at[0]]
+        out: dict[str, PathStates | None] = {j.name: None for j in self.jobs}
+        for j in jobs:
+            if key is None:
+                cages, T = np.zeros((0, 0, 3)), {b: np.zeros((0, 4, 4)) for b in self.bone_body}
             else:
-                x, place = self._nodes[chain[-1]][j.name]
-                out[j.name] = PathStates(
-                    x[None], {b: T[None] for b, T in place.items()}, _rest_T(self, j.name)
-                )
+                x, place = self._nodes[key][j.name]
+                cages, T = x[None], {b: M[None] for b, M in place.items()}
+            out[j.name] = PathStates(cages, T, self._rest_T[j.name])
         return out
+
+    def _waypoint(
+        self,
+        posed: tuple[Any, Any, dict[str, FloatArray]],
+        before: tuple[int, ...] | None,
+        jobs: list[Any],
+    ) -> dict[str, tuple[FloatArray, dict[str, FloatArray]]]:
+        """Each muscle's cage at one waypoint, against its bones from the waypoint ``before``."""
+        L, R, out_T = posed
+        got = {}
+        for j in jobs:
+            m = self._frames[j.name]
+            place = {
+                b: invert_rigid(out_T[body]) @ out_T[self.specs[j.name].body]
+                for b, body in self.bone_body.items()
+            }
+            if before is None:
+                cage0, place0 = None, self._rest_T[j.name]
+            else:
+                cage0, place0 = self._nodes[before][j.name]
+            sides = sides_at(m.muscle, j, m.in_contact, cage0, place0)
+            fallback = m.muscle.cage.C if cage0 is None else cage0
+            x, _ = waypoint_cage(j, m.d, m.in_contact, L[j.name], R[j.name], place, sides, fallback)
+            got[j.name] = (x, place)
+        return got
 
     def solve(
         self, values: dict[str, float] | None = None, *, frame: int | None = None
@@ -359,9 +337,7 @@ class LiveScene:
             L = {n: drive.lines[n][frame] for n in self.specs}
             R = {n: drive.references[n][frame] for n in self.specs}
             out_T = {b: T[frame] for b, T in drive.to_output.items()}
-            paths: dict[str, PathStates | None] = {
-                j.name: _rest_path(self, j) if j.contact is not None else None for j in self.jobs
-            }
+            paths = self._paths(None)
             shown = {}
         else:
             if frame is not None:
@@ -375,25 +351,22 @@ class LiveScene:
                 )
             pose = p.pose(values)
             shown = {c: float(values.get(c, _back(p, c, pose[c]))) for c in p.coordinates}
-            paths = self._waypoint_states(pose)
+            paths = self._paths(pose)
             L, R, out_T = p.at(pose)
         t_path = time.perf_counter()
-        ms = self._muscle_frames()
+        ms = self._frames
         for j in self.jobs:
-            m = ms[j.name]
+            m, path = ms[j.name], paths[j.name]
             m.span = self._span(
                 j.name,
                 [L[j.name]],
                 [R[j.name]],
                 out_T,
-                None if paths[j.name] is None else 0,
+                None if path is None else (0 if len(path.cages) else -1),
                 0.0 if frame is None else float(drive.times[frame]),
                 0 if frame is None else int(drive.frames[frame]),
             )
-            m.path = paths[j.name]
-            m.refs = {}
-            if m.path is not None and m.path.cages.shape[0] == 0:
-                m.span = dataclasses.replace(m.span, waypoint=np.array([-1]))
+            m.path, m.refs = path, {}
         if self.grouped:
             if self._facing is None:
                 from ..solver import facing_at_rest
@@ -456,6 +429,10 @@ class LiveScene:
         bones = {b: out_T[body] for b, body in self.bone_body.items()} if out_T else {}
         return PoseResult(shown, frame, muscles, stretch, gap, bones, lines, fibres, rows)
 
+    def muscle_faces(self, name: str) -> IntArray:
+        """Muscle ``name``'s triangles (as its files have them)."""
+        return self._frames[name].muscle.F  # type: ignore[no-any-return]
+
     def bone_meshes(self, faces: int | None = None) -> dict[str, tuple[FloatArray, IntArray]]:
         """Each bone's display mesh in its body's frame (the run's, decimated as it does)."""
         n = self.scene.bone_display_faces if faces is None else faces
@@ -475,15 +452,13 @@ class LiveScene:
         ms, results, out_T = result.solved
         written: list[Path] = []
         for n, m in ms.items():
-            w = _MuscleFrames.__new__(_MuscleFrames)
-            w.__dict__.update(m.__dict__)
-            w.out = folder
-            w.result = ChunkResult(n, [], [])
+            w = copy.copy(m)  # the muscle's solver at this pose, writing into ``folder``
+            w.out, w.result = folder, ChunkResult(n, [], [])
             w.emit(0, results[n], results[n].muscle_overlap if self.grouped else None)
             written += [folder / f for _, f in w.result.entries]
         for b, (V, F) in self.bone_meshes().items():
             f = folder / b / f"{b}.vtp"
-            write_mesh(f, apply(out_T[self.bone_body[b]], V) if out_T else V, F)
+            write_mesh(f, apply(out_T[self.bone_body[b]], V), F)
             written.append(f)
         f = folder / "pose.json"
         f.write_text(
@@ -500,31 +475,3 @@ class LiveScene:
 def _back(p: Any, c: str, q: float) -> float:
     """A coordinate's pose value (model units) in the motion's units."""
     return float(np.degrees(q)) if (p.degrees and p.model.is_rotational(c)) else float(q)
-
-
-def _rest_T(live: LiveScene, name: str) -> dict[str, FloatArray]:
-    body = live.specs[name].body
-    return {b: live.drive.rest_between(body, bb) for b, bb in live.bone_body.items()}
-
-
-def _rest_path(live: LiveScene, job: Any) -> PathStates:
-    """No waypoint: the pose takes its sides from the rest pose."""
-    return PathStates(
-        np.zeros((0, 0, 3)),
-        {b: np.zeros((0, 4, 4)) for b in live.bone_body},
-        _rest_T(live, job.name),
-    )
-
-
-def _rest_sides(live: LiveScene, job: Any, m: _MuscleFrames) -> Any:
-    from ..contact import SideReference
-
-    return SideReference(m.muscle.V, placed_bones(job, m.in_contact, _rest_T(live, job.name)))
-
-
-def _sides(job: Any, m: _MuscleFrames, x: FloatArray, place: dict[str, FloatArray]) -> Any:
-    from ..contact import SideReference
-
-    return SideReference(
-        lambda rows: m.muscle.W[rows] @ x, placed_bones(job, m.in_contact, place), len(m.muscle.V)
-    )

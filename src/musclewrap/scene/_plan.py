@@ -508,12 +508,19 @@ def _frame_waypoints(wp: Any, n: int) -> IntArray:
     return np.full(n, -1, dtype=np.int64) if wp is None else np.asarray(wp.frame, dtype=np.int64)
 
 
+def rest_placements(inputs: Any, name: str) -> dict[str, FloatArray]:
+    """Per bone, the transform from muscle ``name``'s body frame into the bone's at rest."""
+    scene, drive = inputs.scene, inputs.drive
+    body = next(s.body for s in scene.muscles if s.name == name)
+    return {b.name: drive.rest_between(body, b.body) for b in scene.bones}
+
+
 def path_span(inputs: Any, name: str) -> PathSpan:
     """A muscle's waypoints and its bones' placements there and at rest."""
     scene, drive = inputs.scene, inputs.drive
     spec = next(s for s in scene.muscles if s.name == name)
     wp = drive.waypoints
-    rest_T = {b.name: drive.rest_between(spec.body, b.body) for b in scene.bones}
+    rest_T = rest_placements(inputs, name)
     if wp is None:
         empty = np.zeros((0, 4, 4))
         return PathSpan(

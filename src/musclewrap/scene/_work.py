@@ -208,16 +208,14 @@ class FollowPath:
     span: PathSpan
 
     def run(self) -> PathStates:
-        from ..contact import SideReference
-
         job, span = self.job, self.span
         muscle, d, hit, note, seconds = _deformer(job)
         probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]
-        K, n = len(span), len(muscle.V)
+        K = len(span)
         cages = np.empty((K, len(muscle.cage.C), 3))
         T = {b: np.empty((K, 4, 4)) for _, b in probes}
         reasons = []
-        refs: dict[int, Any] = {-1: SideReference(muscle.V, placed_bones(job, probes, span.rest_T))}
+        refs: dict[int, Any] = {-1: sides_at(muscle, job, probes, None, span.rest_T)}
         for k in range(K):
             place = span.placement(k)
             for b in T:
@@ -230,9 +228,7 @@ class FollowPath:
             if not res.converged:
                 reasons.append((k, res.reason))
             cages[k] = x
-            refs[k] = SideReference(
-                lambda rows, x=x: muscle.W[rows] @ x, placed_bones(job, probes, place), n
-            )
+            refs[k] = sides_at(muscle, job, probes, x, place)
         return PathStates(
             cages, T, dict(span.rest_T), reasons, Prepared(job.name, seconds, hit, note)
         )
@@ -285,18 +281,33 @@ def waypoint_cage(
     return (x if np.isfinite(x).all() else fallback), res
 
 
-def side_reference(muscle: Any, probes: list[tuple[Any, str]], path: PathStates, w: int) -> Any:
-    """The muscle at waypoint ``w`` of its path (-1: at rest) against its bones."""
-    from ..contact import Placed, SideReference
+def sides_at(
+    muscle: Any,
+    job: MuscleJob,
+    probes: list[tuple[Any, str]],
+    cage: FloatArray | None,
+    place: dict[str, FloatArray],
+) -> Any:
+    """Where the muscle is against its bones in contact: the sides a later pose takes.
 
+    ``cage``: the muscle's cage at a waypoint (None: the muscle at rest); ``place`` the
+    bones' placements there (the muscle's frame into each bone's).
+    """
+    from ..contact import SideReference
+
+    bones = placed_bones(job, probes, place)
+    if cage is None:
+        return SideReference(muscle.V, bones)
+    return SideReference(lambda rows: muscle.W[rows] @ cage, bones, len(muscle.V))
+
+
+def side_reference(
+    muscle: Any, job: MuscleJob, probes: list[tuple[Any, str]], path: PathStates, w: int
+) -> Any:
+    """The muscle at waypoint ``w`` of its path (-1: at rest) against its bones."""
     if w < 0:
-        return SideReference(muscle.V, [Placed(p, path.rest_T[b], None, b) for p, b in probes])
-    x = path.cages[w]
-    return SideReference(
-        lambda rows: muscle.W[rows] @ x,
-        [Placed(p, path.T[b][w], None, b) for p, b in probes],
-        len(muscle.V),
-    )
+        return sides_at(muscle, job, probes, None, path.rest_T)
+    return sides_at(muscle, job, probes, path.cages[w], {b: T[w] for b, T in path.T.items()})
 
 
 @dataclass(frozen=True)
@@ -402,7 +413,7 @@ class _MuscleFrames:
         span = self.span
         w = -1 if span.waypoint is None else int(span.waypoint[k])
         if w not in self.refs:
-            self.refs[w] = side_reference(self.muscle, self.in_contact, self.path, w)
+            self.refs[w] = side_reference(self.muscle, self.job, self.in_contact, self.path, w)
         return self.refs[w]
 
     def obstacles(self, T: FloatArray, bone_T: dict[str, FloatArray], bones: bool = True) -> Any:

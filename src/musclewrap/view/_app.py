@@ -35,10 +35,22 @@ from ._playback import Series, segments, triangles
 
 __all__ = ["Viewer", "free_port", "open_source"]
 
-#: the colour maps (vtk.js presets) and ranges of the two colourings
+#: the two colourings: vtk.js preset, range, the menu's words, the legend's gradient and words
 COLOURS = {
-    "stretch": ("Cool to Warm", [float(STRETCH_RANGE[0]), float(STRETCH_RANGE[1])]),
-    "contact": ("Inferno (matplotlib)", [0.0, float(CONTACT_REACH)]),
+    "stretch": (
+        "Cool to Warm",
+        [float(STRETCH_RANGE[0]), float(STRETCH_RANGE[1])],
+        "stretch (surface area over rest)",
+        "#3b4cc0, #dddddd, #b40426",
+        f"blue {STRETCH_RANGE[0]:.2f} (compressed), grey 1, red {STRETCH_RANGE[1]:.2f} (stretched)",
+    ),
+    "contact": (
+        "Inferno (matplotlib)",
+        [0.0, float(CONTACT_REACH)],
+        f"contact (distance to a bone, 0-{CONTACT_REACH:g} mm)",
+        "#000004, #bc3754, #fcffa4",
+        f"black: touching a bone, yellow: {CONTACT_REACH:g} mm or more away",
+    ),
 }
 
 _CSS = """
@@ -117,6 +129,24 @@ class Frame:
         )
 
 
+def _slider(
+    html: Any, label: str, key: str, span: tuple[float, float, float], source: str, shown: str
+) -> None:
+    """A labelled range input bound to state ``key``.
+
+    Its input events go to the server as ``source`` (the page's script measures each one).
+    """
+    lo, hi, step = span
+    with html.Div(classes="mw-row"):
+        html.Label(label, for_=key, __properties=[("for_", "for")])
+        html.Input(
+            type="range", id=key, min=f"{lo:.6g}", max=f"{hi:.6g}", step=f"{step:.6g}",
+            value=(key,), aria_label=label, data_mw=source,
+            __properties=[("aria_label", "aria-label"), ("data_mw", "data-mw")],
+        )  # fmt: skip
+        html.Span(shown, classes="mw-value")
+
+
 def free_port() -> int:
     """A free TCP port on the loopback interface."""
     import socket
@@ -163,7 +193,7 @@ def _polylines(lines: list[np.ndarray]) -> tuple[dict[str, Any], dict[str, Any]]
 
 @dataclass
 class _Request:
-    kind: str  # "values", "frame", "write"
+    kind: str  # "values" or "frame"
     values: dict[str, float] = field(default_factory=dict)
     frame: int | None = None
     id: int = 0
@@ -208,14 +238,14 @@ class Viewer:
         self.server = server or get_server(f"musclewrap-{id(self)}", client_type="vue3")
         self.state, self.ctrl = self.server.state, self.server.controller
         self.n_frames = source.n_frames if self.live else len(source)
-        self.times = source.times if self.live else source.times
+        self.times = source.times
         self.coords = source.coordinates if self.live else []
         self._want: _Request | None = None
-        self._writes: list[_Request] = []
+        self._writes = 0  # "Write this pose" clicks not yet served
         self._wake = threading.Event()
         self._stop = False
         self._serial = 0
-        self._bone_T: dict[str, np.ndarray] = {}
+        self._sent: dict[str, Any] = {}  # per bone: its transform (or file) last sent
         self._last: PoseResult | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._playing_task: asyncio.Task[Any] | None = None
@@ -254,7 +284,7 @@ class Viewer:
         st.lines_look = {"color": [0.1, 0.1, 0.1], "lineWidth": 2}
         st.fibres_look = {"color": [0.55, 0.1, 0.1], "lineWidth": 1}
         st.background = [1, 1, 1]
-        st.preset, st.crange = COLOURS["stretch"]
+        st.preset, st.crange = COLOURS["stretch"][:2]
         st.frame = 0
         st.playing = False
         st.status = "solving the first pose ..." if self.live else "reading the first frame ..."
@@ -269,6 +299,28 @@ class Viewer:
                 st[f"{kind}{i}_p"] = _points(np.zeros((0, 3)))
                 st[f"{kind}{i}_c"] = _enc(np.zeros(0), np.float32)
                 st[f"{kind}{i}_f"] = _enc(np.zeros(0), np.uint32)
+        # the triangles, once: only the points move
+        for kind, F in self._faces().items():
+            st[kind] = _cells(F)
+
+    def _faces(self) -> dict[str, np.ndarray]:
+        """Each muscle's and bone's triangles, by the name of their state."""
+        out = {}
+        if self.live:
+            src: LiveScene = self.source  # type: ignore[assignment]
+            self._bone_meshes = src.bone_meshes()
+            for i, n in enumerate(self._names["muscle"]):
+                out[f"muscle{i}_f"] = src.muscle_faces(n)
+            for i, b in enumerate(self._names["bone"]):
+                out[f"bone{i}_f"] = self._bone_meshes[b][1]
+            return out
+        s: Series = self.source  # type: ignore[assignment]
+        for kind in ("muscle", "bone"):
+            for i, n in enumerate(self._names[kind]):
+                first = next((k for k in range(len(s)) if n in s.files[k]), None)
+                if first is not None:
+                    out[f"{kind}{i}_f"] = triangles(s.part(first, n))  # type: ignore[arg-type]
+        return out
 
     def _time_text(self, k: int) -> str:
         t = float(self.times[k]) if len(self.times) else 0.0
@@ -293,37 +345,14 @@ class Viewer:
                 with html.Div(classes="mw-side"):
                     html.H1(title)
                     for i, c in enumerate(self.coords):
-                        with html.Div(classes="mw-row"):
-                            html.Label(c.name, for_=f"q{i}", __properties=[("for_", "for")])
-                            step = (c.high - c.low) / 1000.0
-                            html.Input(
-                                type="range",
-                                id=f"q{i}",
-                                min=f"{c.low:.6g}",
-                                max=f"{c.high:.6g}",
-                                step=f"{step:.6g}",
-                                value=(f"q{i}",),
-                                aria_label=c.name,
-                                data_mw=c.name,
-                                __properties=[("aria_label", "aria-label"), ("data_mw", "data-mw")],
-                            )
-                            html.Span(
-                                f"{{{{ Number(q{i}).toFixed(2) }}}} {c.unit}", classes="mw-value"
-                            )
-                    with html.Div(classes="mw-row"):
-                        html.Label("time", for_="frame", __properties=[("for_", "for")])
-                        html.Input(
-                            type="range",
-                            id="frame",
-                            min="0",
-                            max=str(max(0, self.n_frames - 1)),
-                            step="1",
-                            value=("frame",),
-                            aria_label="time",
-                            data_mw="__frame__",
-                            __properties=[("aria_label", "aria-label"), ("data_mw", "data-mw")],
-                        )
-                        html.Span("{{ time_text }}", classes="mw-value")
+                        _slider(
+                            html, c.name, f"q{i}", (c.low, c.high, (c.high - c.low) / 1000.0), c.name,
+                            f"{{{{ Number(q{i}).toFixed(2) }}}} {c.unit}",
+                        )  # fmt: skip
+                    _slider(
+                        html, "time", "frame", (0, max(0, self.n_frames - 1), 1), "__frame__",
+                        "{{ time_text }}",
+                    )  # fmt: skip
                     html.Button(
                         "{{ playing ? 'Pause' : 'Play' }}", click="trigger('mw_play')", id="play"
                     )
@@ -331,33 +360,19 @@ class Viewer:
                         html.Button("Write this pose", click="trigger('mw_write')", id="write")
                     with html.Div(classes="mw-row"):
                         html.Label("colour", for_="colour", __properties=[("for_", "for")])
+                        offered = list(COLOURS) if self.live else ["stretch"]
                         with html.Select(v_model=("colour",), id="colour"):
-                            html.Option("stretch (surface area over rest)", value="stretch")
-                            if self.live:
-                                html.Option(
-                                    f"contact (distance to a bone, 0-{CONTACT_REACH:g} mm)",
-                                    value="contact",
-                                )
-                        html.Div(
-                            classes="mw-legend",
-                            style="background: linear-gradient(to right, #3b4cc0, #dddddd, #b40426)",
-                            v_if="colour == 'stretch'",
-                        )
-                        html.Div(
-                            f"blue {STRETCH_RANGE[0]:.2f} (compressed), grey 1, red {STRETCH_RANGE[1]:.2f} (stretched)",
-                            v_if="colour == 'stretch'",
-                            classes="mw-value",
-                        )
-                        html.Div(
-                            classes="mw-legend",
-                            style="background: linear-gradient(to right, #000004, #bc3754, #fcffa4)",
-                            v_if="colour == 'contact'",
-                        )
-                        html.Div(
-                            f"black: touching a bone, yellow: {CONTACT_REACH:g} mm or more away",
-                            v_if="colour == 'contact'",
-                            classes="mw-value",
-                        )
+                            for key in offered:
+                                html.Option(COLOURS[key][2], value=key)
+                        for key in offered:
+                            _, _, _, gradient, words = COLOURS[key]
+                            cond = f"colour == '{key}'"
+                            html.Div(
+                                classes="mw-legend",
+                                style=f"background: linear-gradient(to right, {gradient})",
+                                v_if=cond,
+                            )
+                            html.Div(words, v_if=cond, classes="mw-value")
                     html.Div("{{ written }}", id="written", classes="mw-value")
                 with html.Div(classes="mw-main"):
                     html.Div("{{ warning }}", classes="mw-warn", id="warning", v_if="warning")
@@ -412,7 +427,7 @@ class Viewer:
         self.request(_Request("values", values=values, id=int(ident)))
 
     def _on_write(self) -> None:
-        self._writes.append(_Request("write"))
+        self._writes += 1
         self._wake.set()
 
     def _on_play(self) -> None:
@@ -423,7 +438,7 @@ class Viewer:
     def _on_colour(self, colour: str, **_: Any) -> None:
         if colour not in COLOURS:
             return
-        self.state.preset, self.state.crange = COLOURS[colour]
+        self.state.preset, self.state.crange = COLOURS[colour][:2]
         if self._last is not None:
             self._push_colours(self._last)
 
@@ -454,7 +469,7 @@ class Viewer:
             self._wake.wait()
             self._wake.clear()
             while self._writes:
-                self._writes.pop(0)
+                self._writes -= 1
                 self._write()
             r, self._want = self._want, None
             if r is None:
@@ -488,45 +503,34 @@ class Viewer:
         self._send(update)
 
     def _live_state(self, res: PoseResult, r: _Request) -> dict[str, Any]:
-        src: LiveScene = self.source  # type: ignore[assignment]
         up: dict[str, Any] = {}
-        if not self._bone_T:
-            meshes = src.bone_meshes()
-            self._bone_meshes = meshes
         for i, b in enumerate(self._names["bone"]):
-            T = res.bones.get(b, np.eye(4))
-            if b not in self._bone_T or not np.array_equal(self._bone_T[b], T):
-                V, F = self._bone_meshes[b]
+            T = res.bones[b]
+            if not np.array_equal(self._sent.get(b), T):  # a bone moved in the output frame
+                V = self._bone_meshes[b][0]
                 up[f"bone{i}_p"] = _points(V @ T[:3, :3].T + T[:3, 3])
-                if b not in self._bone_T:
-                    up[f"bone{i}_f"] = _cells(F)
-                self._bone_T[b] = T
+                self._sent[b] = T
         for i, n in enumerate(self._names["muscle"]):
             up[f"muscle{i}_p"] = _points(res.muscles[n])
-            if r.kind != "write" and self.state[f"muscle{i}_f"]["shape"] == [0]:
-                up[f"muscle{i}_f"] = _cells(src._frames[n].muscle.F)
             up[f"lines{i}_p"], up[f"lines{i}_f"] = _polylines(res.lines[n])
         for i, n in enumerate(self._names["fibres"]):
             P = res.fibres.get(n)
             up[f"fibres{i}_p"], up[f"fibres{i}_f"] = _polylines([] if P is None else list(P))
         up.update(self._colours(res))
-        if r.kind == "values" or r.frame is None:
-            pass
+        if r.frame is not None:
+            up["frame"] = r.frame
+            up["time_text"] = self._time_text(r.frame)
         else:
-            up["frame"] = int(r.frame)
-        up["time_text"] = (
-            self._time_text(int(r.frame))
-            if r.frame is not None
-            else "a pose of the sliders (not a frame)"
-        )
+            up["time_text"] = "a pose of the sliders (not a frame)"
         for i, c in enumerate(self.coords):
             up[f"q{i}"] = float(res.values[c.name])
+        unit = self.source.scene.mesh_unit  # type: ignore[union-attr]
         overlap = res.overlap
         up["status"] = (
             f"volume error {res.volume_error:.1e} (largest of {len(res.rows)} muscles) · deepest "
-            f"in a bone {res.penetration:.3f} mm"
-            + ("" if np.isnan(overlap) else f" · deepest in another muscle {overlap:.3f} mm")
-            + f" · iterations {max(r_['iterations'] for r_ in res.rows.values())}"
+            f"in a bone {res.penetration:.3g} {unit}"
+            + ("" if np.isnan(overlap) else f" · deepest in another muscle {overlap:.3g} {unit}")
+            + f" · iterations {max(row['iterations'] for row in res.rows.values())}"
         )
         bad = res.unconverged
         up["warning"] = (
@@ -560,9 +564,10 @@ class Viewer:
                 d = s.part(k, n)
                 if d is None:
                     continue
+                if kind == "bone" and self._sent.get(n) == s.files[k][n]:
+                    continue  # the same file as shown: a bone that does not move
+                self._sent[n] = s.files[k][n]
                 up[f"{kind}{i}_p"] = _points(d["points"])
-                if self.state[f"{kind}{i}_f"]["shape"] == [0]:
-                    up[f"{kind}{i}_f"] = _cells(triangles(d))
                 if kind == "muscle":
                     c = d.get("point:area_stretch", np.ones(len(d["points"])))
                     up[f"muscle{i}_c"] = _enc(c, np.float32)
