@@ -299,3 +299,46 @@ def test_the_viewer_in_a_notebook_cell(tmp_path):
     html, page = asyncio.run(cell())
     assert re.match(r'<iframe src="http://127\.0\.0\.1:\d+/"', html)
     assert "<html" in page.lower()
+
+
+def test_a_line_csv_scene_is_posed_by_its_frames_as_run_does(tmp_path):
+    """The knee demo (lines and the tibia's poses from CSV files, no model): no sliders, and
+    a frame solved live gives the run's files of that frame."""
+    from musclewrap.synthetic import write_knee_scene
+
+    toml = write_knee_scene(tmp_path / "input", 61)
+    live = LiveScene(toml)
+    assert live.coordinates == []
+    with pytest.raises(ValueError, match="posed by its frames only"):
+        live.solve({})
+    r = live.solve(frame=45)
+    assert not r.unconverged
+    live.write(r, tmp_path / "live")
+    run_scene(
+        load_scene(toml), tmp_path / "run", frames="45:46", workers=1, render=False, progress=None
+    )
+    _same_files(tmp_path / "live", tmp_path / "run", [f"{m}/{m}_0045.vtp" for m in live.specs])
+
+
+def test_translations_and_more_coordinates_as_run_does(data_dir, tmp_path):
+    """A hard case of its own: the gait2392 scene driving the pelvis's translations and tilt
+    too (seven coordinates, the output in ground): a slider pose far from rest equals run's."""
+    scene = _scene(
+        data_dir,
+        tmp_path,
+        "gait2392_walk",
+        edit=lambda s: s.replace(
+            'coordinates = ["hip_flexion_r"',
+            'coordinates = ["pelvis_tx", "pelvis_ty", "pelvis_tilt", "hip_flexion_r"',
+        ).replace('output_frame = "pelvis"', 'output_frame = "ground"'),
+    )
+    live = LiveScene(scene)
+    tx = next(c for c in live.coordinates if c.name == "pelvis_tx")
+    assert (tx.unit, tx.rotational) == ("m", False)
+    values = {"pelvis_tx": 0.4, "pelvis_ty": 0.95, "pelvis_tilt": -20.0, "hip_flexion_r": 70.0,
+              "hip_adduction_r": 5.0, "hip_rotation_r": 0.0, "knee_angle_r": -90.0}  # fmt: skip
+    r = live.solve(values)
+    assert not r.unconverged
+    live.write(r, tmp_path / "live")
+    run = _run_pose(scene, values, tmp_path / "run")
+    _same_files(tmp_path / "live", run, [f"{m}/{m}_0000.vtp" for m in live.specs])
