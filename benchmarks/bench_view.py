@@ -10,6 +10,10 @@ picture drawn, two animation frames after the geometry arrived):
   (solve, transfer, render) as the status line gives them. The sweep runs twice: the first
   time the waypoints between the rest pose and the poses are solved as they come; the
   second ("warm") reuses them.
+- a drag as a hand makes it: the slider's input events at 60 a second, each a 1/4 step
+  further through the sweep (``--drag-seconds`` long), without waiting for pictures: the
+  server solves the latest pose while the browser draws the last one. The updates per
+  second are the pictures drawn over the drag's time; the update time the median of theirs.
 
     python benchmarks/bench_view.py examples/lhdl_walk.toml --variants all bones
     python benchmarks/bench_view.py examples/gait2392_walk.toml --coordinate hip_flexion_r
@@ -51,7 +55,43 @@ def scene_variant(scene: Path, variant: str, tmp: Path) -> Path:
     return p
 
 
-def measure(scene: Path, coordinate: str, sweep: tuple[float, float, float]) -> dict[str, object]:
+_DRAG = """
+async ([label, lo, hi, seconds]) => {
+  const el = document.querySelector(`input[aria-label="${label}"]`);
+  const mw = window.mw, n0 = mw.last.count, ticks = Math.round(60 * seconds);
+  const t0 = performance.now();
+  for (let i = 1; i <= ticks; i++) {
+    const u = i / ticks, v = lo + (hi - lo) * (u < 0.5 ? 2 * u : 2 - 2 * u);  // there and back
+    el.value = String(v);
+    el.dispatchEvent(new Event("input", { bubbles: true }));
+    await new Promise((r) => setTimeout(r, Math.max(0, t0 + i * 1000 / 60 - performance.now())));
+  }
+  const last = mw.n;  // the last input's id: wait for its picture
+  while (!(mw.last && mw.last.id >= last)) await new Promise((r) => setTimeout(r, 5));
+  const t1 = mw.last.drawn;
+  const shown = mw.log.filter((r) => r.drawn >= t0 && r.drawn <= t1);
+  return { seconds: (t1 - t0) / 1000, pictures: mw.last.count - n0,
+           totals: shown.map((r) => r.total), solves: shown.map((r) => r.solve) };
+}
+"""
+
+
+def drag(page: object, coordinate: str, sweep: tuple[float, float, float], seconds: float) -> dict:
+    """Input events at 60 a second through the sweep and back; the pictures drawn meanwhile."""
+    lo, hi, _ = sweep
+    got = page.evaluate(_DRAG, [coordinate, lo, hi, seconds])  # type: ignore[attr-defined]
+    return {
+        "updates_per_s": got["pictures"] / got["seconds"],
+        "update_ms": statistics.median(got["totals"]),
+        "solve_ms": statistics.median(got["solves"]),
+        "pictures": got["pictures"],
+        "seconds": got["seconds"],
+    }
+
+
+def measure(
+    scene: Path, coordinate: str, sweep: tuple[float, float, float], drag_seconds: float = 6.0
+) -> dict[str, object]:
     from playwright.sync_api import sync_playwright
 
     from musclewrap.view._app import free_port
@@ -100,6 +140,7 @@ def measure(scene: Path, coordinate: str, sweep: tuple[float, float, float]) -> 
                     "render_ms": statistics.median(r["render"] for r in rows),
                     "max_ms": max(r["total"] for r in rows),
                 }
+            out["drag"] = drag(page, coordinate, sweep, drag_seconds)
             browser.close()
     finally:
         proc.terminate()
@@ -133,7 +174,7 @@ def phases(scene: Path) -> None:
         f"a pose, warm, median of {len(got)}: "
         + ", ".join(f"{k} {1e3 * np.median([g[k] for g in got]):.1f} ms" for k in got[0])
     )
-    for name, m in live._frames.items():
+    for name, m in live._prepare().items():
         alone = []
         for k in frames:
             live.solve(frame=k)
@@ -153,6 +194,7 @@ def main() -> None:
         "--sweep", type=float, nargs=3, default=(0.0, 60.0, 1.0), metavar=("FROM", "TO", "STEP")
     )
     ap.add_argument("--variants", nargs="+", default=["all"], choices=("all", "bones"))
+    ap.add_argument("--drag-seconds", type=float, default=6.0, help="the drag's length")
     ap.add_argument("--phases", action="store_true", help="where the time goes (no browser)")
     a = ap.parse_args()
     if a.phases:
@@ -168,8 +210,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for v in a.variants:
             r = measure(
-                scene_variant(a.scene.resolve(), v, Path(tmp)), a.coordinate, tuple(a.sweep)
-            )
+                scene_variant(a.scene.resolve(), v, Path(tmp)), a.coordinate, tuple(a.sweep),
+                a.drag_seconds,
+            )  # fmt: skip
             for run in ("first", "warm"):
                 x = r[run]
                 print(
@@ -177,6 +220,11 @@ def main() -> None:
                     f"{run:<6}{x['updates_per_s']:>9.1f}{x['update_ms']:>11.0f}{x['solve_ms']:>7.0f}"
                     f"{x['transfer_ms']:>10.0f}{x['render_ms']:>8.0f}{x['max_ms']:>8.0f}"
                 )
+            d = r["drag"]
+            print(
+                f"{'':<12}{'':>12}  drag  {d['updates_per_s']:>9.1f}{d['update_ms']:>11.0f}"
+                f"{d['solve_ms']:>7.0f}   ({d['pictures']} pictures in {d['seconds']:.1f} s)"
+            )
 
 
 if __name__ == "__main__":

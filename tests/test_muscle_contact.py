@@ -209,6 +209,28 @@ def test_muscles_that_overlap_at_rest_are_taken_apart_both_sides_volumes_exact()
     assert not found4 and Z["a"] is a[0]
 
 
+def test_taking_apart_at_rest_read_back_from_the_cache_is_the_same(tmp_path):
+    """The scene's rest step cached: the second read gives the same positions, pairs and
+    rounds as computing it (and as no cache), and muscles not moved stay the given arrays."""
+    from musclewrap.scene._read import _apart_cached
+
+    a, b, c = _sphere(10.0, [0, 0, 0]), _sphere(10.0, [17, 0, 0]), _sphere(4.0, [0, 30, 0])
+    rest = {"a": a, "b": b, "c": c}
+    plain = _apart_cached(rest, None, True, None)
+    made = _apart_cached(rest, None, True, tmp_path)
+    assert len(list(tmp_path.glob("apart-at-rest-*.npz"))) == 1
+    read = _apart_cached(rest, None, True, tmp_path)
+    for V, found, rounds in (made, read):
+        assert rounds == plain[2] >= 1 and found == plain[1]
+        assert V["c"] is c[0]
+        for n in "ab":
+            assert np.array_equal(V[n], plain[0][n])
+    # measured only: another key, nothing moved
+    V, found, rounds = _apart_cached(rest, None, False, tmp_path)
+    assert rounds == 0 and V["a"] is a[0] and found[0].moved == (0.0, 0.0)
+    assert len(list(tmp_path.glob("apart-at-rest-*.npz"))) == 2
+
+
 def test_facing_pairs_finds_each_pairs_faces_when_asked_the_same_as_facing_faces():
     from musclewrap.constants import defaults
     from musclewrap.contact import every_pair, facing_faces, facing_pairs

@@ -151,6 +151,18 @@ def _serve(args: list[str], tmp_path: Path) -> tuple[subprocess.Popen[str], int]
 def _page(pw, port: int, proc, tmp_path: Path, chromium: str):
     browser = pw.chromium.launch(executable_path=chromium, headless=True)
     page = browser.new_page(viewport={"width": 1200, "height": 800})
+    # the page's script errors (vtk.js's included); a missing favicon's 405 is not one
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on(
+        "console",
+        lambda m: (
+            m.type == "error"
+            and not m.text.startswith("Failed to load resource")
+            and errors.append(m.text)
+        ),
+    )
+    page.script_errors = errors
     t = time.monotonic()
     while True:
         if proc.poll() is not None:
@@ -217,6 +229,7 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
             page.wait_for_function(
                 f"window.trame.state.get('muscle0_c').bvals != '{colours}'", timeout=30_000
             )
+            assert page.script_errors == []
             browser.close()
     finally:
         proc.terminate()
@@ -266,6 +279,7 @@ def test_playing_back_a_finished_run_in_a_browser(tmp_path, chromium):
             serial = _serial(page)
             _moved(page, serial)  # and on
             page.get_by_role("button", name="Pause").click()
+            assert page.script_errors == []
             browser.close()
     finally:
         proc.terminate()

@@ -571,6 +571,7 @@ def _cmd_view(a: argparse.Namespace) -> int:
             "check": not a.no_check,
             "collisions": False if a.no_collisions else None,
             "log": lambda m: print(m, file=sys.stderr),
+            "prepare": False,  # in the solver thread, while the page loads
         }
     from .view import open_source
 

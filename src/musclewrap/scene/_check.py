@@ -394,7 +394,12 @@ def _check_bone_bodies(
             continue
         Ti = np.linalg.inv(model.transform(spec.body, "ground"))
         P = (G @ Ti[:3, :3].T + Ti[:3, 3]) * s  # into the bone's body, mesh units
-        on = owner_a[outside_distance(P, *body_b[spec.name]) <= ATTACHED_M * s]
+        V, F = body_b[spec.name]
+        # only the points within reach of the bone's box can lie on it (its trees cost more
+        # than all the points' queries)
+        reach = ATTACHED_M * s
+        box = np.flatnonzero(((P >= V.min(0) - reach) & (P <= V.max(0) + reach)).all(axis=1))
+        on = owner_a[box[outside_distance(P[box], V, F) <= reach]] if len(box) else owner_a[:0]
         count = {b: int((on == b).sum()) for b in set(owner)}
         best = max(count, key=lambda b: count[b])
         mine = count.get(spec.body, 0)
@@ -417,15 +422,22 @@ def _check_overlaps(
 ) -> None:  # fmt: skip
     """Rest overlaps (meshes in the output frame at rest): what the run refuses or resolves."""
     from ._read import check_muscles_apart
-    from ._verify import inside_depth, muscle_overlaps
+    from ._verify import inside_depths, muscle_overlaps
 
     unit = scene.mesh_unit
+    found = {}  # (muscle, bone): its vertices inside the bone, the deepest; per bone one query
+    for b in scene.bones:
+        near = [m for m in scene.muscles if m.bones is None or b.name in m.bones]
+        if not near:
+            continue
+        got = inside_depths([rest_m[m.name][0] for m in near], *rest_b[b.name])
+        found.update({(m.name, b.name): g for m, g in zip(near, got, strict=True)})
     for m in scene.muscles:
         V = rest_m[m.name][0]
         for b in scene.bones:
-            if m.bones is not None and b.name not in m.bones:
+            if (m.name, b.name) not in found:
                 continue
-            n, depth = inside_depth(V, *rest_b[b.name])
+            n, depth = found[m.name, b.name]
             if n > 0.5 * len(V):
                 rep.add(
                     "error", m.name,

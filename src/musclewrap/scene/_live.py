@@ -138,6 +138,9 @@ class LiveScene:
         As `run_scene`'s.
     log : callable, optional
         Receives the reading's notes as they come.
+    prepare : bool
+        Build each muscle's solver now (its preparation from the cache, its bones'
+        probes). False: on the first `solve` (the viewer serves its page meanwhile).
 
     `solve` may be called from any thread; one pose is solved at a time.
     """
@@ -150,9 +153,8 @@ class LiveScene:
         check: bool = True,
         collisions: bool | None = None,
         log: Callable[[str], None] | None = None,
+        prepare: bool = True,
     ) -> None:
-        from threadpoolctl import threadpool_limits
-
         self.scene = scene = scene if isinstance(scene, Scene) else load_scene(scene)
         say = log or (lambda _: None)
         if cache_dir is True:
@@ -187,14 +189,27 @@ class LiveScene:
         self._nodes: dict[tuple[int, ...], dict[str, tuple[FloatArray, dict[str, FloatArray]]]] = {}
         self._rest_T = {j.name: rest_placements(inputs, j.name) for j in self.jobs}
         self._lock = threading.Lock()
+        self._built: dict[str, _MuscleFrames] | None = None
+        self.coordinates = self._coordinates()
+        if prepare:
+            self.prepare()
+
+    def prepare(self) -> None:
+        """Build each muscle's solver, if not yet done (`solve` does it first)."""
+        from threadpoolctl import threadpool_limits
+
+        with self._lock, threadpool_limits(1, user_api="blas"):
+            self._prepare()
+
+    def _prepare(self) -> dict[str, _MuscleFrames]:
         # each muscle's solver, as a run's chunk holds it: prepared (from the cache, else built
         # into it), bound to its rest lines, with its bones' probes and its fibres
-        with threadpool_limits(1, user_api="blas"):
-            self._frames = {
+        if self._built is None:
+            self._built = {
                 j.name: _MuscleFrames(j, self._span(j.name, [{}], [None], {}), None, len(self.jobs))
                 for j in self.jobs
             }
-        self.coordinates = self._coordinates()
+        return self._built
 
     # ------------------------------------------------------------------ what can be posed
     def _coordinates(self) -> list[Coordinate]:
@@ -295,7 +310,7 @@ class LiveScene:
         L, R, out_T = posed
         got = {}
         for j in jobs:
-            m = self._frames[j.name]
+            m = self._prepare()[j.name]
             place = {
                 b: invert_rigid(out_T[body]) @ out_T[self.specs[j.name].body]
                 for b, body in self.bone_body.items()
@@ -354,7 +369,7 @@ class LiveScene:
             paths = self._paths(pose)
             L, R, out_T = p.at(pose)
         t_path = time.perf_counter()
-        ms = self._frames
+        ms = self._prepare()
         for j in self.jobs:
             m, path = ms[j.name], paths[j.name]
             m.span = self._span(
@@ -431,7 +446,8 @@ class LiveScene:
 
     def muscle_faces(self, name: str) -> IntArray:
         """Muscle ``name``'s triangles (as its files have them)."""
-        return self._frames[name].muscle.F  # type: ignore[no-any-return]
+        self.prepare()
+        return self._built[name].muscle.F  # type: ignore[index,no-any-return]
 
     def bone_meshes(self, faces: int | None = None) -> dict[str, tuple[FloatArray, IntArray]]:
         """Each bone's display mesh in its body's frame (the run's, decimated as it does)."""

@@ -121,7 +121,7 @@ def read_inputs(
     around = {}
     if muscles_apart:
         check_muscles_apart(scene, drive, muscles)
-        apart = _apart_at_rest(scene, drive, muscles, say, notes)
+        apart = _apart_at_rest(scene, drive, muscles, say, notes, cache)
         # the cage of the mesh as segmented (and pushed out of its bones)
         around = {m: muscles[m][0] for m in muscles if apart[m][0] is not muscles[m][0]}
         muscles = apart
@@ -418,6 +418,7 @@ def _apart_at_rest(
     muscles: dict[str, tuple[FloatArray, IntArray]],
     say: Callable[[str], None],
     notes: list[str],
+    cache: Path | None = None,
 ) -> dict[str, tuple[FloatArray, IntArray]]:
     """Segmented muscles that overlap at rest taken apart once (`musclewrap.contact.apart_at_rest`).
 
@@ -426,16 +427,15 @@ def _apart_at_rest(
     notes. A muscle moved keeps the cage of its mesh as segmented (`read_inputs`).
     With ``rest_overlap = "keep"`` the meshes stay as segmented and the pairs are
     only said (each frame's rounds still take them apart). Meshes in their bodies'
-    frames, as prepared.
+    frames, as prepared. The outcome is cached (``cache``): it depends on the meshes at
+    rest, the pairs and the settings alone.
     """
-    from ..contact import apart_at_rest
-
     names = sorted(muscles)
     # every muscle in the ground's frame at rest (each is in its body's)
     to_g = {m.name: drive.rest_poses[m.body] for m in scene.muscles}
     rest = {n: (apply(to_g[n], muscles[n][0]), muscles[n][1]) for n in names}
     keep = scene.rest_overlap == "keep"
-    V, found, rounds = apart_at_rest(rest, scene.muscle_pairs, resolve=not keep)
+    V, found, rounds = _apart_cached(rest, scene.muscle_pairs, not keep, cache)
     unit = scene.mesh_unit
     for p in found:
         (a, b), (na, nb), (da, db) = p.pair, p.inside, p.depth
@@ -457,6 +457,56 @@ def _apart_at_rest(
         if V[n] is not rest[n][0]:
             out[n] = (apply(invert_rigid(to_g[n]), V[n]), muscles[n][1])
     return out
+
+
+def _apart_cached(
+    rest: dict[str, tuple[FloatArray, IntArray]],
+    pairs: Any,
+    resolve: bool,
+    cache: Path | None,
+) -> tuple[dict[str, FloatArray], list[Any], int]:
+    """`musclewrap.contact.apart_at_rest`, read from the cache where it was made before."""
+    from ..contact import RestPair, apart_at_rest
+
+    names = sorted(rest)
+    path = None
+    if cache is not None:
+        key = digest(
+            *(a for n in names for a in (rest[n][0], np.asarray(rest[n][1], dtype=np.int64))),
+            repr((names, None if pairs is None else sorted(map(tuple, pairs)), resolve)),
+            repr((defaults, __version__)),
+        )
+        path = Path(cache) / f"apart-at-rest-{key[:32]}.npz"
+    made: list[Any] = []
+
+    def build() -> dict[str, np.ndarray]:
+        V, found, rounds = apart_at_rest(rest, pairs, resolve=resolve)
+        made.append((V, found, rounds))
+        out = {f"V {n}": V[n] for n in names if V[n] is not rest[n][0]}
+        out["pairs"] = np.array([p.pair for p in found], dtype=str).reshape(-1, 2)
+        for f in ("inside", "depth", "moved"):
+            out[f] = np.array([getattr(p, f) for p in found], dtype=float).reshape(-1, 2)
+        out["left"] = np.array([p.left for p in found], dtype=float)
+        out["rounds"] = np.array(rounds)
+        return out
+
+    got = cached_arrays(path, build)
+    if made:
+        return made[0]
+    V = {n: got[f"V {n}"] if f"V {n}" in got else rest[n][0] for n in names}
+    found = [
+        RestPair(
+            (str(a), str(b)),
+            (int(i[0]), int(i[1])),
+            (float(d[0]), float(d[1])),
+            (float(m[0]), float(m[1])),
+            float(left),
+        )  # fmt: skip
+        for (a, b), i, d, m, left in zip(
+            got["pairs"], got["inside"], got["depth"], got["moved"], got["left"], strict=True
+        )
+    ]
+    return V, found, int(got["rounds"])
 
 
 def check_muscles_apart(
@@ -489,6 +539,10 @@ def check_muscles_apart(
                     "other; name each muscle's own mesh, or set [collisions] muscles = false"
                 )
             for x, y in ((a, b), (b, a)):
+                if (rest[x].min(0) < rest[y].min(0)).any() or (
+                    rest[x].max(0) > rest[y].max(0)
+                ).any():
+                    continue  # a vertex of x outside y's box: outside y (no grid needed)
                 if (WindingGrid(rest[y], muscles[y][1])(rest[x]) > 0).all():
                     raise SceneError(
                         f"muscle {x!r} ({specs[x].mesh}) lies entirely inside {y!r} "

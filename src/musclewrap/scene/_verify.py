@@ -12,7 +12,7 @@ from ..mesh import clean_mesh, read_mesh, tidy_mesh, volume
 from ._config import Scene
 from ._drive import apply, drive_scene
 
-__all__ = ["inside_depth", "muscle_overlaps", "verify_run"]
+__all__ = ["inside_depth", "inside_depths", "muscle_overlaps", "verify_run"]
 
 
 def inside_depth(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[int, float]:
@@ -26,24 +26,42 @@ def inside_depth(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[int, float]
     Independent of the contact solve's own tests (its grid, `Obstacle`, and its
     ray-crossing winding numbers, `musclewrap.mesh.WindingGrid`).
     """
+    return inside_depths([P], V, F)[0]
+
+
+def inside_depths(Ps: list[FloatArray], V: FloatArray, F: IntArray) -> list[tuple[int, float]]:
+    """`inside_depth` of several point sets against one surface, the surface's trees built once.
+
+    libigl builds its hierarchy of ``V, F`` on every call, which costs more than the
+    queries of a muscle's points against a bone: the sets go in one call. Each
+    point's winding number and distance do not depend on the other points queried.
+    """
     import igl
 
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     lo, hi = V.min(0), V.max(0)
-    idx = np.flatnonzero(((P >= lo) & (P <= hi)).all(axis=1))
-    if not len(idx):
-        return 0, 0.0
-    Q = np.ascontiguousarray(P[idx], dtype=np.float64)
+    idx = [np.flatnonzero(((P >= lo) & (P <= hi)).all(axis=1)) for P in Ps]
+    Q = np.vstack([np.asarray(P, dtype=np.float64)[i] for P, i in zip(Ps, idx, strict=True)])
+    if not len(Q):
+        return [(0, 0.0) for _ in Ps]
+    Q = np.ascontiguousarray(Q)
     w = igl.fast_winding_number(V, F, Q)
     close = np.flatnonzero(np.abs(w - 0.5) < 0.25)
     if len(close):
         w[close] = igl.winding_number(V, F, np.ascontiguousarray(Q[close]))
-    inside = idx[w > 0.5]
-    if not len(inside):
-        return 0, 0.0
-    sq, _, _ = igl.point_mesh_squared_distance(np.ascontiguousarray(P[inside]), V, F)
-    return len(inside), float(np.sqrt(sq).max())
+    inside = w > 0.5
+    d = np.zeros(len(Q))
+    if inside.any():
+        sq, _, _ = igl.point_mesh_squared_distance(np.ascontiguousarray(Q[inside]), V, F)
+        d[inside] = np.sqrt(sq)
+    out, o = [], 0
+    for i in idx:
+        here = slice(o, o + len(i))
+        o += len(i)
+        n = int(inside[here].sum())
+        out.append((n, float(d[here][inside[here]].max()) if n else 0.0))
+    return out
 
 
 def muscle_overlaps(
@@ -56,9 +74,15 @@ def muscle_overlaps(
     deepest one's distance to that surface, and the name of the surface it is in
     ("" and 0 when none is).
     """
+    # against each surface, the others' vertices in one query (its trees built once)
+    against = {
+        b: dict(zip(others, inside_depths([meshes[a][0] for a in others], *meshes[b]), strict=True))
+        for b in meshes
+        for others in [[a for a in meshes if a != b]]
+    }
     out = {}
-    for a, (P, _) in meshes.items():
-        found = {b: inside_depth(P, *meshes[b]) for b in meshes if b != a}
+    for a in meshes:
+        found = {b: against[b][a] for b in meshes if b != a}
         hit = {b: d for b, (c, d) in found.items() if c}
         other = max(hit, key=lambda b: hit[b], default="")
         out[a] = (sum(c for c, _ in found.values()), hit.get(other, 0.0), other)

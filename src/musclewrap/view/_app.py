@@ -97,6 +97,8 @@ _JS = r"""
       mw.totals.push(total); if (mw.totals.length > 10) mw.totals.shift();
       mw.last = { serial: s.serial, id: s.id, total, render, transfer, server: s.server,
                   solve: s.solve, drawn, count: (mw.last ? mw.last.count : 0) + 1 };
+      mw.log = mw.log || [];  // the last pictures drawn, for a drag's rate
+      mw.log.push(mw.last); if (mw.log.length > 1000) mw.log.shift();
       const el = document.getElementById("mw-update");
       if (el) {
         el.textContent = `update ${total.toFixed(0)} ms (median ${median(mw.totals).toFixed(0)} ms `
@@ -156,9 +158,14 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _enc(a: np.ndarray, dtype: Any) -> dict[str, Any]:
-    """An array in the form the page decodes (base64 of its bytes, with its type)."""
+def _enc(a: np.ndarray, dtype: Any) -> dict[str, Any] | list[Any]:
+    """An array in the form the page decodes (base64 of its bytes, with its type).
+
+    An empty one as an empty list (vtk.js cannot decode an empty base64 string).
+    """
     b = np.ascontiguousarray(a, dtype=dtype).ravel()
+    if not b.size:
+        return []
     return {
         "bvals": base64.b64encode(b.tobytes()).decode("ascii"),
         "dtype": str(b.dtype),
@@ -166,7 +173,7 @@ def _enc(a: np.ndarray, dtype: Any) -> dict[str, Any]:
     }
 
 
-def _cells(F: np.ndarray) -> dict[str, Any]:
+def _cells(F: np.ndarray) -> dict[str, Any] | list[Any]:
     """Cells (k, n) in VTK's legacy form: ``n, i0, ..., n, i0, ...``."""
     F = np.asarray(F)
     if not len(F):
@@ -174,12 +181,14 @@ def _cells(F: np.ndarray) -> dict[str, Any]:
     return _enc(np.column_stack([np.full(len(F), F.shape[1]), F]), np.uint32)
 
 
-def _points(P: np.ndarray) -> dict[str, Any]:
+def _points(P: np.ndarray) -> dict[str, Any] | list[Any]:
     P = np.where(np.isfinite(P), P, 0.0)
     return _enc(P, np.float32)
 
 
-def _polylines(lines: list[np.ndarray]) -> tuple[dict[str, Any], dict[str, Any]]:
+def _polylines(
+    lines: list[np.ndarray],
+) -> tuple[dict[str, Any] | list[Any], dict[str, Any] | list[Any]]:
     """Poly-lines as one point array and one cell array."""
     if not lines:
         return _points(np.zeros((0, 3))), _enc(np.zeros(0), np.uint32)
@@ -299,9 +308,12 @@ class Viewer:
                 st[f"{kind}{i}_p"] = _points(np.zeros((0, 3)))
                 st[f"{kind}{i}_c"] = _enc(np.zeros(0), np.float32)
                 st[f"{kind}{i}_f"] = _enc(np.zeros(0), np.uint32)
-        # the triangles, once: only the points move
-        for kind, F in self._faces().items():
-            st[kind] = _cells(F)
+        # the triangles, once: only the points move (a scene's with its first pose: its
+        # muscles' solvers are built in the solver thread, while the page loads)
+        self._faces_due = self.live
+        if not self.live:
+            for kind, F in self._faces().items():
+                st[kind] = _cells(F)
 
     def _faces(self) -> dict[str, np.ndarray]:
         """Each muscle's and bone's triangles, by the name of their state."""
@@ -504,6 +516,9 @@ class Viewer:
 
     def _live_state(self, res: PoseResult, r: _Request) -> dict[str, Any]:
         up: dict[str, Any] = {}
+        if self._faces_due:
+            up.update({kind: _cells(F) for kind, F in self._faces().items()})
+            self._faces_due = False
         for i, b in enumerate(self._names["bone"]):
             T = res.bones[b]
             if not np.array_equal(self._sent.get(b), T):  # a bone moved in the output frame
