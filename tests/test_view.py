@@ -195,6 +195,24 @@ def _moved(page, before: str) -> None:
     )
 
 
+_HELD = """
+async ([label, start, end, n]) => {
+  const el = document.querySelector(`input[aria-label="${label}"]`), mw = window.mw;
+  const pulled = [];
+  for (let i = 1; i <= n; i++) {
+    const v = String(start + (end - start) * i / n);
+    el.value = v;
+    el.dispatchEvent(new Event("input", { bubbles: true }));
+    await new Promise((r) => setTimeout(r, 30));
+    if (el.value !== v) pulled.push([v, el.value]);
+  }
+  const last = mw.n;
+  while (!(mw.last && mw.last.id >= last)) await new Promise((r) => setTimeout(r, 5));
+  return { pulled, drawn: mw.last.id };
+}
+"""
+
+
 def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
     """The hip_flexion_r slider found by its label; moved, the muscles change, the status
     line says the update time, and the written pose equals run's files of that pose."""
@@ -214,7 +232,8 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
             assert _geometry(page) != before
             status = page.inner_text("#status")
             assert re.search(
-                r"update \d+ ms \(median \d+ ms of the last \d+; solve \d+, transfer \d+, render \d+ ms\)",
+                r"update \d+ ms \(median \d+ ms of the last \d+; queued \d+, solve \d+, "
+                r"transfer \d+, render \d+ ms\)",
                 status,
             ), status
             assert re.search(r"volume error \S+ .* deepest in a bone [\d.]+ mm", status), status
@@ -229,6 +248,22 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
             page.wait_for_function(
                 f"window.trame.state.get('muscle0_c').bvals != '{colours}'", timeout=30_000
             )
+            # a quick drag (an input every 30 ms, poses solved behind it): the thumb stays
+            # where the hand put it, not pulled back by the older poses drawn meanwhile
+            held = page.evaluate(_HELD, ["hip_flexion_r", 45, 30, 30])
+            assert held["pulled"] == [], held
+            assert page.eval_on_selector("#q0", "e => e.value") == "30"
+            # a frame of the motion: the coordinates' thumbs go to its pose
+            serial = _serial(page)
+            page.get_by_label("time").fill("150")
+            _moved(page, serial)
+            shown = float(page.evaluate("window.trame.state.get('q0_label')").split()[0])
+            page.wait_for_function(  # to the slider's step
+                f"Math.abs(parseFloat(document.getElementById('q0').value) - {shown}) "
+                "<= 0.51 * parseFloat(document.getElementById('q0').step)",
+                timeout=10_000,
+            )
+            assert shown != 30.0
             assert page.script_errors == []
             browser.close()
     finally:

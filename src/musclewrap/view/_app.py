@@ -11,7 +11,8 @@ One page serves two sources:
 
 The browser measures each update, from the slider's input event to the picture
 drawn (two animation frames after the new geometry arrived), and writes the status
-line: ``update N ms (median M ms of the last 10; solve S, transfer X, render R)``.
+line: ``update N ms (median M ms of the last 10; queued Q, solve S, transfer X, render R)``
+(queued: while the pose before was being solved; one pose at a time is asked for).
 """
 
 from __future__ import annotations
@@ -73,44 +74,73 @@ h1 { font-size: 16px; margin: 4px 0 10px 0; }
 
 # The page's measuring: each slider input gets an id and a time; the server answers
 # with the id it drew; two animation frames after the geometry arrives, the picture
-# is on screen.
+# is on screen. One pose at a time is asked for: inputs that come while one is being
+# solved wait, the latest replacing the one before, and go when its geometry arrives
+# (its drawing then overlaps the next solve). So a drag sends one message a picture,
+# not one an input event: 60 a second would keep the server's event loop from the
+# solver's results.
 _JS = r"""
 (function () {
-  const mw = (window.mw = window.mw || { n: 0, t: {}, totals: [], last: null });
+  const mw = (window.mw = window.mw || { n: 0, t: {}, sent: {}, totals: [], last: null });
+  let inflight = null, pending = null;  // the input being solved (id, time sent), the next
+  function send(p) {
+    inflight = { id: p.id, at: performance.now() };
+    mw.sent[p.id] = inflight.at;
+    window.trame.trigger("mw_input", [p.source, p.value, p.id]);
+  }
   document.addEventListener("input", (e) => {
     const el = e.target;
     if (!el || !el.dataset || !el.dataset.mw || !window.trame) return;
     const id = ++mw.n;
     mw.t[id] = performance.now();
-    window.trame.trigger("mw_input", [el.dataset.mw, parseFloat(el.value), id]);
+    const p = { source: el.dataset.mw, value: parseFloat(el.value), id };
+    // a pose asked for more than 3 s ago and not come back (a failed one): ask anyway
+    if (inflight && performance.now() - inflight.at < 3000) pending = p; else send(p);
   }, true);
   function median(a) { const s = [...a].sort((x, y) => x - y); return s[Math.floor(s.length / 2)]; }
   function shown(s) {
     if (!s || !s.serial) return;
     const got = performance.now();
+    // the pose asked for is here (or another's, which replaced it: play): the next one goes
+    if (inflight && (!s.id || s.id >= inflight.id)) {
+      inflight = null;
+      if (pending) { const p = pending; pending = null; send(p); }
+    }
     requestAnimationFrame(() => requestAnimationFrame(() => {
       const drawn = performance.now();
       const t0 = s.id && mw.t[s.id] !== undefined ? mw.t[s.id] : got;
-      for (const k of Object.keys(mw.t)) if (+k <= s.id) delete mw.t[k];
-      const total = drawn - t0, render = drawn - got;
-      const transfer = Math.max(0, got - t0 - s.server);
+      const sent = s.id && mw.sent[s.id] !== undefined ? mw.sent[s.id] : t0;
+      for (const k of Object.keys(mw.t)) if (+k <= s.id) { delete mw.t[k]; delete mw.sent[k]; }
+      const total = drawn - t0, render = drawn - got, queued = sent - t0;
+      const transfer = Math.max(0, got - sent - s.server);
       mw.totals.push(total); if (mw.totals.length > 10) mw.totals.shift();
-      mw.last = { serial: s.serial, id: s.id, total, render, transfer, server: s.server,
+      mw.last = { serial: s.serial, id: s.id, total, render, transfer, queued, server: s.server,
                   solve: s.solve, drawn, count: (mw.last ? mw.last.count : 0) + 1 };
       mw.log = mw.log || [];  // the last pictures drawn, for a drag's rate
       mw.log.push(mw.last); if (mw.log.length > 1000) mw.log.shift();
       const el = document.getElementById("mw-update");
       if (el) {
         el.textContent = `update ${total.toFixed(0)} ms (median ${median(mw.totals).toFixed(0)} ms `
-          + `of the last ${mw.totals.length}; solve ${s.solve.toFixed(0)}, transfer `
+          + `of the last ${mw.totals.length}; queued ${queued.toFixed(0)}, solve `
+          + `${s.solve.toFixed(0)}, transfer `
           + `${transfer.toFixed(0)}, render ${render.toFixed(0)} ms)`;
         el.dataset.serial = String(s.serial);
       }
     }));
   }
+  // the server moves a slider's thumb only where the pose comes from elsewhere (a frame:
+  // the coordinates' sliders, or play: the time slider); the slider the hand holds is the page's
+  function thumbs(t) {
+    if (!t || !t.values) return;
+    for (const [id, v] of Object.entries(t.values)) {
+      const el = document.getElementById(id);
+      if (el) el.value = String(v);
+    }
+  }
   function hook() {
     if (!window.trame || !window.trame.state) { setTimeout(hook, 50); return; }
     window.trame.state.watch(["shown"], shown);
+    window.trame.state.watch(["thumbs"], thumbs);
   }
   hook();
 })();
@@ -132,18 +162,26 @@ class Frame:
 
 
 def _slider(
-    html: Any, label: str, key: str, span: tuple[float, float, float], source: str, shown: str
+    html: Any,
+    label: str,
+    key: str,
+    span: tuple[float, float, float, float],
+    source: str,
+    shown: str,
 ) -> None:
-    """A labelled range input bound to state ``key``.
+    """A labelled range input (id ``key``; ``span``: low, high, step, start).
 
     Its input events go to the server as ``source`` (the page's script measures each one).
+    Not bound to the state: Vue would set it back to the state's value on every redraw,
+    behind the hand; the server moves it through the state ``thumbs`` where a pose comes
+    from elsewhere.
     """
-    lo, hi, step = span
+    lo, hi, step, start = span
     with html.Div(classes="mw-row"):
         html.Label(label, for_=key, __properties=[("for_", "for")])
         html.Input(
             type="range", id=key, min=f"{lo:.6g}", max=f"{hi:.6g}", step=f"{step:.6g}",
-            value=(key,), aria_label=label, data_mw=source,
+            value=f"{start:.6g}", aria_label=label, data_mw=source,
             __properties=[("aria_label", "aria-label"), ("data_mw", "data-mw")],
         )  # fmt: skip
         html.Span(shown, classes="mw-value")
@@ -250,6 +288,10 @@ class Viewer:
         self.times = source.times
         self.coords = source.coordinates if self.live else []
         self._want: _Request | None = None
+        # the sliders as the user left them: a solved pose is not sent back to the slider the
+        # user holds (a pose behind the hand would pull its thumb back)
+        self._values: dict[str, float] = {}
+        self._frame = 0
         self._writes = 0  # "Write this pose" clicks not yet served
         self._wake = threading.Event()
         self._stop = False
@@ -294,7 +336,7 @@ class Viewer:
         st.fibres_look = {"color": [0.55, 0.1, 0.1], "lineWidth": 1}
         st.background = [1, 1, 1]
         st.preset, st.crange = COLOURS["stretch"][:2]
-        st.frame = 0
+        st.thumbs = {"serial": 0, "values": {}}
         st.playing = False
         st.status = "solving the first pose ..." if self.live else "reading the first frame ..."
         st.warning = ""
@@ -302,7 +344,8 @@ class Viewer:
         st.shown = {"serial": 0, "id": 0, "server": 0.0, "solve": 0.0}
         st.time_text = self._time_text(0)
         for i, c in enumerate(self.coords):
-            st[f"q{i}"] = 0.5 * (c.low + c.high)
+            self._values[c.name] = v = 0.5 * (c.low + c.high)
+            st[f"q{i}_label"] = f"{v:.2f} {c.unit}"
         for kind, names in self._names.items():
             for i, _ in enumerate(names):
                 st[f"{kind}{i}_p"] = _points(np.zeros((0, 3)))
@@ -358,11 +401,12 @@ class Viewer:
                     html.H1(title)
                     for i, c in enumerate(self.coords):
                         _slider(
-                            html, c.name, f"q{i}", (c.low, c.high, (c.high - c.low) / 1000.0), c.name,
-                            f"{{{{ Number(q{i}).toFixed(2) }}}} {c.unit}",
+                            html, c.name, f"q{i}",
+                            (c.low, c.high, (c.high - c.low) / 1000.0, self._values[c.name]), c.name,
+                            f"{{{{ q{i}_label }}}}",
                         )  # fmt: skip
                     _slider(
-                        html, "time", "frame", (0, max(0, self.n_frames - 1), 1), "__frame__",
+                        html, "time", "frame", (0, max(0, self.n_frames - 1), 1, 0), "__frame__",
                         "{{ time_text }}",
                     )  # fmt: skip
                     html.Button(
@@ -427,16 +471,11 @@ class Viewer:
 
     def _on_input(self, name: str, value: float, ident: int = 0) -> None:
         if name == "__frame__":
-            k = int(round(value))
-            self.state.frame = k
-            self.request(_Request("frame", frame=k, id=int(ident)))
+            self._frame = int(round(value))
+            self.request(_Request("frame", frame=self._frame, id=int(ident)))
             return
-        values = {c.name: float(self.state[f"q{i}"]) for i, c in enumerate(self.coords)}
-        values[name] = float(value)
-        for i, c in enumerate(self.coords):
-            if c.name == name:
-                self.state[f"q{i}"] = float(value)
-        self.request(_Request("values", values=values, id=int(ident)))
+        self._values[name] = float(value)
+        self.request(_Request("values", values=dict(self._values), id=int(ident)))
 
     def _on_write(self) -> None:
         self._writes += 1
@@ -457,10 +496,8 @@ class Viewer:
     async def _play(self) -> None:
         try:
             while self.state.playing:
-                k = (int(self.state.frame) + 1) % max(1, self.n_frames)
+                k = self._frame = (self._frame + 1) % max(1, self.n_frames)
                 self._drawn.clear()
-                with self.state:
-                    self.state.frame = k
                 self.request(_Request("frame", frame=k))
                 # the next frame once this one is sent (at most 30 a second)
                 t = time.perf_counter()
@@ -505,6 +542,13 @@ class Viewer:
         else:
             update = self._series_state(int(r.frame or 0))
             t_solve = time.perf_counter() - t0
+        if r.kind == "frame":
+            # the coordinates' sliders go to the frame's pose; the time slider too unless the
+            # hand is on it
+            moved = {f"q{i}": self._values[c.name] for i, c in enumerate(self.coords)}
+            if not r.id:
+                moved["frame"] = r.frame
+            update["thumbs"] = {"serial": self._serial + 1, "values": moved}
         self._serial += 1
         update["shown"] = {
             "serial": self._serial,
@@ -533,12 +577,14 @@ class Viewer:
             up[f"fibres{i}_p"], up[f"fibres{i}_f"] = _polylines([] if P is None else list(P))
         up.update(self._colours(res))
         if r.frame is not None:
-            up["frame"] = r.frame
             up["time_text"] = self._time_text(r.frame)
         else:
             up["time_text"] = "a pose of the sliders (not a frame)"
         for i, c in enumerate(self.coords):
-            up[f"q{i}"] = float(res.values[c.name])
+            v = float(res.values[c.name])
+            up[f"q{i}_label"] = f"{v:.2f} {c.unit}"  # the pose shown
+            if r.kind == "frame":  # the sliders go to the frame's pose
+                self._values[c.name] = v
         unit = self.source.scene.mesh_unit  # type: ignore[union-attr]
         overlap = res.overlap
         up["status"] = (
@@ -573,7 +619,7 @@ class Viewer:
 
     def _series_state(self, k: int) -> dict[str, Any]:
         s: Series = self.source  # type: ignore[assignment]
-        up: dict[str, Any] = {"frame": k, "time_text": self._time_text(k)}
+        up: dict[str, Any] = {"time_text": self._time_text(k)}
         for kind in ("muscle", "bone"):
             for i, n in enumerate(self._names[kind]):
                 d = s.part(k, n)
