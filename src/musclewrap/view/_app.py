@@ -348,9 +348,8 @@ class Viewer:
             st[f"q{i}_label"] = f"{v:.2f} {c.unit}"
         for kind, names in self._names.items():
             for i, _ in enumerate(names):
-                st[f"{kind}{i}_p"] = _points(np.zeros((0, 3)))
-                st[f"{kind}{i}_c"] = _enc(np.zeros(0), np.float32)
-                st[f"{kind}{i}_f"] = _enc(np.zeros(0), np.uint32)
+                # nothing yet (vtk.js leaves a null array alone)
+                st[f"{kind}{i}_p"] = st[f"{kind}{i}_c"] = st[f"{kind}{i}_f"] = None
         # the triangles, once: only the points move (a scene's with its first pose: its
         # muscles' solvers are built in the solver thread, while the page loads)
         self._faces_due = self.live
@@ -561,7 +560,8 @@ class Viewer:
     def _live_state(self, res: PoseResult, r: _Request) -> dict[str, Any]:
         up: dict[str, Any] = {}
         if self._faces_due:
-            up.update({kind: _cells(F) for kind, F in self._faces().items()})
+            # the triangles first, on their own: the points of the same pose come after them
+            self._send({kind: _cells(F) for kind, F in self._faces().items()})
             self._faces_due = False
         for i, b in enumerate(self._names["bone"]):
             T = res.bones[b]
