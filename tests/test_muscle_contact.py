@@ -35,6 +35,13 @@ def test_overlap_of_two_spheres_is_their_lens():
     assert out["c"] == (0, 0.0, "")
 
 
+def test_overlaps_of_one_muscle_alone_are_none():
+    from musclewrap.scene._verify import inside_depths
+
+    assert muscle_overlaps({"a": _sphere(10.0, [0, 0, 0])}) == {"a": (0, 0.0, "")}
+    assert inside_depths([], *_sphere(10.0, [0, 0, 0])) == []
+
+
 def test_overlap_of_a_sphere_inside_another():
     out = muscle_overlaps({"big": _sphere(10.0, [0, 0, 0]), "small": _sphere(3.0, [1, 0, 0])})
     n, depth, name = out["small"]

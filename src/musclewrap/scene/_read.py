@@ -501,7 +501,7 @@ def _apart_cached(
             (float(d[0]), float(d[1])),
             (float(m[0]), float(m[1])),
             float(left),
-        )  # fmt: skip
+        )
         for (a, b), i, d, m, left in zip(
             got["pairs"], got["inside"], got["depth"], got["moved"], got["left"], strict=True
         )

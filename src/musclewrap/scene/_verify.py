@@ -38,6 +38,8 @@ def inside_depths(Ps: list[FloatArray], V: FloatArray, F: IntArray) -> list[tupl
     """
     import igl
 
+    if not Ps:
+        return []
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     lo, hi = V.min(0), V.max(0)

@@ -81,7 +81,7 @@ h1 { font-size: 16px; margin: 4px 0 10px 0; }
 # solver's results.
 _JS = r"""
 (function () {
-  const mw = (window.mw = window.mw || { n: 0, t: {}, sent: {}, totals: [], last: null });
+  const mw = (window.mw = window.mw || { n: 0, t: {}, sent: {}, totals: [], log: [], last: null });
   let inflight = null, pending = null;  // the input being solved (id, time sent), the next
   function send(p) {
     inflight = { id: p.id, at: performance.now() };
@@ -116,8 +116,8 @@ _JS = r"""
       mw.totals.push(total); if (mw.totals.length > 10) mw.totals.shift();
       mw.last = { serial: s.serial, id: s.id, total, render, transfer, queued, server: s.server,
                   solve: s.solve, drawn, count: (mw.last ? mw.last.count : 0) + 1 };
-      mw.log = mw.log || [];  // the last pictures drawn, for a drag's rate
-      mw.log.push(mw.last); if (mw.log.length > 1000) mw.log.shift();
+      mw.log.push(mw.last);  // the last pictures drawn, for a drag's rate
+      if (mw.log.length > 1000) mw.log.shift();
       const el = document.getElementById("mw-update");
       if (el) {
         el.textContent = `update ${total.toFixed(0)} ms (median ${median(mw.totals).toFixed(0)} ms `
@@ -559,9 +559,8 @@ class Viewer:
 
     def _live_state(self, res: PoseResult, r: _Request) -> dict[str, Any]:
         up: dict[str, Any] = {}
-        if self._faces_due:
-            # the triangles first, on their own: the points of the same pose come after them
-            self._send({kind: _cells(F) for kind, F in self._faces().items()})
+        if self._faces_due:  # the triangles, with the first pose
+            up.update({kind: _cells(F) for kind, F in self._faces().items()})
             self._faces_due = False
         for i, b in enumerate(self._names["bone"]):
             T = res.bones[b]
