@@ -213,6 +213,31 @@ async ([label, start, end, n]) => {
 """
 
 
+def _decoded(page, part: str) -> np.ndarray:
+    import base64
+
+    a = page.evaluate(f"window.trame.state.get('{part}')")
+    return np.frombuffer(base64.b64decode(a["bvals"]), dtype=a["dtype"]).reshape(-1, 3)
+
+
+def _drawn_where(page, view, part: str, below: list[str]) -> float:
+    """The share of part's points, where the run's camera puts them below every point of
+    ``below``, that the page's picture has drawn (not background)."""
+    import io
+
+    from PIL import Image
+
+    box = page.locator(".mw-view")
+    img = np.asarray(Image.open(io.BytesIO(box.screenshot())).convert("L"))
+    h, w = img.shape
+    lowest = max(view.project(_decoded(page, b), (w, h))[:, 1].max() for b in below)
+    xy = view.project(_decoded(page, part), (w, h))
+    keep = (xy[:, 1] > lowest + 5) & (xy[:, 0] >= 0) & (xy[:, 0] < w) & (xy[:, 1] < h)
+    assert keep.sum() > 20, keep.sum()
+    px = img[xy[keep, 1].astype(int), xy[keep, 0].astype(int)]
+    return float(np.mean(px < 250))
+
+
 def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
     """The hip_flexion_r slider found by its label; moved, the muscles change, the status
     line says the update time, and the written pose equals run's files of that pose."""
@@ -223,6 +248,13 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
     try:
         with sync_playwright() as pw:
             browser, page = _page(pw, port, proc, tmp_path, chromium)
+            # the first picture, from the run's pictures' camera (the limb's side, its long
+            # axis up): the femur's shaft, below the muscles, drawn (seen from above, as
+            # vtk.js's own camera looks along z, it hid under the pelvis)
+            page.wait_for_timeout(1500)  # the camera is set 0.3 and 1 s after the geometry
+            view = LiveScene(scene, check=False, prepare=False).view(size=(1, 1))
+            muscles = [f"muscle{i}_p" for i in range(4)]
+            assert _drawn_where(page, view, "bone0_p", muscles) > 0.9
             slider = page.get_by_label("hip_flexion_r")
             assert slider.count() == 1
             assert page.get_by_text("hip_flexion_r", exact=True).is_visible()

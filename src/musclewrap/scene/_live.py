@@ -444,6 +444,12 @@ class LiveScene:
         bones = {b: out_T[body] for b, body in self.bone_body.items()} if out_T else {}
         return PoseResult(shown, frame, muscles, stretch, gap, bones, lines, fibres, rows)
 
+    def view(self, size: tuple[int, int] | None = None) -> Any:
+        """The run's pictures' camera (`._run.picture_view`), for pictures of ``size``."""
+        from ._run import picture_view
+
+        return picture_view(self.scene, self.drive, self.inputs.muscles, size)
+
     def muscle_faces(self, name: str) -> IntArray:
         """Muscle ``name``'s triangles (as its files have them)."""
         self.prepare()

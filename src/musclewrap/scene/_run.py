@@ -220,7 +220,10 @@ _AHEAD = 3
 
 
 def picture_view(
-    scene: Scene, drive: Any, muscles: dict[str, tuple[np.ndarray, np.ndarray]]
+    scene: Scene,
+    drive: Any,
+    muscles: dict[str, tuple[np.ndarray, np.ndarray]],
+    size: tuple[int, int] | None = None,
 ) -> View:
     """A scene's pictures' camera, framed on the muscles through the whole motion.
 
@@ -228,7 +231,7 @@ def picture_view(
     deformation: the box round every frame's action lines in the output frame,
     widened by the farthest any muscle's rest mesh (``muscles``, in its body's frame)
     lies from its rest lines; seen as `frame_view` places it, turned by ``[output]
-    view``.
+    view``, for pictures of ``size`` (default the scene's ``[output] image_size``).
     """
     from ._fit import resample_polyline
 
@@ -243,7 +246,9 @@ def picture_view(
         for k, lines in enumerate(drive.lines[spec.name]):
             pts += [apply(T[k], np.asarray(P, dtype=np.float64)) for P in lines.values()]
     P = np.vstack(pts)
-    return frame_view(P.min(axis=0) - reach, P.max(axis=0) + reach, scene.view, scene.image_size)
+    return frame_view(
+        P.min(axis=0) - reach, P.max(axis=0) + reach, scene.view, size or scene.image_size
+    )
 
 
 def _part(result: Any, name: str) -> ChunkResult:

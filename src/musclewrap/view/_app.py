@@ -301,12 +301,14 @@ class Viewer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._playing_task: asyncio.Task[Any] | None = None
         self._drawn = threading.Event()
+        self._camera: dict[str, Any] | None = None  # the run's pictures' camera, once known
         self._names = self._part_names()
         self._init_state()
         self._build_ui()
         self.server.trigger("mw_input")(self._on_input)
         self.server.trigger("mw_write")(self._on_write)
         self.server.trigger("mw_play")(self._on_play)
+        self.server.trigger("mw_camera")(self._set_camera)
         self.server.controller.on_server_ready.add(self._on_ready)
         self.state.change("colour")(self._on_colour)
         self._thread = threading.Thread(target=self._work, name="musclewrap-solver", daemon=True)
@@ -411,6 +413,7 @@ class Viewer:
                     html.Button(
                         "{{ playing ? 'Pause' : 'Play' }}", click="trigger('mw_play')", id="play"
                     )
+                    html.Button("Reset view", click="trigger('mw_camera')", id="reset-view")
                     if self.live:
                         html.Button("Write this pose", click="trigger('mw_write')", id="write")
                     with html.Div(classes="mw-row"):
@@ -527,8 +530,20 @@ class Viewer:
             except Exception as exc:  # noqa: BLE001  # shown on the page, the server goes on
                 self._send({"warning": f"this pose failed: {exc}"})
 
+    def _set_camera(self) -> None:
+        """The view to the run's pictures' camera (the side of the limb, the muscles framed)."""
+        if self._camera is not None:
+            self.view.set_camera(self._camera)
+
     def _show(self, r: _Request) -> None:
         t0 = time.perf_counter()
+        if self._camera is None:
+            # framed for a square view: whole in any view wider than it is tall
+            v = self.source.view(size=(1, 1))
+            self._camera = {
+                "focalPoint": list(v.focal), "position": list(v.position), "viewUp": list(v.up),
+                "viewAngle": v.angle, "centerOfRotation": list(v.focal),
+            }  # fmt: skip
         if self.live:
             src: LiveScene = self.source  # type: ignore[assignment]
             res = src.solve(
@@ -668,8 +683,8 @@ class Viewer:
                 self.state.update(update)
             if update.get("shown", {}).get("serial") == 1:
                 # once the first geometry has reached the page
-                loop.call_later(0.3, self.view.reset_camera)
-                loop.call_later(1.0, self.view.reset_camera)
+                loop.call_later(0.3, self._set_camera)
+                loop.call_later(1.0, self._set_camera)
             self._drawn.set()
 
         loop.call_soon_threadsafe(push)

@@ -7,6 +7,7 @@ import xml.etree.ElementTree as ET
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -106,6 +107,27 @@ class Series:
 
     def __len__(self) -> int:
         return len(self.times)
+
+    def view(self, size: tuple[int, int] = (800, 600), steps: int = 9) -> Any:
+        """A camera on the muscles (`musclewrap.output.frame_view` of their box).
+
+        The box over ``steps`` time steps spread through the series (its first and
+        last among them): the side view a run's pictures take, not turned (the
+        run's ``[output] view`` is not in its folder).
+        """
+        from ..output._render import frame_view
+
+        names = [n for n, kind in self.parts.items() if kind == "muscle"] or list(self.parts)
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for k in np.unique(np.linspace(0, len(self) - 1, steps).round().astype(int)):
+            for n in names:
+                d = self.part(int(k), n)
+                if d is not None and len(d["points"]):
+                    lo = np.minimum(lo, d["points"].min(axis=0))
+                    hi = np.maximum(hi, d["points"].max(axis=0))
+        if not np.isfinite(lo).all():
+            lo, hi = np.zeros(3), np.ones(3)
+        return frame_view(lo, hi, (0.0, 0.0), size)
 
     def part(self, k: int, name: str) -> dict[str, np.ndarray] | None:
         """Part ``name`` at step ``k`` (None where it has no file there); the last few kept."""
