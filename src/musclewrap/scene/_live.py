@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from .._typing import FloatArray, IntArray
 from ..mesh import write_mesh
@@ -38,6 +39,9 @@ __all__ = ["CheckError", "Coordinate", "LiveScene", "PoseResult"]
 
 #: vertices within this distance of a bone (mesh units: mm) are coloured as in contact
 CONTACT_REACH = 5.0
+
+#: the waypoints whose sides of the bones are kept (each muscle's, a few MB each)
+_SIDES_KEPT = 8
 
 
 class CheckError(SceneError):
@@ -187,8 +191,12 @@ class LiveScene:
         self._facing: Any = None
         # per waypoint (its lattice point), per muscle in contact: its cage and bones there
         self._nodes: dict[tuple[int, ...], dict[str, tuple[FloatArray, dict[str, FloatArray]]]] = {}
+        # per waypoint (None: the rest pose), per muscle: its sides there (`_sides`)
+        self._refs: dict[tuple[int, ...] | None, dict[str, dict[int, Any]]] = {}
         self._rest_T = {j.name: rest_placements(inputs, j.name) for j in self.jobs}
         self._lock = threading.Lock()
+        # BLAS on one thread while solving, as a run's workers (found once: ~1 ms a search)
+        self._pools = ThreadpoolController()
         self._built: dict[str, _MuscleFrames] | None = None
         self.coordinates = self._coordinates()
         if prepare:
@@ -196,9 +204,7 @@ class LiveScene:
 
     def prepare(self) -> None:
         """Build each muscle's solver, if not yet done (`solve` does it first)."""
-        from threadpoolctl import threadpool_limits
-
-        with self._lock, threadpool_limits(1, user_api="blas"):
+        with self._lock, self._pools.limit(limits=1, user_api="blas"):
             self._prepare()
 
     def _prepare(self) -> dict[str, _MuscleFrames]:
@@ -268,13 +274,16 @@ class LiveScene:
             None if waypoint is None else np.array([waypoint]),
         )
 
-    def _paths(self, pose: dict[str, float] | None) -> dict[str, PathStates | None]:
+    def _paths(
+        self, pose: dict[str, float] | None
+    ) -> tuple[dict[str, PathStates | None], tuple[int, ...] | None]:
         """Per muscle in contact, its cage at the pose's waypoint (None: no contact).
 
         The run's `FollowPath` on the lattice of `._drive.lattice_paths` from the rest
         pose to ``pose`` (None: a line CSV's frame, which has no waypoints), each
         waypoint solved once and kept: poses near each other share them. An empty
-        `PathStates`: the pose takes its sides from the rest pose.
+        `PathStates`: the pose takes its sides from the rest pose. Also the waypoint's
+        lattice point (None: the rest pose).
         """
         p, wp = self.poser, self.drive.waypoints
         jobs = [j for j in self.jobs if j.contact is not None]
@@ -298,7 +307,22 @@ class LiveScene:
                 x, place = self._nodes[key][j.name]
                 cages, T = x[None], {b: M[None] for b, M in place.items()}
             out[j.name] = PathStates(cages, T, self._rest_T[j.name])
-        return out
+        return out, key
+
+    def _sides(self, key: tuple[int, ...] | None) -> dict[str, dict[int, Any]]:
+        """Per muscle, its sides of the bones at waypoint ``key`` (as `_MuscleFrames.refs`).
+
+        Kept for the last few waypoints: a `contact.SideReference` keeps what it
+        computed of its state (every vertex against each bone then), and the poses of a
+        drag take their sides from a few waypoints (a run's chunk keeps them likewise).
+        """
+        got = self._refs.pop(key, None)
+        if got is None:
+            got = {j.name: {} for j in self.jobs}
+        self._refs[key] = got  # the latest last
+        while len(self._refs) > _SIDES_KEPT:
+            self._refs.pop(next(iter(self._refs)))
+        return got
 
     def _waypoint(
         self,
@@ -334,9 +358,7 @@ class LiveScene:
         name; the others stay at the rest pose. ``frame`` (a position in the motion):
         that frame's pose, as the run drives it (a line CSV's scene: frames only).
         """
-        from threadpoolctl import threadpool_limits
-
-        with self._lock, threadpool_limits(1, user_api="blas"):
+        with self._lock, self._pools.limit(limits=1, user_api="blas"):
             return self._solve(values, frame)
 
     def _solve(self, values: dict[str, float] | None, frame: int | None) -> PoseResult:
@@ -352,7 +374,7 @@ class LiveScene:
             L = {n: drive.lines[n][frame] for n in self.specs}
             R = {n: drive.references[n][frame] for n in self.specs}
             out_T = {b: T[frame] for b, T in drive.to_output.items()}
-            paths = self._paths(None)
+            paths, key = self._paths(None)
             shown = {}
         else:
             if frame is not None:
@@ -366,10 +388,11 @@ class LiveScene:
                 )
             pose = p.pose(values)
             shown = {c: float(values.get(c, _back(p, c, pose[c]))) for c in p.coordinates}
-            paths = self._paths(pose)
+            paths, key = self._paths(pose)
             L, R, out_T = p.at(pose)
         t_path = time.perf_counter()
         ms = self._prepare()
+        sides = self._sides(key)
         for j in self.jobs:
             m, path = ms[j.name], paths[j.name]
             m.span = self._span(
@@ -381,7 +404,7 @@ class LiveScene:
                 0.0 if frame is None else float(drive.times[frame]),
                 0 if frame is None else int(drive.frames[frame]),
             )
-            m.path, m.refs = path, {}
+            m.path, m.refs = path, sides[j.name]
         if self.grouped:
             if self._facing is None:
                 from ..solver import facing_at_rest
