@@ -19,6 +19,10 @@ picture drawn, two animation frames after the geometry arrived):
     python benchmarks/bench_view.py examples/gait2392_walk.toml --coordinate hip_flexion_r
     python benchmarks/bench_view.py examples/lhdl_walk.toml --phases
 
+- a redraw alone: the page's scene drawn again with nothing changed (vtk.js's render,
+  finished by reading back one pixel), 20 times, the median; again with the bones hidden.
+  What the browser's drawing costs whatever the solve: the floor of an update here.
+
 ``--phases`` times, without a browser, where the first picture's time and a pose's go: the
 check, reading the scene (`LiveScene` without its check), the first pose, then per pose (medians
 over every 10th frame, warm) the waypoints, the solve and the measures, and each muscle's solve
@@ -76,6 +80,54 @@ async ([label, lo, hi, seconds]) => {
 """
 
 
+# vtk.js's view behind trame's VtkView (its component provides it to its representations)
+_REDRAW = """
+async (n) => {
+  const v = window.trame.refs.view._.provides.view;
+  const gl = v.openglRenderWindow.getContext(), px = new Uint8Array(4);
+  const actors = v.renderer.getActors();
+  const triangles = actors.map((a) => {
+    const d = a.getMapper() && a.getMapper().getInputData();
+    return d && d.getPolys ? d.getPolys().getNumberOfCells() : 0;
+  });
+  function times() {
+    const ts = [];
+    for (let i = 0; i < n; i++) {
+      const t = performance.now();
+      v.renderWindow.render();
+      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);  // waits for the drawing
+      ts.push(performance.now() - t);
+    }
+    return ts;
+  }
+  const all = times();
+  const bones = new Set(window.trame.state.get("part_names").bone.map((_, i) => i));
+  // the bones are the first representations of the view (after its own, triangle-less ones)
+  const withTriangles = actors.filter((a, i) => triangles[i] > 0);
+  const boneActors = withTriangles.slice(0, bones.size);
+  boneActors.forEach((a) => a.setVisibility(false));
+  const nobones = times();
+  boneActors.forEach((a) => a.setVisibility(true));
+  v.renderWindow.render();
+  return { all, nobones, triangles: triangles.reduce((a, b) => a + b, 0),
+           bone_triangles: boneActors.reduce((s, a) => s + a.getMapper().getInputData().getPolys().getNumberOfCells(), 0),
+           size: v.openglRenderWindow.getSize() };
+}
+"""
+
+
+def redraw(page: object, n: int = 20) -> dict:
+    """The scene drawn again, nothing changed: medians with and without the bones (ms)."""
+    got = page.evaluate(_REDRAW, n)  # type: ignore[attr-defined]
+    return {
+        "all_ms": statistics.median(got["all"]),
+        "nobones_ms": statistics.median(got["nobones"]),
+        "triangles": got["triangles"],
+        "bone_triangles": got["bone_triangles"],
+        "size": got["size"],
+    }
+
+
 def drag(page: object, coordinate: str, sweep: tuple[float, float, float], seconds: float) -> dict:
     """Input events at 60 a second through the sweep and back; the pictures drawn meanwhile."""
     lo, hi, _ = sweep
@@ -118,6 +170,8 @@ def measure(
                     time.sleep(0.05)
             page.wait_for_function("window.mw && window.mw.last", timeout=120_000, polling=10)
             out["first_picture_s"] = time.monotonic() - t0
+            page.wait_for_timeout(1500)  # the camera set
+            out["redraw"] = redraw(page)
             slider = page.get_by_label(coordinate)
             lo, hi, step = sweep
             values = [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
@@ -224,6 +278,12 @@ def main() -> None:
             print(
                 f"{'':<12}{'':>12}  drag  {d['updates_per_s']:>9.1f}{d['update_ms']:>11.0f}"
                 f"{d['solve_ms']:>7.0f}   ({d['pictures']} pictures in {d['seconds']:.1f} s)"
+            )
+            w = r["redraw"]
+            print(
+                f"{'':<12}redraw alone, nothing changed: {w['all_ms']:.0f} ms ({w['triangles']} "
+                f"triangles, {w['size'][0]}x{w['size'][1]} pixels); without the bones "
+                f"({w['bone_triangles']} triangles) {w['nobones_ms']:.0f} ms"
             )
 
 
