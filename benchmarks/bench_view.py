@@ -20,7 +20,8 @@ picture drawn, two animation frames after the geometry arrived):
     python benchmarks/bench_view.py examples/lhdl_walk.toml --phases
 
 - a redraw alone: the page's scene drawn again with nothing changed (vtk.js's render,
-  finished by reading back one pixel), 20 times, the median; again with the bones hidden.
+  finished by reading back one pixel), 20 times, the median; again with the bones hidden;
+  both again in a smaller view (700 x 450 pixels of page).
   What the browser's drawing costs whatever the solve: the floor of an update here.
 
 ``--phases`` times, without a browser, where the first picture's time and a pose's go: the
@@ -172,6 +173,12 @@ def measure(
             out["first_picture_s"] = time.monotonic() - t0
             page.wait_for_timeout(1500)  # the camera set
             out["redraw"] = redraw(page)
+            # the same in a smaller view: does the drawing go with the pixels or the triangles?
+            page.set_viewport_size({"width": 700, "height": 450})
+            page.wait_for_timeout(1000)
+            out["redraw_small"] = redraw(page)
+            page.set_viewport_size({"width": 1200, "height": 800})
+            page.wait_for_timeout(1000)
             slider = page.get_by_label(coordinate)
             lo, hi, step = sweep
             values = [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
@@ -284,6 +291,11 @@ def main() -> None:
                 f"{'':<12}redraw alone, nothing changed: {w['all_ms']:.0f} ms ({w['triangles']} "
                 f"triangles, {w['size'][0]}x{w['size'][1]} pixels); without the bones "
                 f"({w['bone_triangles']} triangles) {w['nobones_ms']:.0f} ms"
+            )
+            w = r["redraw_small"]
+            print(
+                f"{'':<12}the same in a {w['size'][0]}x{w['size'][1]} view: {w['all_ms']:.0f} ms; "
+                f"without the bones {w['nobones_ms']:.0f} ms"
             )
 
 

@@ -296,6 +296,15 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
                 timeout=10_000,
             )
             assert shown != 30.0
+            # the page loaded again: the pose there, its status, the run's camera
+            page.reload()
+            page.wait_for_function(
+                "document.getElementById('mw-update') && "
+                "document.getElementById('mw-update').dataset.serial",
+                timeout=60_000,
+            )
+            page.wait_for_timeout(1500)
+            assert _drawn_where(page, view, "bone0_p", muscles) > 0.9
             assert page.script_errors == []
             browser.close()
     finally:

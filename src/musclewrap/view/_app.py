@@ -141,6 +141,10 @@ _JS = r"""
     if (!window.trame || !window.trame.state) { setTimeout(hook, 50); return; }
     window.trame.state.watch(["shown"], shown);
     window.trame.state.watch(["thumbs"], thumbs);
+    // a pose there before this page came (a page loaded again, or after its first pose)
+    thumbs(window.trame.state.get("thumbs"));
+    shown(window.trame.state.get("shown"));
+    window.trame.trigger("mw_hello");
   }
   hook();
 })();
@@ -309,6 +313,7 @@ class Viewer:
         self.server.trigger("mw_write")(self._on_write)
         self.server.trigger("mw_play")(self._on_play)
         self.server.trigger("mw_camera")(self._set_camera)
+        self.server.trigger("mw_hello")(self._on_hello)
         self.server.controller.on_server_ready.add(self._on_ready)
         self.state.change("colour")(self._on_colour)
         self._thread = threading.Thread(target=self._work, name="musclewrap-solver", daemon=True)
@@ -470,6 +475,13 @@ class Viewer:
         if not self._thread.is_alive():
             self._thread.start()
         self.request(_Request("frame", frame=0))
+
+    def _on_hello(self) -> None:
+        # a page (a new one, or one loaded again) has its script running: the camera,
+        # once the first pose is there (a page that came later than its geometry)
+        if self._serial and self._loop is not None:
+            self._loop.call_later(0.3, self._set_camera)
+            self._loop.call_later(1.0, self._set_camera)
 
     def _on_input(self, name: str, value: float, ident: int = 0) -> None:
         if name == "__frame__":
@@ -675,19 +687,18 @@ class Viewer:
 
     def _send(self, update: dict[str, Any]) -> None:
         loop = self._loop
-        if loop is None:
-            return
+        if loop is not None:
+            loop.call_soon_threadsafe(self._push, update)
 
-        def push() -> None:
-            with self.state:
-                self.state.update(update)
-            if update.get("shown", {}).get("serial") == 1:
-                # once the first geometry has reached the page
-                loop.call_later(0.3, self._set_camera)
-                loop.call_later(1.0, self._set_camera)
-            self._drawn.set()
-
-        loop.call_soon_threadsafe(push)
+    def _push(self, update: dict[str, Any]) -> None:
+        """The state updated (on the server's loop)."""
+        with self.state:
+            self.state.update(update)
+        if update.get("shown", {}).get("serial") == 1 and self._loop is not None:
+            # once the first geometry has reached the page
+            self._loop.call_later(0.3, self._set_camera)
+            self._loop.call_later(1.0, self._set_camera)
+        self._drawn.set()
 
     # ------------------------------------------------------------------ running
     def show(self, port: int | None = None, *, height: int = 640) -> Frame:
