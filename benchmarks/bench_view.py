@@ -24,6 +24,8 @@ picture drawn, two animation frames after the geometry arrived):
   both again in a smaller view (700 x 450 pixels of page).
   What the browser's drawing costs whatever the solve: the floor of an update here.
 
+``--screenshot PNG [--set COORDINATE=VALUE ...]`` writes the page's picture instead (docs/view.png).
+
 ``--phases`` times, without a browser, where the first picture's time and a pose's go: the
 check, reading the scene (`LiveScene` without its check), the first pose, then per pose (medians
 over every 10th frame, warm) the waypoints, the solve and the measures, and each muscle's solve
@@ -33,13 +35,16 @@ alone against its bones.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -102,16 +107,15 @@ async (n) => {
     return ts;
   }
   const all = times();
-  const bones = new Set(window.trame.state.get("part_names").bone.map((_, i) => i));
-  // the bones are the first representations of the view (after its own, triangle-less ones)
-  const withTriangles = actors.filter((a, i) => triangles[i] > 0);
-  const boneActors = withTriangles.slice(0, bones.size);
-  boneActors.forEach((a) => a.setVisibility(false));
+  // the bones are the view's first representations with triangles
+  const nb = window.trame.state.get("part_names").bone.length;
+  const bones = actors.map((_, i) => i).filter((i) => triangles[i] > 0).slice(0, nb);
+  bones.forEach((i) => actors[i].setVisibility(false));
   const nobones = times();
-  boneActors.forEach((a) => a.setVisibility(true));
+  bones.forEach((i) => actors[i].setVisibility(true));
   v.renderWindow.render();
-  return { all, nobones, triangles: triangles.reduce((a, b) => a + b, 0),
-           bone_triangles: boneActors.reduce((s, a) => s + a.getMapper().getInputData().getPolys().getNumberOfCells(), 0),
+  const sum = (ix) => ix.reduce((s, i) => s + triangles[i], 0);
+  return { all, nobones, triangles: sum(actors.map((_, i) => i)), bone_triangles: sum(bones),
            size: v.openglRenderWindow.getSize() };
 }
 """
@@ -142,9 +146,12 @@ def drag(page: object, coordinate: str, sweep: tuple[float, float, float], secon
     }
 
 
-def measure(
-    scene: Path, coordinate: str, sweep: tuple[float, float, float], drag_seconds: float = 6.0
-) -> dict[str, object]:
+@contextlib.contextmanager
+def open_page(scene: Path, size: tuple[int, int] = (1200, 800)) -> Iterator[tuple[Any, float]]:
+    """``musclewrap view SCENE`` on a free port, its page in Chromium at its first picture.
+
+    Yields the page and the seconds from the command's start to that picture.
+    """
     from playwright.sync_api import sync_playwright
 
     from musclewrap.view._app import free_port
@@ -155,58 +162,76 @@ def measure(
         [sys.executable, "-m", "musclewrap.cli", "view", str(scene), "--port", str(port), "--no-browser"],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
     )  # fmt: skip
-    out: dict[str, object] = {}
     try:
         with sync_playwright() as pw:
             exe = shutil.which("chromium") or shutil.which("chromium-browser")
             browser = pw.chromium.launch(executable_path=exe, headless=True)
-            page = browser.new_page(viewport={"width": 1200, "height": 800})
+            page = browser.new_page(viewport={"width": size[0], "height": size[1]})
             while True:
                 try:
                     page.goto(f"http://127.0.0.1:{port}/", timeout=5000)
                     break
-                except Exception:  # noqa: BLE001
+                except Exception:  # noqa: BLE001  # not serving yet
                     if proc.poll() is not None:
                         raise SystemExit(f"the viewer exited ({proc.returncode})") from None
                     time.sleep(0.05)
             page.wait_for_function("window.mw && window.mw.last", timeout=120_000, polling=10)
-            out["first_picture_s"] = time.monotonic() - t0
-            page.wait_for_timeout(1500)  # the camera set
-            out["redraw"] = redraw(page)
-            # the same in a smaller view: does the drawing go with the pixels or the triangles?
-            page.set_viewport_size({"width": 700, "height": 450})
-            page.wait_for_timeout(1000)
-            out["redraw_small"] = redraw(page)
-            page.set_viewport_size({"width": 1200, "height": 800})
-            page.wait_for_timeout(1000)
-            slider = page.get_by_label(coordinate)
-            lo, hi, step = sweep
-            values = [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
-            for run in ("first", "warm"):
-                rows = []
-                t = time.perf_counter()
-                for v in values:
-                    before = page.evaluate("window.mw.last.serial")
-                    slider.fill(f"{v:g}")
-                    page.wait_for_function(
-                        f"window.mw.last.serial != {before}", timeout=60_000, polling="raf"
-                    )
-                    rows.append(page.evaluate("window.mw.last"))
-                dt = time.perf_counter() - t
-                out[run] = {
-                    "updates_per_s": len(values) / dt,
-                    "update_ms": statistics.median(r["total"] for r in rows),
-                    "solve_ms": statistics.median(r["solve"] for r in rows),
-                    "transfer_ms": statistics.median(r["transfer"] for r in rows),
-                    "render_ms": statistics.median(r["render"] for r in rows),
-                    "max_ms": max(r["total"] for r in rows),
-                }
-            out["drag"] = drag(page, coordinate, sweep, drag_seconds)
+            yield page, time.monotonic() - t0
             browser.close()
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def set_slider(page: Any, coordinate: str, value: float) -> dict[str, Any]:
+    """A slider moved (found by its label); the page's measure of that update."""
+    before = page.evaluate("window.mw.last.serial")
+    page.get_by_label(coordinate).fill(f"{value:g}")
+    page.wait_for_function(f"window.mw.last.serial != {before}", timeout=60_000, polling="raf")
+    return page.evaluate("window.mw.last")  # type: ignore[no-any-return]
+
+
+def measure(
+    scene: Path, coordinate: str, sweep: tuple[float, float, float], drag_seconds: float = 6.0
+) -> dict[str, object]:
+    out: dict[str, object] = {}
+    with open_page(scene) as (page, first):
+        out["first_picture_s"] = first
+        page.wait_for_timeout(1500)  # the camera set
+        out["redraw"] = redraw(page)
+        # the same in a smaller view: does the drawing go with the pixels or the triangles?
+        page.set_viewport_size({"width": 700, "height": 450})
+        page.wait_for_timeout(1000)
+        out["redraw_small"] = redraw(page)
+        page.set_viewport_size({"width": 1200, "height": 800})
+        page.wait_for_timeout(1000)
+        lo, hi, step = sweep
+        values = [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
+        for run in ("first", "warm"):
+            t = time.perf_counter()
+            rows = [set_slider(page, coordinate, v) for v in values]
+            dt = time.perf_counter() - t
+            out[run] = {
+                "updates_per_s": len(values) / dt,
+                "update_ms": statistics.median(r["total"] for r in rows),
+                "solve_ms": statistics.median(r["solve"] for r in rows),
+                "transfer_ms": statistics.median(r["transfer"] for r in rows),
+                "render_ms": statistics.median(r["render"] for r in rows),
+                "max_ms": max(r["total"] for r in rows),
+            }
+        out["drag"] = drag(page, coordinate, sweep, drag_seconds)
     return out
+
+
+def screenshot(scene: Path, png: Path, values: list[str], size: tuple[int, int]) -> None:
+    """The page at the poses ``values`` (``COORDINATE=VALUE``, in turn), written to ``png``."""
+    with open_page(scene, size) as (page, _):
+        for item in values:
+            name, _, value = item.partition("=")
+            set_slider(page, name, float(value))
+        page.wait_for_timeout(1500)  # the camera set, the picture drawn
+        page.screenshot(path=str(png))
+    print(f"wrote {png}")
 
 
 def phases(scene: Path) -> None:
@@ -257,9 +282,17 @@ def main() -> None:
     ap.add_argument("--variants", nargs="+", default=["all"], choices=("all", "bones"))
     ap.add_argument("--drag-seconds", type=float, default=6.0, help="the drag's length")
     ap.add_argument("--phases", action="store_true", help="where the time goes (no browser)")
+    ap.add_argument("--screenshot", type=Path, metavar="PNG", help="the page's picture instead")
+    ap.add_argument("--set", action="append", default=[], metavar="COORDINATE=VALUE",
+                    help="with --screenshot: the sliders moved first")  # fmt: skip
+    ap.add_argument("--size", type=int, nargs=2, default=(1100, 640), metavar=("W", "H"),
+                    help="with --screenshot: the page's size")  # fmt: skip
     a = ap.parse_args()
     if a.phases:
         phases(a.scene)
+        return
+    if a.screenshot:
+        screenshot(a.scene, a.screenshot, a.set, tuple(a.size))
         return
     # the muscles prepared and cached first (a run of one frame)
     subprocess.run(

@@ -479,9 +479,8 @@ class Viewer:
     def _on_hello(self) -> None:
         # a page (a new one, or one loaded again) has its script running: the camera,
         # once the first pose is there (a page that came later than its geometry)
-        if self._serial and self._loop is not None:
-            self._loop.call_later(0.3, self._set_camera)
-            self._loop.call_later(1.0, self._set_camera)
+        if self._serial:
+            self._camera_soon()
 
     def _on_input(self, name: str, value: float, ident: int = 0) -> None:
         if name == "__frame__":
@@ -541,6 +540,12 @@ class Viewer:
                 self._show(r)
             except Exception as exc:  # noqa: BLE001  # shown on the page, the server goes on
                 self._send({"warning": f"this pose failed: {exc}"})
+
+    def _camera_soon(self) -> None:
+        """The camera set 0.3 and 1 s from now (on the loop): once the page's view is up."""
+        if self._loop is not None:
+            self._loop.call_later(0.3, self._set_camera)
+            self._loop.call_later(1.0, self._set_camera)
 
     def _set_camera(self) -> None:
         """The view to the run's pictures' camera (the side of the limb, the muscles framed)."""
@@ -694,10 +699,8 @@ class Viewer:
         """The state updated (on the server's loop)."""
         with self.state:
             self.state.update(update)
-        if update.get("shown", {}).get("serial") == 1 and self._loop is not None:
-            # once the first geometry has reached the page
-            self._loop.call_later(0.3, self._set_camera)
-            self._loop.call_later(1.0, self._set_camera)
+        if update.get("shown", {}).get("serial") == 1:
+            self._camera_soon()  # the first geometry is on its way to the pages there
         self._drawn.set()
 
     # ------------------------------------------------------------------ running

@@ -109,25 +109,26 @@ class Series:
         return len(self.times)
 
     def view(self, size: tuple[int, int] = (800, 600), steps: int = 9) -> Any:
-        """A camera on the muscles (`musclewrap.output.frame_view` of their box).
+        """A camera on the muscles: as `musclewrap.output.render_series` frames a series.
 
-        The box over ``steps`` time steps spread through the series (its first and
-        last among them): the side view a run's pictures take, not turned (the
-        run's ``[output] view`` is not in its folder).
+        The box round the muscles of ``steps`` time steps spread through the series
+        (its first and last among them; the GIF's camera takes every step drawn), seen
+        from the side, not turned (a run's ``[output] view`` is not in its folder).
         """
-        from ..output._render import frame_view
+        from ..output._render import _muscles_box, frame_view, label_files
 
-        names = [n for n, kind in self.parts.items() if kind == "muscle"] or list(self.parts)
-        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-        for k in np.unique(np.linspace(0, len(self) - 1, steps).round().astype(int)):
-            for n in names:
-                d = self.part(int(k), n)
-                if d is not None and len(d["points"]):
-                    lo = np.minimum(lo, d["points"].min(axis=0))
-                    hi = np.maximum(hi, d["points"].max(axis=0))
-        if not np.isfinite(lo).all():
-            lo, hi = np.zeros(3), np.ones(3)
-        return frame_view(lo, hi, (0.0, 0.0), size)
+        bones = tuple(n for n, kind in self.parts.items() if kind == "bone")
+        picked = np.unique(np.linspace(0, len(self) - 1, steps).round().astype(int))
+        shown = [
+            (
+                float(self.times[k]),
+                label_files(
+                    [str(f.relative_to(self.folder)) for f in self.files[k].values()], bones, {}
+                ),
+            )
+            for k in picked
+        ]
+        return frame_view(*_muscles_box(self.folder, shown), (0.0, 0.0), size)
 
     def part(self, k: int, name: str) -> dict[str, np.ndarray] | None:
         """Part ``name`` at step ``k`` (None where it has no file there); the last few kept."""
