@@ -435,3 +435,70 @@ def test_gait2392_thigh_muscles_stay_apart_whatever_their_order(data_dir, tmp_pa
         for f in sorted((tmp_path / "a" / m.name).glob("*.vtp")):
             assert f.read_bytes() == (tmp_path / "b" / m.name / f.name).read_bytes(), f
     assert (tmp_path / "a" / "penetration.png").is_file()
+
+
+# ------------------------------------------------------------------ the contact colours' distances
+def _icosphere(radius: float, centre) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+    return np.asarray(s.vertices) + np.asarray(centre, dtype=float), np.asarray(s.faces)
+
+
+def test_muscle_gaps_are_the_exact_signed_distance_within_the_reach():
+    # two spheres of radius 10, centres 16 apart (each 4 into the other), and a third whose
+    # surface is 3 from the first's; a reference by libigl over every face, signed by the
+    # winding number, capped at the reach
+    import igl
+
+    from musclewrap.contact import muscle_gaps
+    from musclewrap.mesh import winding_numbers
+
+    meshes = {
+        "a": _icosphere(10.0, [0.0, 0.0, 0.0]),
+        "b": _icosphere(10.0, [16.0, 0.0, 0.0]),
+        "c": _icosphere(4.0, [0.0, 17.0, 0.0]),
+    }
+    reach = 5.0
+    pairs = [("a", "b"), ("a", "c"), ("b", "c")]
+    got = muscle_gaps(meshes, pairs, reach)
+    for me, (P, _) in meshes.items():
+        want = np.full(len(P), reach)
+        for other, (V, F) in meshes.items():
+            if other == me:
+                continue
+            d = np.sqrt(igl.point_mesh_squared_distance(P, V, F.astype(np.int64))[0])
+            s = np.where(winding_numbers(P, V, F) != 0, -d, d)
+            want = np.minimum(want, np.clip(s, -reach, reach))
+        np.testing.assert_allclose(got[me], want, rtol=0, atol=1e-9)
+    # the lens: a's pole 4 inside b; c's nearest vertex 3 from a (the polygons lie within
+    # 0.05 of their spheres)
+    assert -4.05 <= got["a"].min() <= -3.95
+    assert 2.95 <= got["c"].min() <= 3.05
+    # only the pairs named: c beside a counts only through (a, c)
+    alone = muscle_gaps(meshes, [("a", "b")], reach)
+    assert (alone["c"] == reach).all()
+    # deeper than the reach: capped at -reach
+    deep = muscle_gaps({"big": _icosphere(10.0, [0, 0, 0]), "small": _icosphere(2.0, [0, 0, 0])},
+                       [("big", "small")], reach)  # fmt: skip
+    assert (deep["small"] == -reach).all()
+
+
+def test_faces_within_reach_match_the_distance_over_every_face():
+    # random points about a capsule, a few reaches from it: exact where within the reach,
+    # inf beyond (the grid's cells are the reach wide: points on cell walls, outside the box)
+    import igl
+
+    from musclewrap.contact import FacesWithin
+
+    V, F = capsule(radius=6.0, length=30.0, n_around=24, cap_rings=6, segments=12)
+    rng = np.random.default_rng(7)
+    lo, hi = V.min(0) - 12.0, V.max(0) + 12.0
+    P = rng.uniform(lo, hi, size=(4000, 3))
+    P[:50] = np.round(P[:50] / 2.0) * 2.0  # on the cells' walls (cells 2 wide)
+    d = np.sqrt(igl.point_mesh_squared_distance(P, V, F.astype(np.int64))[0])
+    for reach in (2.0, 5.0, 40.0):
+        got = FacesWithin(V, F, reach)(P)
+        near = d < reach
+        np.testing.assert_allclose(got[near], d[near], rtol=0, atol=1e-9)
+        assert np.isinf(got[~near]).all()

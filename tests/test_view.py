@@ -80,6 +80,7 @@ def test_a_pose_solved_live_equals_the_run_of_that_pose(data_dir, tmp_path):
     _same_files(tmp_path / "live", run, names + ["femur/femur.vtp"])
     pose = json.loads((tmp_path / "live" / "pose.json").read_text())
     assert pose["values"] == values
+    _contact_colours_measure_bones_and_muscles(r1)
     # other poses, then this one again: the same
     live.solve(frame=40)
     r2 = live.solve(values)
@@ -91,6 +92,33 @@ def test_a_pose_solved_live_equals_the_run_of_that_pose(data_dir, tmp_path):
     run150 = tmp_path / "run150"
     run_scene(load_scene(scene), run150, frames="150:151", workers=1, render=False, progress=None)
     _same_files(tmp_path / "live150", run150, [f"{m}/{m}_0150.vtp" for m in live.specs])
+
+
+def _contact_colours_measure_bones_and_muscles(r) -> None:
+    """The contact colours' distances: the bones' where no muscle is nearer, else the exact
+    signed distance to the nearest muscle kept apart (libigl over every face)."""
+    import igl
+
+    from musclewrap.mesh import winding_numbers
+
+    reach = 5.0
+    got = r.contact()
+    assert r.pairs and got is r.contact()  # computed once
+    by_muscles = 0
+    for me, P in r.muscles.items():
+        want = np.full(len(P), reach)
+        for other, V in r.muscles.items():
+            if other == me:
+                continue
+            F = r.faces[other].astype(np.int64)
+            d = np.sqrt(igl.point_mesh_squared_distance(P, V, F)[0])
+            want = np.minimum(want, np.clip(np.where(winding_numbers(P, V, F) != 0, -d, d),
+                                            -reach, reach))  # fmt: skip
+        want = np.clip(np.minimum(want, r.gap[me]), -reach, reach)
+        np.testing.assert_allclose(got[me], want, rtol=0, atol=1e-9)
+        by_muscles += int((got[me] < np.minimum(r.gap[me], reach) - 0.5).sum())
+    # the muscles press on each other here: hundreds of vertices coloured by them alone
+    assert by_muscles > 100
 
 
 def test_the_sides_kept_or_dropped_give_the_same_pose(data_dir, tmp_path):
@@ -306,6 +334,8 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
             page.wait_for_function(
                 f"window.trame.state.get('muscle0_c').bvals != '{colours}'", timeout=30_000
             )
+            # to the bones and the muscles this scene keeps apart, as the legend says
+            assert "touching a bone or another muscle" in page.inner_text(".mw-side")
             # a quick drag (an input every 30 ms, poses solved behind it): the thumb stays
             # where the hand put it, not pulled back by the older poses drawn meanwhile
             held = page.evaluate(_HELD, ["hip_flexion_r", 45, 30, 30])

@@ -8,9 +8,9 @@ vertices out, volume-exact (`push_out`); and the rest pose's overlap, settled on
 (`rest_push_out`, `anchors_at_rest`). Muscles against each other: where each faces
 the other at rest (`facing_faces`, `facing_pairs`), the vertices of each inside another
 with their way out (`overlaps`), each side's share (`meetings`, `push_apart`), the
-deepest (`overlap_depths`), and segmented muscles that overlap at rest taken apart once
-(`apart_at_rest`). The solver solves the conditions it
-is given.
+deepest (`overlap_depths`), how far each vertex is from the muscles beside it
+(`muscle_gaps`, for pictures), and segmented muscles that overlap at rest taken apart
+once (`apart_at_rest`). The solver solves the conditions it is given.
 """
 
 from ._find import contact_candidates
@@ -23,6 +23,7 @@ from ._finish import (
     triangle_pushes,
     vertex_faces,
 )
+from ._gaps import FacesWithin, muscle_gaps
 from ._inside import Inside, bone_vertices_inside, line_inside_depth
 from ._muscles import (
     Meeting,
@@ -45,6 +46,7 @@ from ._sides import SideReference, on_their_side, passed_through
 
 __all__ = [
     "ContactReport",
+    "FacesWithin",
     "Inside",
     "Meeting",
     "Near",
@@ -66,6 +68,7 @@ __all__ = [
     "line_inside_depth",
     "longest_pushes",
     "meetings",
+    "muscle_gaps",
     "on_their_side",
     "overlap_depths",
     "overlaps",

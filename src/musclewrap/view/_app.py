@@ -37,6 +37,7 @@ from ._playback import Series, segments, triangles
 __all__ = ["Viewer", "free_port", "open_source"]
 
 #: the two colourings: vtk.js preset, range, the menu's words, the legend's gradient and words
+#: ("{what}": what the muscles are kept out of, `_kept_out_of`)
 COLOURS = {
     "stretch": (
         "Cool to Warm",
@@ -48,9 +49,9 @@ COLOURS = {
     "contact": (
         "Inferno (matplotlib)",
         [0.0, float(CONTACT_REACH)],
-        f"contact (distance to a bone, 0-{CONTACT_REACH:g} mm)",
+        f"contact (distance to {{what}}, 0-{CONTACT_REACH:g} mm)",
         "#000004, #bc3754, #fcffa4",
-        f"black: touching a bone, yellow: {CONTACT_REACH:g} mm or more away",
+        f"black: touching {{what}}, yellow: {CONTACT_REACH:g} mm or more away",
     ),
 }
 
@@ -424,11 +425,13 @@ class Viewer:
                     with html.Div(classes="mw-row"):
                         html.Label("colour", for_="colour", __properties=[("for_", "for")])
                         offered = list(COLOURS) if self.live else ["stretch"]
+                        what = self._kept_out_of()
                         with html.Select(v_model=("colour",), id="colour"):
                             for key in offered:
-                                html.Option(COLOURS[key][2], value=key)
+                                html.Option(COLOURS[key][2].format(what=what), value=key)
                         for key in offered:
                             _, _, _, gradient, words = COLOURS[key]
+                            words = words.format(what=what)
                             cond = f"colour == '{key}'"
                             html.Div(
                                 classes="mw-legend",
@@ -446,6 +449,12 @@ class Viewer:
                     with html.Div(classes="mw-status", id="status"):
                         html.Div("update -", id="mw-update")
                         html.Div("{{ status }}", id="mw-figures")
+
+    def _kept_out_of(self) -> str:
+        """What the contact colouring measures to: the bones, and the muscles kept apart."""
+        if self.live and self.source.grouped:  # type: ignore[union-attr]
+            return "a bone or another muscle"
+        return "a bone"
 
     def _representations(self, vtkw: Any) -> None:
         for i, _ in enumerate(self._names["bone"]):
@@ -588,6 +597,10 @@ class Viewer:
             "solve": 1e3 * t_solve,
         }
         self._send(update)
+        if self.live and self._serial == 1:
+            # the contact colours' distances once, after the first picture: their kernels
+            # compiled (or read from Numba's cache) before the colour menu asks for them
+            self._last.contact()
 
     def _live_state(self, res: PoseResult, r: _Request) -> dict[str, Any]:
         up: dict[str, Any] = {}
@@ -638,7 +651,7 @@ class Viewer:
         up = {}
         for i, n in enumerate(self._names["muscle"]):
             if self.state.colour == "contact":
-                c = np.clip(res.gap[n], 0.0, CONTACT_REACH)
+                c = np.clip(res.contact()[n], 0.0, CONTACT_REACH)
             else:
                 c = np.nan_to_num(res.stretch[n], nan=1.0)
             up[f"muscle{i}_c"] = _enc(c, np.float32)
