@@ -18,11 +18,15 @@ picture drawn, two animation frames after the geometry arrived):
     python benchmarks/bench_view.py examples/lhdl_walk.toml --variants all bones
     python benchmarks/bench_view.py examples/gait2392_walk.toml --coordinate hip_flexion_r
     python benchmarks/bench_view.py examples/lhdl_walk.toml --phases
+    python benchmarks/bench_view.py examples/lhdl_walk.toml --colour contact
 
 - a redraw alone: the page's scene drawn again with nothing changed (vtk.js's render,
   finished by reading back one pixel), 20 times, the median; again with the bones hidden;
   both again in a smaller view (700 x 450 pixels of page).
   What the browser's drawing costs whatever the solve: the floor of an update here.
+
+``--colour contact``: the muscles coloured by contact through all of it (each pose's
+distances to the bones and to the muscles kept apart computed on the server).
 
 ``--screenshot PNG [--set COORDINATE=VALUE ...]`` writes the page's picture instead (docs/view.png).
 
@@ -192,12 +196,19 @@ def set_slider(page: Any, coordinate: str, value: float) -> dict[str, Any]:
 
 
 def measure(
-    scene: Path, coordinate: str, sweep: tuple[float, float, float], drag_seconds: float = 6.0
+    scene: Path,
+    coordinate: str,
+    sweep: tuple[float, float, float],
+    drag_seconds: float = 6.0,
+    colour: str = "stretch",
 ) -> dict[str, object]:
     out: dict[str, object] = {}
     with open_page(scene) as (page, first):
         out["first_picture_s"] = first
         page.wait_for_timeout(1500)  # the camera set
+        if colour != "stretch":
+            page.select_option("#colour", colour)
+            page.wait_for_timeout(1000)
         out["redraw"] = redraw(page)
         # the same in a smaller view: does the drawing go with the pixels or the triangles?
         page.set_viewport_size({"width": 700, "height": 450})
@@ -223,9 +234,13 @@ def measure(
     return out
 
 
-def screenshot(scene: Path, png: Path, values: list[str], size: tuple[int, int]) -> None:
+def screenshot(
+    scene: Path, png: Path, values: list[str], size: tuple[int, int], colour: str = "stretch"
+) -> None:
     """The page at the poses ``values`` (``COORDINATE=VALUE``, in turn), written to ``png``."""
     with open_page(scene, size) as (page, _):
+        if colour != "stretch":
+            page.select_option("#colour", colour)
         for item in values:
             name, _, value = item.partition("=")
             set_slider(page, name, float(value))
@@ -281,6 +296,8 @@ def main() -> None:
     )
     ap.add_argument("--variants", nargs="+", default=["all"], choices=("all", "bones"))
     ap.add_argument("--drag-seconds", type=float, default=6.0, help="the drag's length")
+    ap.add_argument("--colour", default="stretch", choices=("stretch", "contact"),
+                    help="the muscles' colouring through the measures")  # fmt: skip
     ap.add_argument("--phases", action="store_true", help="where the time goes (no browser)")
     ap.add_argument("--screenshot", type=Path, metavar="PNG", help="the page's picture instead")
     ap.add_argument("--set", action="append", default=[], metavar="COORDINATE=VALUE",
@@ -292,7 +309,7 @@ def main() -> None:
         phases(a.scene)
         return
     if a.screenshot:
-        screenshot(a.scene, a.screenshot, a.set, tuple(a.size))
+        screenshot(a.scene, a.screenshot, a.set, tuple(a.size), a.colour)
         return
     # the muscles prepared and cached first (a run of one frame)
     subprocess.run(
@@ -305,7 +322,7 @@ def main() -> None:
         for v in a.variants:
             r = measure(
                 scene_variant(a.scene.resolve(), v, Path(tmp)), a.coordinate, tuple(a.sweep),
-                a.drag_seconds,
+                a.drag_seconds, a.colour,
             )  # fmt: skip
             for run in ("first", "warm"):
                 x = r[run]

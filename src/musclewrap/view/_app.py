@@ -46,11 +46,14 @@ COLOURS = {
         "#3b4cc0, #dddddd, #b40426",
         f"blue {STRETCH_RANGE[0]:.2f} (compressed), grey 1, red {STRETCH_RANGE[1]:.2f} (stretched)",
     ),
+    # black, red, yellow: the preset's first four fifths (its last, white, is the background).
+    # A preset of few colours: with matplotlib's Inferno (256) the page took about 80 ms
+    # more to draw each update (benchmarks/bench_view.py --colour contact, BENCHMARKS.md)
     "contact": (
-        "Inferno (matplotlib)",
-        [0.0, float(CONTACT_REACH)],
+        "Black-Body Radiation",
+        [0.0, float(CONTACT_REACH) / 0.8],
         f"contact (distance to {{what}}, 0-{CONTACT_REACH:g} mm)",
-        "#000004, #bc3754, #fcffa4",
+        "#000000, #e60000 50%, #e6e600",
         f"black: touching {{what}}, yellow: {CONTACT_REACH:g} mm or more away",
     ),
 }
