@@ -32,8 +32,8 @@ distances to the bones and to the muscles kept apart computed on the server).
 
 ``--phases`` times, without a browser, where the first picture's time and a pose's go: the
 check, reading the scene (`LiveScene` without its check), the first pose, then per pose (medians
-over every 10th frame, warm) the waypoints, the solve and the measures, and each muscle's solve
-alone against its bones.
+over every 10th frame, warm) the waypoints, the solve, the measures and the contact colours'
+distances, and each muscle's solve alone against its bones.
 """
 
 from __future__ import annotations
@@ -270,7 +270,12 @@ def phases(scene: Path) -> None:
     frames = range(0, live.n_frames, 10)
     for k in frames:  # the waypoints solved
         live.solve(frame=k)
-    got = [live.solve(frame=k).seconds for k in frames]
+    got = []
+    for k in frames:
+        res = live.solve(frame=k)
+        t = time.perf_counter()
+        res.contact()  # the contact colours' distances (bones and muscles kept apart)
+        got.append({**res.seconds, "contact colours": time.perf_counter() - t})
     print(
         f"a pose, warm, median of {len(got)}: "
         + ", ".join(f"{k} {1e3 * np.median([g[k] for g in got]):.1f} ms" for k in got[0])
