@@ -117,7 +117,8 @@ class PoseResult:
         The smaller of ``gap`` (the bones' grids) and the exact distance to the other
         muscles of ``pairs`` (`musclewrap.contact.muscle_gaps`), within
         `CONTACT_REACH` and capped at +-`CONTACT_REACH` (mesh units; negative inside).
-        Computed when first asked for (about 15-20 ms on the LHDL walk's 4 muscles), then kept.
+        Computed when first asked for, then kept (a pose of the LHDL walk: 16 ms; of the
+        gait2392 scene's 6 muscles: 41 ms; BENCHMARKS.md).
         """
         if self._contact is None:
             got = muscle_gaps(
