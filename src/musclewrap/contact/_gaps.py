@@ -3,7 +3,7 @@
 What a picture of contact shows (`muscle_gaps`): per vertex the signed distance to
 the nearest muscle it is kept apart from, negative inside it, exact up to ``reach``
 and capped there. Only vertices within ``reach`` of another muscle's surface matter,
-so each surface's faces are binned in a uniform grid of cells ``reach`` wide and a
+so each surface's faces are binned in a uniform grid (cells ``reach`` wide) and a
 vertex is measured against the faces of the cells within ``reach`` of it (cells
 farther than the nearest face found so far skipped), exactly (`_closest_on_triangle`);
 the side by the surface's exact winding number (`WindingGrid`).
@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..mesh import WindingGrid
+from ..mesh import WindingGrid, bin_boxes
 from ._inside import _closest_on_triangle
 
 __all__ = ["FacesWithin", "muscle_gaps"]
@@ -36,22 +36,47 @@ class FacesWithin:
         The surface.
     reach : float
         The distance beyond which a point is only reported as farther (mesh units).
+    cell : float, optional
+        The grid's cells' width (default ``reach``; wider where the grid would have more
+        than `_MAX_CELLS`). The distances do not depend on it, only their time: on the
+        LHDL walk and the gait2392 scene cells as wide as the reach were the quickest
+        of 1, 1/2 and 1/3 of it (``benchmarks/bench_view.py SCENE --phases``).
     """
 
-    def __init__(self, V: FloatArray, F: IntArray, reach: float) -> None:
+    def __init__(self, V: FloatArray, F: IntArray, reach: float, cell: float | None = None) -> None:
         if not reach > 0:
             raise ValueError(f"reach must be positive, not {reach}")
         self.V = np.ascontiguousarray(V, dtype=np.float64)
         self.F = np.ascontiguousarray(F, dtype=np.int64)
         self.reach = float(reach)
-        self.lo = self.V.min(0)
-        extent = self.V.max(0) - self.lo
-        h = self.reach
+        self.lo, self.hi = self.V.min(0), self.V.max(0)
+        extent = self.hi - self.lo
+        h = self.reach if cell is None else float(cell)
+        if not h > 0:
+            raise ValueError(f"cell must be positive, not {cell}")
         while np.prod(np.floor(extent / h) + 1) > _MAX_CELLS:
             h *= 2.0
         self.h = h
         self.dims = (np.floor(extent / h) + 1).astype(np.int64)
         self.start, self.cells = _bin_kernel(self.V, self.F, self.lo, h, self.dims)
+        self._sides: WindingGrid | None = None
+
+    def signed(self, P: FloatArray) -> FloatArray:
+        """Each point's signed distance (negative inside), capped at +-``reach``.
+
+        The side by the surface's exact winding number (`WindingGrid`, made when first
+        needed); points outside the surface's box widened by ``reach`` are not looked at.
+        """
+        P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
+        out = np.full(len(P), self.reach)
+        lo, hi = self.lo - self.reach, self.hi + self.reach
+        near = np.flatnonzero(((P >= lo) & (P <= hi)).all(axis=1))
+        if len(near):
+            if self._sides is None:
+                self._sides = WindingGrid(self.V, self.F)
+            d = np.minimum(self(P[near]), self.reach)
+            out[near] = np.where(self._sides(P[near]) != 0, -d, d)
+        return out
 
     def __call__(self, P: FloatArray) -> FloatArray:
         """Each point's distance to the surface; ``inf`` where it is farther than ``reach``."""
@@ -69,6 +94,7 @@ def muscle_gaps(
     surfaces: Mapping[str, tuple[FloatArray, IntArray]],
     pairs: Sequence[tuple[str, str]],
     reach: float,
+    cell: float | None = None,
 ) -> dict[str, FloatArray]:
     """Per muscle, each vertex's signed distance to the nearest muscle it is paired with.
 
@@ -76,27 +102,17 @@ def muscle_gaps(
     kept apart (each both ways). Negative inside the other muscle; exact within
     ``reach``, capped at ``+reach`` beyond it and at ``-reach`` deeper than it. A
     muscle with non-finite positions takes no part (its vertices get ``reach``).
+    ``cell``: as `FacesWithin`'s.
     """
     out = {n: np.full(len(V), float(reach)) for n, (V, _) in surfaces.items()}
     ok = {n for n, (V, _) in surfaces.items() if len(V) and np.isfinite(V).all()}
-    boxes = {n: (surfaces[n][0].min(0) - reach, surfaces[n][0].max(0) + reach) for n in ok}
     within: dict[str, FacesWithin] = {}
-    sides: dict[str, WindingGrid] = {}
     for a, b in sorted(pairs):
         for me, other in ((a, b), (b, a)):
-            if me not in ok or other not in ok:
-                continue
-            P = surfaces[me][0]
-            lo, hi = boxes[other]
-            cand = np.flatnonzero(((P >= lo) & (P <= hi)).all(axis=1))
-            if not len(cand):
-                continue
-            if other not in within:
-                within[other] = FacesWithin(*surfaces[other], reach)
-                sides[other] = WindingGrid(*surfaces[other])
-            d = np.minimum(within[other](P[cand]), reach)
-            s = np.where(sides[other](P[cand]) != 0, -d, d)
-            out[me][cand] = np.minimum(out[me][cand], s)
+            if me in ok and other in ok:
+                if other not in within:
+                    within[other] = FacesWithin(*surfaces[other], reach, cell)
+                out[me] = np.minimum(out[me], within[other].signed(surfaces[me][0]))
     return out
 
 
@@ -110,32 +126,15 @@ def _cell(x, lo, h, n):  # noqa: ANN001, ANN202 # pragma: no cover
 @numba.njit(cache=True)
 def _bin_kernel(V, F, lo, h, dims):  # noqa: ANN001, ANN202 # pragma: no cover
     # each face in every cell its box touches: CSR (start, cells) over the cells
-    n0, n1, n2 = dims[0], dims[1], dims[2]
     m = F.shape[0]
-    rng = np.empty((m, 6), dtype=np.int64)
-    start = np.zeros(n0 * n1 * n2 + 1, dtype=np.int64)
+    boxes = np.empty((m, 6), dtype=np.int64)
     for t in range(m):
         for k in range(3):
             a = min(V[F[t, 0], k], V[F[t, 1], k], V[F[t, 2], k])
             b = max(V[F[t, 0], k], V[F[t, 1], k], V[F[t, 2], k])
-            rng[t, 2 * k] = _cell(a, lo[k], h, dims[k])
-            rng[t, 2 * k + 1] = _cell(b, lo[k], h, dims[k])
-        for i in range(rng[t, 0], rng[t, 1] + 1):
-            for j in range(rng[t, 2], rng[t, 3] + 1):
-                for l in range(rng[t, 4], rng[t, 5] + 1):  # noqa: E741
-                    start[(i * n1 + j) * n2 + l + 1] += 1
-    for c in range(n0 * n1 * n2):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    cells = np.empty(start[-1], dtype=np.int64)
-    for t in range(m):
-        for i in range(rng[t, 0], rng[t, 1] + 1):
-            for j in range(rng[t, 2], rng[t, 3] + 1):
-                for l in range(rng[t, 4], rng[t, 5] + 1):  # noqa: E741
-                    c = (i * n1 + j) * n2 + l
-                    cells[fill[c]] = t
-                    fill[c] += 1
-    return start, cells
+            boxes[t, 2 * k] = _cell(a, lo[k], h, dims[k])
+            boxes[t, 2 * k + 1] = _cell(b, lo[k], h, dims[k])
+    return bin_boxes(boxes, dims[0], dims[1], dims[2])
 
 
 @numba.njit(cache=True)

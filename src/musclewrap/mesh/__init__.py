@@ -36,7 +36,7 @@ from ._volume import (
     volume_gradient,
     volume_hessian_reduced,
 )
-from ._winding import WindingGrid, winding_numbers
+from ._winding import WindingGrid, bin_boxes, winding_numbers
 
 __all__ = [
     "FORMATS",
@@ -45,6 +45,7 @@ __all__ = [
     "WindingGrid",
     "atomic_path",
     "barycentric",
+    "bin_boxes",
     "available_memory",
     "check_memory",
     "combine_pair",

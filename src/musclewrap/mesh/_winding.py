@@ -22,7 +22,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["WindingGrid", "winding_numbers"]
+__all__ = ["WindingGrid", "bin_boxes", "winding_numbers"]
 
 
 def winding_numbers(P: npt.ArrayLike, V: npt.ArrayLike, F: npt.ArrayLike) -> npt.NDArray[np.int64]:
@@ -117,32 +117,48 @@ def _grid_kernel(V, F, g):  # noqa: ANN001, ANN202 # pragma: no cover
     if hz <= 0.0:
         hz = 1.0
     m = F.shape[0]
-    lo = np.empty((m, 4), dtype=np.int64)  # cell ranges of each face's yz box
-    count = np.zeros(g * g + 1, dtype=np.int64)
+    boxes = np.zeros((m, 6), dtype=np.int64)  # cell ranges of each face's yz box (one x cell)
     for t in range(m):
         a, b, c = F[t, 0], F[t, 1], F[t, 2]
         ya = min(V[a, 1], V[b, 1], V[c, 1])
         yb = max(V[a, 1], V[b, 1], V[c, 1])
         za = min(V[a, 2], V[b, 2], V[c, 2])
         zb = max(V[a, 2], V[b, 2], V[c, 2])
-        i0 = min(g - 1, int((ya - y0) / hy))
-        i1 = min(g - 1, int((yb - y0) / hy))
-        j0 = min(g - 1, int((za - z0) / hz))
-        j1 = min(g - 1, int((zb - z0) / hz))
-        lo[t, 0], lo[t, 1], lo[t, 2], lo[t, 3] = i0, i1, j0, j1
-        for i in range(i0, i1 + 1):
-            for j in range(j0, j1 + 1):
-                count[i * g + j + 1] += 1
-    for k in range(g * g):
-        count[k + 1] += count[k]
-    fill = count[:-1].copy()
-    cells = np.empty(count[-1], dtype=np.int64)
-    for t in range(m):
-        for i in range(lo[t, 0], lo[t, 1] + 1):
-            for j in range(lo[t, 2], lo[t, 3] + 1):
-                cells[fill[i * g + j]] = t
-                fill[i * g + j] += 1
+        boxes[t, 0] = min(g - 1, int((ya - y0) / hy))
+        boxes[t, 1] = min(g - 1, int((yb - y0) / hy))
+        boxes[t, 2] = min(g - 1, int((za - z0) / hz))
+        boxes[t, 3] = min(g - 1, int((zb - z0) / hz))
+    count, cells = bin_boxes(boxes, g, g, 1)
     return y0, z0, hy, hz, count, cells
+
+
+@numba.njit(cache=True)
+def bin_boxes(boxes, n0, n1, n2):  # noqa: ANN001, ANN201 # pragma: no cover
+    """Items binned in a grid of ``n0 x n1 x n2`` cells, each in every cell of its box.
+
+    ``boxes`` (m, 6) int64: per item its cell ranges, inclusive (i0, i1, j0, j1, k0,
+    k1). Returns the CSR of the cells (cell ``(i * n1 + j) * n2 + k``): ``start``
+    (n0 * n1 * n2 + 1,) and ``items``, each cell's items in order.
+    """
+    m = boxes.shape[0]
+    start = np.zeros(n0 * n1 * n2 + 1, dtype=np.int64)
+    for t in range(m):
+        for i in range(boxes[t, 0], boxes[t, 1] + 1):
+            for j in range(boxes[t, 2], boxes[t, 3] + 1):
+                for k in range(boxes[t, 4], boxes[t, 5] + 1):
+                    start[(i * n1 + j) * n2 + k + 1] += 1
+    for c in range(n0 * n1 * n2):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    items = np.empty(start[-1], dtype=np.int64)
+    for t in range(m):
+        for i in range(boxes[t, 0], boxes[t, 1] + 1):
+            for j in range(boxes[t, 2], boxes[t, 3] + 1):
+                for k in range(boxes[t, 4], boxes[t, 5] + 1):
+                    c = (i * n1 + j) * n2 + k
+                    items[fill[c]] = t
+                    fill[c] += 1
+    return start, items
 
 
 @numba.njit(cache=True)
