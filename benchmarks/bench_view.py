@@ -33,7 +33,8 @@ distances to the bones and to the muscles kept apart computed on the server).
 ``--phases`` times, without a browser, where the first picture's time and a pose's go: the
 check, reading the scene (`LiveScene` without its check), the first pose, then per pose (medians
 over every 10th frame, warm) the waypoints, the solve, the measures and the contact colours'
-distances, and each muscle's solve alone against its bones.
+distances (then their part to the muscles with the grid's cells 1, 1/2 and 1/3 of the reach
+wide), and each muscle's solve alone against its bones.
 """
 
 from __future__ import annotations
@@ -274,12 +275,13 @@ def phases(scene: Path) -> None:
     for k in frames:
         res = live.solve(frame=k)
         t = time.perf_counter()
-        res.contact()  # the contact colours' distances (bones and muscles kept apart)
+        live.contact(res)  # the contact colours' distances (to bones and muscles kept apart)
         got.append({**res.seconds, "contact colours": time.perf_counter() - t})
     print(
         f"a pose, warm, median of {len(got)}: "
         + ", ".join(f"{k} {1e3 * np.median([g[k] for g in got]):.1f} ms" for k in got[0])
     )
+    contact_colours(live, frames)
     for name, m in live._prepare().items():
         alone = []
         for k in frames:
@@ -290,6 +292,29 @@ def phases(scene: Path) -> None:
         print(
             f"  {name} ({len(m.muscle.V)} vertices) alone against its bones: {1e3 * np.median(alone):.1f} ms"
         )
+
+
+def contact_colours(live: Any, frames: range) -> None:
+    """The contact colours' distances to the muscles by the grid's cell width.
+
+    `muscle_gaps` with cells 1, 1/2 and 1/3 of the reach wide, medians over ``frames``
+    (the same distances, only the time differs).
+    """
+    import numpy as np
+
+    from musclewrap.contact import muscle_gaps
+    from musclewrap.scene._live import CONTACT_REACH
+
+    poses = [live.solve(frame=k) for k in frames]
+    for part in (1.0, 0.5, 1 / 3):
+        ts = []
+        for r in poses:
+            surfaces = {n: (V, r.solved[0][n].muscle.F) for n, V in r.muscles.items()}
+            t = time.perf_counter()
+            muscle_gaps(surfaces, r.pairs, CONTACT_REACH, part * CONTACT_REACH)
+            ts.append(time.perf_counter() - t)
+        print(f"  contact colours, to the muscles alone, cells {part:.2f} of the reach: "
+              f"{1e3 * np.median(ts):.1f} ms")  # fmt: skip
 
 
 def main() -> None:

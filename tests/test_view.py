@@ -80,7 +80,7 @@ def test_a_pose_solved_live_equals_the_run_of_that_pose(data_dir, tmp_path):
     _same_files(tmp_path / "live", run, names + ["femur/femur.vtp"])
     pose = json.loads((tmp_path / "live" / "pose.json").read_text())
     assert pose["values"] == values
-    _contact_colours_measure_bones_and_muscles(r1)
+    _contact_colours_measure_bones_and_muscles(live, r1)
     # other poses, then this one again: the same
     live.solve(frame=40)
     r2 = live.solve(values)
@@ -92,33 +92,42 @@ def test_a_pose_solved_live_equals_the_run_of_that_pose(data_dir, tmp_path):
     run150 = tmp_path / "run150"
     run_scene(load_scene(scene), run150, frames="150:151", workers=1, render=False, progress=None)
     _same_files(tmp_path / "live150", run150, [f"{m}/{m}_0150.vtp" for m in live.specs])
+    # a pose written after others were solved: still its own files (not the last pose's)
+    live.write(r1, tmp_path / "live_later")
+    _same_files(tmp_path / "live_later", run, names + ["femur/femur.vtp"])
 
 
-def _contact_colours_measure_bones_and_muscles(r) -> None:
-    """The contact colours' distances: the bones' where no muscle is nearer, else the exact
-    signed distance to the nearest muscle kept apart (libigl over every face)."""
+def _contact_colours_measure_bones_and_muscles(live, r) -> None:
+    """The contact colours' distances: the exact signed distance to the nearest bone or
+    muscle kept apart (libigl over every face of each, the side by winding numbers)."""
     import igl
 
     from musclewrap.mesh import winding_numbers
+    from musclewrap.scene._drive import apply
 
     reach = 5.0
-    got = r.contact()
-    assert r.pairs and got is r.contact()  # computed once
-    by_muscles = 0
+    got = live.contact(r)
+    assert r.pairs and got is live.contact(r)  # computed once
+    ms = r.solved[0]
+    bones = {b: (apply(r.bones[b], bone.V), bone.F) for b, bone in live.inputs.bones.items()}
+    by_muscles = by_bones = 0
     for me, P in r.muscles.items():
-        want = np.full(len(P), reach)
-        for other, V in r.muscles.items():
-            if other == me:
-                continue
-            F = r.faces[other].astype(np.int64)
-            d = np.sqrt(igl.point_mesh_squared_distance(P, V, F)[0])
-            want = np.minimum(want, np.clip(np.where(winding_numbers(P, V, F) != 0, -d, d),
-                                            -reach, reach))  # fmt: skip
-        want = np.clip(np.minimum(want, r.gap[me]), -reach, reach)
-        np.testing.assert_allclose(got[me], want, rtol=0, atol=1e-9)
-        by_muscles += int((got[me] < np.minimum(r.gap[me], reach) - 0.5).sum())
-    # the muscles press on each other here: hundreds of vertices coloured by them alone
-    assert by_muscles > 100
+
+        def signed(others, P=P):
+            out = np.full(len(P), reach)
+            for V, F in others:
+                F = np.asarray(F, dtype=np.int64)
+                d = np.sqrt(igl.point_mesh_squared_distance(P, V, F)[0])
+                out = np.minimum(out, np.where(winding_numbers(P, V, F) != 0, -d, d))
+            return np.clip(out, -reach, reach)
+
+        to_muscles = signed([(V, ms[o].muscle.F) for o, V in r.muscles.items() if o != me])
+        to_bones = signed(bones.values())
+        np.testing.assert_allclose(got[me], np.minimum(to_muscles, to_bones), rtol=0, atol=1e-9)
+        by_muscles += int((to_muscles < to_bones - 0.5).sum())
+        by_bones += int((to_bones < to_muscles - 0.5).sum())
+    # the muscles press on each other here, and on the bones: hundreds of vertices each
+    assert by_muscles > 100 and by_bones > 100
 
 
 def test_the_sides_kept_or_dropped_give_the_same_pose(data_dir, tmp_path):

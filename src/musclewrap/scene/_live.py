@@ -26,7 +26,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from .._typing import FloatArray, IntArray
-from ..contact import every_pair, muscle_gaps
+from ..contact import FacesWithin, every_pair, muscle_gaps
 from ..mesh import write_mesh
 from ._config import Scene, load_scene
 from ._drive import apply, invert_rigid, lattice_paths
@@ -85,52 +85,30 @@ class PoseResult:
     """One pose solved: positions in the output frame and the run's figures for it.
 
     ``muscles[name]`` (n, 3) the deformed vertices (NaN where the solve failed),
-    ``stretch`` their `musclewrap.solver.Muscle.area_stretch`, ``gap`` each vertex's
-    distance to the nearest bone (mesh units, capped at `CONTACT_REACH`; negative
-    inside; `contact` adds the other muscles), ``bones[name]`` each bone's transform
-    into the output frame, ``lines`` each muscle's action lines, ``fibres`` their
-    points (N, K, 3) where the scene has fibres. ``rows`` per muscle:
+    ``stretch`` their `musclewrap.solver.Muscle.area_stretch`, ``bones[name]`` each
+    bone's transform into the output frame, ``lines`` each muscle's action lines,
+    ``fibres`` their points (N, K, 3) where the scene has fibres. ``rows`` per muscle:
     ``relative_volume_error``, ``penetration_depth_max``, ``muscle_overlap_max``,
-    ``converged``, ``reason``, ``iterations``. ``faces`` each muscle's triangles and
-    ``pairs`` the pairs of muscles the run keeps apart (none where it does not).
+    ``converged``, ``reason``, ``iterations``. ``pairs`` the pairs of muscles the run
+    keeps apart (none where it does not). `LiveScene.contact` measures each vertex's
+    distance to what it is kept out of.
     """
 
     values: dict[str, float]
     frame: int | None
     muscles: dict[str, FloatArray]
     stretch: dict[str, FloatArray]
-    gap: dict[str, FloatArray]
     bones: dict[str, FloatArray]
     lines: dict[str, list[FloatArray]]
     fibres: dict[str, FloatArray]
     rows: dict[str, dict[str, Any]]
     seconds: dict[str, float] = field(default_factory=dict)
-    #: what the pose's files need (`LiveScene.write`)
+    #: the pose's solvers (each muscle's as it was at this pose), results and output
+    #: transforms: what its files and its contact need (`LiveScene.write`, `.contact`)
     solved: Any = field(default=None, repr=False)
-    faces: dict[str, IntArray] = field(default_factory=dict, repr=False)
     pairs: list[tuple[str, str]] = field(default_factory=list)
-    _contact: dict[str, FloatArray] | None = field(default=None, repr=False)
-
-    def contact(self) -> dict[str, FloatArray]:
-        """Each vertex's signed distance to the nearest bone or muscle kept apart from it.
-
-        The smaller of ``gap`` (the bones' grids) and the exact distance to the other
-        muscles of ``pairs`` (`musclewrap.contact.muscle_gaps`), within
-        `CONTACT_REACH` and capped at +-`CONTACT_REACH` (mesh units; negative inside).
-        Computed when first asked for, then kept (a pose of the LHDL walk: 16 ms; of the
-        gait2392 scene's 6 muscles: 41 ms; BENCHMARKS.md).
-        """
-        if self._contact is None:
-            got = muscle_gaps(
-                {n: (V, self.faces[n]) for n, V in self.muscles.items()},
-                self.pairs,
-                CONTACT_REACH,
-            )
-            self._contact = {
-                n: np.clip(np.minimum(self.gap[n], got[n]), -CONTACT_REACH, CONTACT_REACH)
-                for n in self.muscles
-            }
-        return self._contact
+    #: `LiveScene.contact`'s, once computed
+    contact: dict[str, FloatArray] | None = field(default=None, init=False, repr=False)
 
     @property
     def volume_error(self) -> float:
@@ -215,6 +193,8 @@ class LiveScene:
             muscle_jobs(inputs, Path("."), os.urandom(8).hex()), key=lambda j: j.name
         )
         self.specs = {m.name: m for m in scene.muscles}
+        #: the pairs of muscles kept apart (as the run keeps them; none where it does not)
+        self.pairs = every_pair(sorted(self.specs), scene.muscle_pairs) if self.grouped else []
         self.bone_body = {b.name: b.body for b in scene.bones}
         self._facing: Any = None
         # per waypoint (its lattice point), per muscle in contact: its cage and bones there
@@ -222,6 +202,8 @@ class LiveScene:
         # per waypoint (None: the rest pose), per muscle: its sides there (`_sides`)
         self._refs: dict[tuple[int, ...] | None, dict[str, dict[int, Any]]] = {}
         self._rest_T = {j.name: rest_placements(inputs, j.name) for j in self.jobs}
+        # per bone (its obstacle), its faces' grid (`contact`)
+        self._bone_faces: dict[Any, FacesWithin] = {}
         self._lock = threading.Lock()
         # BLAS on one thread while solving, as a run's workers (found once: ~1 ms a search)
         self._pools = ThreadpoolController()
@@ -449,7 +431,8 @@ class LiveScene:
             "solve": t_solve - t_path,
             "measure": time.perf_counter() - t_solve,
         }
-        res.solved = (ms, results, out_T)
+        # each muscle's solver as at this pose (the next pose gives them new spans)
+        res.solved = ({n: copy.copy(m) for n, m in ms.items()}, results, out_T)
         return res
 
     def _measure(
@@ -461,22 +444,14 @@ class LiveScene:
         out_T: dict[str, FloatArray],
         L: dict[str, Any],
     ) -> PoseResult:
-        muscles, stretch, gap, rows, lines, fibres = {}, {}, {}, {}, {}, {}
+        muscles, stretch, rows, lines, fibres = {}, {}, {}, {}, {}
         for n, m in ms.items():
             r = results[n]
             T = m.span.to_output[0]
-            here = m.bones_here(0)
-            _, depth, _ = m.penetration(r, here)
+            _, depth, _ = m.penetration(r, m.bones_here(0))
             ok = np.isfinite(r.V).all()
             muscles[n] = apply(T, r.V)
             stretch[n] = m.muscle.area_stretch(r.V) if ok else np.full(len(r.V), np.nan)
-            g = np.full(len(r.V), CONTACT_REACH)
-            if ok:
-                for pl in here.values():
-                    # the grid's trilinear distance: for the colours, not a verdict
-                    idx, phi, _ = pl.obstacle.interpolate(pl.to_obstacle(r.V), CONTACT_REACH)
-                    g[idx] = np.minimum(g[idx], phi)
-            gap[n] = g
             lines[n] = [apply(T, np.asarray(P, dtype=np.float64)) for P in L[n].values()]
             if m.fb is not None and ok:
                 from ._fibres import frame_fibres
@@ -494,10 +469,38 @@ class LiveScene:
             }
         bones = {b: out_T[body] for b, body in self.bone_body.items()} if out_T else {}
         return PoseResult(
-            shown, frame, muscles, stretch, gap, bones, lines, fibres, rows,
-            faces={n: m.muscle.F for n, m in ms.items()},
-            pairs=every_pair(sorted(ms), self.scene.muscle_pairs) if self.grouped else [],
+            shown, frame, muscles, stretch, bones, lines, fibres, rows, pairs=self.pairs
         )  # fmt: skip
+
+    def contact(self, result: PoseResult) -> dict[str, FloatArray]:
+        """Each vertex's signed distance to the nearest bone or muscle kept apart from it.
+
+        Exact (mesh units; negative inside, the side by winding numbers), within
+        `CONTACT_REACH` and capped at +-`CONTACT_REACH`: to each bone's surface as the
+        run places it and to the other muscles of the pose's ``pairs``
+        (`musclewrap.contact.muscle_gaps`; each bone's `musclewrap.contact.FacesWithin`
+        built once: a bone is rigid). Computed when first asked for, then
+        kept in ``result.contact`` (``benchmarks/bench_view.py SCENE --phases``,
+        BENCHMARKS.md).
+        """
+        if result.contact is None:
+            ms, results, _ = result.solved
+            got = muscle_gaps(
+                {n: (V, ms[n].muscle.F) for n, V in result.muscles.items()},
+                result.pairs,
+                CONTACT_REACH,
+            )
+            for n, m in ms.items():
+                V = results[n].V
+                if not np.isfinite(V).all():
+                    continue
+                for pl in m.bones_here(0).values():
+                    ob = pl.obstacle
+                    if ob not in self._bone_faces:
+                        self._bone_faces[ob] = FacesWithin(ob.V, ob.F, CONTACT_REACH)
+                    got[n] = np.minimum(got[n], self._bone_faces[ob].signed(pl.to_obstacle(V)))
+            result.contact = {n: np.maximum(g, -CONTACT_REACH) for n, g in got.items()}
+        return result.contact
 
     def view(self, size: tuple[int, int] | None = None) -> Any:
         """The run's pictures' camera (`._run.picture_view`), for pictures of ``size``."""

@@ -301,6 +301,7 @@ class Viewer:
         self._values: dict[str, float] = {}
         self._frame = 0
         self._writes = 0  # "Write this pose" clicks not yet served
+        self._recolour = False  # the colour menu changed: the shown pose's colours due
         self._wake = threading.Event()
         self._stop = False
         self._serial = 0
@@ -514,9 +515,13 @@ class Viewer:
     def _on_colour(self, colour: str, **_: Any) -> None:
         if colour not in COLOURS:
             return
-        self.state.preset, self.state.crange = COLOURS[colour][:2]
-        if self._last is not None:
-            self._push_colours(self._last)
+        if self._last is None:
+            self.state.preset, self.state.crange = COLOURS[colour][:2]
+            return
+        # the colours in the solver thread (contact's distances take a few tens of ms),
+        # sent with their colour map in one update
+        self._recolour = True
+        self._wake.set()
 
     async def _play(self) -> None:
         try:
@@ -545,6 +550,9 @@ class Viewer:
             while self._writes:
                 self._writes -= 1
                 self._write()
+            if self._recolour:
+                self._recolour = False
+                self._send(self._colours(self._last))
             r, self._want = self._want, None
             if r is None:
                 continue
@@ -603,7 +611,7 @@ class Viewer:
         if self.live and self._serial == 1:
             # the contact colours' distances once, after the first picture: their kernels
             # compiled (or read from Numba's cache) before the colour menu asks for them
-            self._last.contact()
+            self.source.contact(self._last)  # type: ignore[union-attr]
 
     def _live_state(self, res: PoseResult, r: _Request) -> dict[str, Any]:
         up: dict[str, Any] = {}
@@ -651,18 +659,16 @@ class Viewer:
         return up
 
     def _colours(self, res: PoseResult) -> dict[str, Any]:
-        up = {}
+        """The muscles' colours of a pose, in the colouring the menu shows, with its map."""
+        colour = self.state.colour if self.state.colour in COLOURS else "stretch"
+        up: dict[str, Any] = dict(zip(("preset", "crange"), COLOURS[colour][:2], strict=True))
         for i, n in enumerate(self._names["muscle"]):
-            if self.state.colour == "contact":
-                c = np.clip(res.contact()[n], 0.0, CONTACT_REACH)
+            if colour == "contact":
+                c = np.clip(self.source.contact(res)[n], 0.0, CONTACT_REACH)  # type: ignore[union-attr]
             else:
                 c = np.nan_to_num(res.stretch[n], nan=1.0)
             up[f"muscle{i}_c"] = _enc(c, np.float32)
         return up
-
-    def _push_colours(self, res: PoseResult) -> None:
-        with self.state:
-            self.state.update(self._colours(res))
 
     def _series_state(self, k: int) -> dict[str, Any]:
         s: Series = self.source  # type: ignore[assignment]
