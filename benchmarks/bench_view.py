@@ -22,8 +22,12 @@ picture drawn, two animation frames after the geometry arrived):
 
 - a redraw alone: the page's scene drawn again with nothing changed (vtk.js's render,
   finished by reading back one pixel), 20 times, the median; again with the bones hidden;
-  both again in a smaller view (700 x 450 pixels of page).
+  both again antialiased (a second page, ``?antialias=1``: this browser draws in software,
+  where the page leaves antialiasing off) and in a smaller view (700 x 450 pixels of page).
   What the browser's drawing costs whatever the solve: the floor of an update here.
+- plain WebGL: as many triangles as the scene has, drawn by a few lines of WebGL in a new page
+  of the same browser and a canvas of the view's size (no vtk.js, no server), with and without
+  antialiasing: the floor of any page drawing this scene in this browser.
 
 ``--colour contact``: the muscles coloured by contact through all of it (each pose's
 distances to the bones and to the muscles kept apart computed on the server).
@@ -126,6 +130,71 @@ async (n) => {
 """
 
 
+# The browser's own floor: a mesh of as many triangles drawn by plain WebGL (no vtk.js, no
+# server, nothing else on the page): an indexed grid of triangles over the view, depth-tested,
+# one light, cleared and drawn, finished by reading back one pixel; the median of ``reps``.
+_FLOOR = """
+([w, h, counts, aa, reps]) => {
+  const c = document.createElement("canvas");
+  c.width = w; c.height = h; document.body.appendChild(c);
+  const gl = c.getContext("webgl2", { antialias: aa });
+  const sh = (t, s) => { const x = gl.createShader(t); gl.shaderSource(x, s); gl.compileShader(x); return x; };
+  const pr = gl.createProgram();
+  gl.attachShader(pr, sh(gl.VERTEX_SHADER, `#version 300 es
+    in vec3 p; out vec3 q; void main() { q = p; gl_Position = vec4(p, 1.0); }`));
+  gl.attachShader(pr, sh(gl.FRAGMENT_SHADER, `#version 300 es
+    precision highp float; in vec3 q; out vec4 o;
+    void main() { vec3 n = normalize(cross(dFdx(q), dFdy(q)));
+                  o = vec4(vec3(0.2 + 0.8 * abs(n.z)), 1.0); }`));
+  gl.linkProgram(pr); gl.useProgram(pr); gl.enable(gl.DEPTH_TEST);
+  const out = {}, px = new Uint8Array(4);
+  for (const m of counts) {
+    const side = Math.ceil(Math.sqrt(m / 2)) + 1, P = new Float32Array(3 * side * side), I = [];
+    for (let i = 0; i < side; i++) for (let j = 0; j < side; j++) {
+      const x = -0.9 + 1.8 * i / (side - 1), y = -0.9 + 1.8 * j / (side - 1);
+      P.set([x, y, 0.2 * Math.sin(9 * x) * Math.cos(7 * y)], 3 * (i * side + j));
+    }
+    for (let i = 0; i + 1 < side; i++) for (let j = 0; j + 1 < side; j++) {
+      const a = i * side + j, b = a + side;
+      I.push(a, b, a + 1, b, b + 1, a + 1);
+    }
+    const idx = new Uint32Array(I.slice(0, 3 * m));
+    const vb = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, vb); gl.bufferData(gl.ARRAY_BUFFER, P, gl.STATIC_DRAW);
+    const l = gl.getAttribLocation(pr, "p"); gl.enableVertexAttribArray(l); gl.vertexAttribPointer(l, 3, gl.FLOAT, false, 0, 0);
+    const ib = gl.createBuffer(); gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib); gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, idx, gl.STATIC_DRAW);
+    const ts = [];
+    for (let r = 0; r < reps; r++) {
+      const t = performance.now();
+      gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+      gl.drawElements(gl.TRIANGLES, idx.length, gl.UNSIGNED_INT, 0);
+      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);  // waits for the drawing
+      ts.push(performance.now() - t);
+    }
+    ts.sort((a, b) => a - b);
+    out[m] = ts[Math.floor(ts.length / 2)];
+  }
+  return { ms: out, renderer: gl.getParameter(gl.RENDERER) };
+}
+"""
+
+
+def floor(page: Any, triangles: int, size: list[int], reps: int = 20) -> dict[str, Any]:
+    """Plain WebGL's drawing of ``triangles`` (and of 1000) in a view of ``size``.
+
+    In a new page of the same browser: medians (ms), with and without antialiasing.
+    """
+    blank = page.context.browser.new_page()
+    try:
+        got = {
+            aa: blank.evaluate(_FLOOR, [size[0], size[1], [1000, triangles], aa, reps])
+            for aa in (True, False)
+        }
+    finally:
+        blank.close()
+    return {"triangles": triangles, "size": size,
+            **{f"aa_{aa}": {int(k): v for k, v in g["ms"].items()} for aa, g in got.items()}}  # fmt: skip
+
+
 def redraw(page: object, n: int = 20) -> dict:
     """The scene drawn again, nothing changed: medians with and without the bones (ms)."""
     got = page.evaluate(_REDRAW, n)  # type: ignore[attr-defined]
@@ -136,6 +205,18 @@ def redraw(page: object, n: int = 20) -> dict:
         "bone_triangles": got["bone_triangles"],
         "size": got["size"],
     }
+
+
+def redraw_antialiased(page: Any) -> dict:
+    """`redraw` in a second page of the same server, antialiased (``?antialias=1``)."""
+    other = page.context.browser.new_page(viewport=page.viewport_size)
+    try:
+        other.goto(page.url.split("?")[0] + "?antialias=1")
+        other.wait_for_function("window.mw && window.mw.last", timeout=120_000, polling=10)
+        other.wait_for_timeout(1500)  # the camera set
+        return redraw(other)
+    finally:
+        other.close()
 
 
 def drag(page: object, coordinate: str, sweep: tuple[float, float, float], seconds: float) -> dict:
@@ -152,10 +233,13 @@ def drag(page: object, coordinate: str, sweep: tuple[float, float, float], secon
 
 
 @contextlib.contextmanager
-def open_page(scene: Path, size: tuple[int, int] = (1200, 800)) -> Iterator[tuple[Any, float]]:
+def open_page(
+    scene: Path, size: tuple[int, int] = (1200, 800), query: str = ""
+) -> Iterator[tuple[Any, float]]:
     """``musclewrap view SCENE`` on a free port, its page in Chromium at its first picture.
 
-    Yields the page and the seconds from the command's start to that picture.
+    Yields the page and the seconds from the command's start to that picture. ``query``:
+    the address's, e.g. ``?antialias=1``.
     """
     from playwright.sync_api import sync_playwright
 
@@ -174,7 +258,7 @@ def open_page(scene: Path, size: tuple[int, int] = (1200, 800)) -> Iterator[tupl
             page = browser.new_page(viewport={"width": size[0], "height": size[1]})
             while True:
                 try:
-                    page.goto(f"http://127.0.0.1:{port}/", timeout=5000)
+                    page.goto(f"http://127.0.0.1:{port}/{query}", timeout=5000)
                     break
                 except Exception:  # noqa: BLE001  # not serving yet
                     if proc.poll() is not None:
@@ -211,6 +295,8 @@ def measure(
             page.select_option("#colour", colour)
             page.wait_for_timeout(1000)
         out["redraw"] = redraw(page)
+        out["redraw_aa"] = redraw_antialiased(page)
+        out["floor"] = floor(page, out["redraw"]["triangles"], out["redraw"]["size"])
         # the same in a smaller view: does the drawing go with the pixels or the triangles?
         page.set_viewport_size({"width": 700, "height": 450})
         page.wait_for_timeout(1000)
@@ -238,8 +324,11 @@ def measure(
 def screenshot(
     scene: Path, png: Path, values: list[str], size: tuple[int, int], colour: str = "stretch"
 ) -> None:
-    """The page at the poses ``values`` (``COORDINATE=VALUE``, in turn), written to ``png``."""
-    with open_page(scene, size) as (page, _):
+    """The page at the poses ``values`` (``COORDINATE=VALUE``, in turn), written to ``png``.
+
+    Antialiased, as a browser with a graphics processor draws it (this one draws in software).
+    """
+    with open_page(scene, size, "?antialias=1") as (page, _):
         if colour != "stretch":
             page.select_option("#colour", colour)
         for item in values:
@@ -317,6 +406,24 @@ def contact_colours(live: Any, frames: range) -> None:
               f"{1e3 * np.median(ts):.1f} ms")  # fmt: skip
 
 
+def host_reference() -> float:
+    """The host's speed now: the median ms of one float64 ``W @ X``.
+
+    15 074 x 300 times 300 x 3 (numpy): the product BENCHMARKS.md measures every pose against
+    (4-11.5 ms across runs).
+    """
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    W, X = rng.random((15074, 300)), rng.random((300, 3))
+    ts = []
+    for _ in range(40):
+        t = time.perf_counter()
+        W @ X
+        ts.append(time.perf_counter() - t)
+    return 1e3 * statistics.median(ts[5:])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene", type=Path)
@@ -335,8 +442,10 @@ def main() -> None:
     ap.add_argument("--size", type=int, nargs=2, default=(1100, 640), metavar=("W", "H"),
                     help="with --screenshot: the page's size")  # fmt: skip
     a = ap.parse_args()
+    print(f"host reference: W @ X (15074 x 300, 3 columns) {host_reference():.2f} ms")
     if a.phases:
         phases(a.scene)
+        print(f"host reference again: W @ X {host_reference():.2f} ms")
         return
     if a.screenshot:
         screenshot(a.scene, a.screenshot, a.set, tuple(a.size), a.colour)
@@ -372,11 +481,24 @@ def main() -> None:
                 f"triangles, {w['size'][0]}x{w['size'][1]} pixels); without the bones "
                 f"({w['bone_triangles']} triangles) {w['nobones_ms']:.0f} ms"
             )
+            w = r["redraw_aa"]
+            print(
+                f"{'':<12}the same antialiased (?antialias=1): {w['all_ms']:.0f} ms; without "
+                f"the bones {w['nobones_ms']:.0f} ms"
+            )
+            f = r["floor"]
+            print(
+                f"{'':<12}plain WebGL, {f['triangles']} triangles in {f['size'][0]}x{f['size'][1]}: "
+                f"{f['aa_True'][f['triangles']]:.0f} ms antialiased, "
+                f"{f['aa_False'][f['triangles']]:.0f} ms not (1000 triangles: "
+                f"{f['aa_True'][1000]:.0f} and {f['aa_False'][1000]:.0f} ms)"
+            )
             w = r["redraw_small"]
             print(
                 f"{'':<12}the same in a {w['size'][0]}x{w['size'][1]} view: {w['all_ms']:.0f} ms; "
                 f"without the bones {w['nobones_ms']:.0f} ms"
             )
+    print(f"host reference again: W @ X {host_reference():.2f} ms")
 
 
 if __name__ == "__main__":

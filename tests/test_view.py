@@ -276,6 +276,13 @@ async ([label, start, end, n]) => {
 """
 
 
+# the view's WebGL context (vtk.js's, behind trame's VtkView) made antialiased or not
+_ANTIALIAS = (
+    "window.trame.refs.view._.provides.view.openglRenderWindow.getContext()"
+    ".getContextAttributes().antialias"
+)
+
+
 def _decoded(page, part: str) -> np.ndarray:
     import base64
 
@@ -370,6 +377,14 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
             )
             page.wait_for_timeout(1500)
             assert _drawn_where(page, view, "bone0_p", muscles) > 0.9
+            # antialiased unless the browser draws in software (this one: SwiftShader), where
+            # it costs 2-3 times the drawing; the status line says so; ?antialias=1 forces it
+            soft = page.evaluate("window.mw.software")
+            assert page.evaluate(_ANTIALIAS) is (not soft)
+            assert ("drawn in software, antialiasing off" in page.inner_text("#status")) is soft
+            page.goto(f"http://127.0.0.1:{port}/?antialias=1")
+            page.wait_for_function("window.mw && window.mw.last", timeout=60_000)
+            assert page.evaluate(_ANTIALIAS) is True
             assert page.script_errors == []
             browser.close()
     finally:

@@ -86,6 +86,31 @@ h1 { font-size: 16px; margin: 4px 0 10px 0; }
 _JS = r"""
 (function () {
   const mw = (window.mw = window.mw || { n: 0, t: {}, sent: {}, totals: [], log: [], last: null });
+  // A browser that draws in software (Chromium's SwiftShader, Mesa's llvmpipe) takes 2-3 times
+  // as long to draw the scene antialiased (BENCHMARKS.md, "The live viewer"): there the view's
+  // WebGL context is made without (before vtk.js makes it); ?antialias=1 or 0 in the address
+  // decides instead. A graphics processor antialiases at little cost: it keeps it.
+  if (mw.antialias === undefined) {
+    let name = "";
+    try {
+      const probe = document.createElement("canvas").getContext("webgl");
+      const info = probe && probe.getExtension("WEBGL_debug_renderer_info");
+      name = probe ? String(probe.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : probe.RENDERER)) : "";
+      const lose = probe && probe.getExtension("WEBGL_lose_context");
+      if (lose) lose.loseContext();
+    } catch (e) { /* no WebGL: vtk.js says so */ }
+    const asked = new URLSearchParams(window.location.search).get("antialias");
+    mw.renderer = name;
+    mw.software = /swiftshader|llvmpipe|softpipe|software/i.test(name);
+    mw.antialias = asked === null ? !mw.software : asked !== "0";
+    if (!mw.antialias) {
+      const make = HTMLCanvasElement.prototype.getContext;
+      HTMLCanvasElement.prototype.getContext = function (type, attrs) {
+        if (type === "webgl2" || type === "webgl") attrs = Object.assign({}, attrs, { antialias: false });
+        return make.call(this, type, attrs);
+      };
+    }
+  }
   let inflight = null, pending = null;  // the input being solved (id, time sent), the next
   function send(p) {
     inflight = { id: p.id, at: performance.now() };
@@ -127,7 +152,8 @@ _JS = r"""
         el.textContent = `update ${total.toFixed(0)} ms (median ${median(mw.totals).toFixed(0)} ms `
           + `of the last ${mw.totals.length}; queued ${queued.toFixed(0)}, solve `
           + `${s.solve.toFixed(0)}, transfer `
-          + `${transfer.toFixed(0)}, render ${render.toFixed(0)} ms)`;
+          + `${transfer.toFixed(0)}, render ${render.toFixed(0)} ms)`
+          + (mw.software ? `; drawn in software, antialiasing ${mw.antialias ? "on" : "off"}` : "");
         el.dataset.serial = String(s.serial);
       }
     }));
