@@ -509,3 +509,31 @@ def test_translations_and_more_coordinates_as_run_does(data_dir, tmp_path):
     live.write(r, tmp_path / "live")
     run = _run_pose(scene, values, tmp_path / "run")
     _same_files(tmp_path / "live", run, [f"{m}/{m}_0000.vtp" for m in live.specs])
+
+
+def test_the_colours_sent_are_the_runs_pictures():
+    """The page's colours are mapped here, as RGB: the stretch in equal ratios (1 white, a
+    ratio and its inverse equally far either side), as the run's pictures colour it; the
+    contact from black (touching or inside) through red to yellow at the reach."""
+    from musclewrap.output._render import STRETCH_RANGE, stretch_colours, stretch_table
+    from musclewrap.view._app import contact_colours
+
+    lo, hi = STRETCH_RANGE
+    table = np.rint(255 * stretch_table()).astype(np.uint8)
+    got = stretch_colours(np.array([lo, hi, 1.0, np.nan, 0.1, 10.0]))
+    np.testing.assert_array_equal(got[:2], table[[0, -1]])  # the range's ends
+    np.testing.assert_array_equal(got[2], got[3])  # NaN (a failed pose) as 1
+    assert got[2].min() >= 240  # 1: white
+    np.testing.assert_array_equal(got[4:], got[:2])  # beyond the range: its ends
+    s = np.geomspace(lo, hi, 41)
+
+    def entry(rgb):  # each colour's entry of the table
+        return np.abs(rgb[:, None, :].astype(int) - table[None].astype(int)).sum(2).argmin(1)
+
+    a, b = stretch_colours(s), stretch_colours(1 / s)
+    assert (a[:, 2] > a[:, 0]).sum() == (b[:, 0] > b[:, 2]).sum() == 20  # blue below 1, red above
+    assert (np.abs(entry(a) + entry(b) - 255) <= 1).all()  # a ratio and its inverse equally far
+    np.testing.assert_array_equal(
+        contact_colours(np.array([-3.0, 0.0, 2.5, 5.0, 50.0])),
+        [[0, 0, 0], [0, 0, 0], [230, 0, 0], [230, 230, 0], [230, 230, 0]],
+    )

@@ -46,10 +46,17 @@ class _Scene:
     """One request's scene in the window: what it shows, read once per file."""
 
     def __init__(
-        self, window: vtkRenderWindow, folder: str, w: int, h: int, stretch_range: list
+        self,
+        window: vtkRenderWindow,
+        folder: str,
+        w: int,
+        h: int,
+        stretch_range: list,
+        stretch_table: list,
     ) -> None:
         self.window, self.folder, self.w, self.h = window, folder, w, h
         self.stretch_range = (float(stretch_range[0]), float(stretch_range[1]))
+        self.stretch_table = stretch_table
         self.lut: vtkLookupTable | None = None
         self.ren = vtkRenderer()
         self.ren.SetBackground(1.0, 1.0, 1.0)
@@ -105,18 +112,18 @@ class _Scene:
             self.shown[part] = (f, mapper)
 
     def stretch_colours(self) -> vtkLookupTable:
-        """Blue (compressed) through white to red (stretched), in equal ratios; a bar."""
+        """Blue (compressed) through white to red (stretched), in equal ratios; a bar.
+
+        The request's table (`._render.stretch_table`), on a log scale over its range.
+        """
         if self.lut is None:
             lo, hi = self.stretch_range
             lut = vtkLookupTable()
             lut.SetScaleToLog10()
             lut.SetRange(lo, hi)
-            lut.SetNumberOfTableValues(256)
-            for i in range(256):
-                t = i / 255 * 2 - 1  # -1 .. 1
-                w = 1 - abs(t)
-                c = (0.23, 0.30, 0.75) if t < 0 else (0.71, 0.02, 0.15)
-                lut.SetTableValue(i, *(w * 0.97 + (1 - w) * x for x in c), 1.0)
+            lut.SetNumberOfTableValues(len(self.stretch_table))
+            for i, rgb in enumerate(self.stretch_table):
+                lut.SetTableValue(i, *rgb, 1.0)
             lut.Build()
             bar = vtkScalarBarActor()
             bar.SetLookupTable(lut)
@@ -155,7 +162,7 @@ class _Scene:
 def draw(window: vtkRenderWindow, req: dict) -> None:
     """A request: its pictures, into the ``.npy`` file it names."""
     w, h = req["size"]
-    scene = _Scene(window, req["folder"], w, h, req["stretch_range"])
+    scene = _Scene(window, req["folder"], w, h, req["stretch_range"], req["stretch_table"])
     scene.place_camera(req["view"])
     pictures = np.empty((len(req["steps"]), h, w, 3), dtype=np.uint8)
     for i, (t, files) in enumerate(req["steps"]):

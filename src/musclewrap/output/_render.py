@@ -69,6 +69,27 @@ Shown = tuple[str, str, str]
 STRETCH_RANGE = (1 / 1.35, 1.35)
 
 
+def stretch_table(n: int = 256) -> np.ndarray:
+    """The colours of ``area_stretch`` over `STRETCH_RANGE` in equal ratios: (n, 3) RGB in 0-1.
+
+    Entry ``i`` is the stretch ``lo * (hi / lo) ** (i / (n - 1))``: blue (compressed) through
+    near-white at 1 to red (stretched), linear in RGB on either side. The run's pictures and
+    the live viewer colour by it.
+    """
+    t = np.linspace(-1.0, 1.0, n)[:, None]
+    end = np.where(t < 0, [[0.23, 0.30, 0.75]], [[0.71, 0.02, 0.15]])
+    w = 1.0 - np.abs(t)
+    return w * 0.97 + (1.0 - w) * end
+
+
+def stretch_colours(stretch: np.ndarray) -> np.ndarray:
+    """Each ``area_stretch`` value's colour from `stretch_table`: (k, 3) uint8 (NaN: as 1)."""
+    lo, hi = np.log(STRETCH_RANGE[0]), np.log(STRETCH_RANGE[1])
+    s = np.log(np.nan_to_num(np.asarray(stretch, dtype=np.float64), nan=1.0).clip(1e-300))
+    i = np.rint((s - lo) / (hi - lo) * 255.0).clip(0, 255).astype(np.intp)
+    return np.rint(255.0 * stretch_table()[i]).astype(np.uint8)
+
+
 @dataclass(frozen=True)
 class View:
     """A camera: where it looks from and at, which way is up, its vertical view angle.
@@ -341,6 +362,7 @@ class PictureTask:
             "steps": [[t, [list(s) for s in shown]] for t, shown in self.steps],
             "size": list(self.size),
             "stretch_range": list(STRETCH_RANGE),
+            "stretch_table": stretch_table().tolist(),
             "out": str(out),
         }
 

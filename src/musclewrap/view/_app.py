@@ -30,30 +30,48 @@ from typing import Any
 
 import numpy as np
 
-from ..output._render import STRETCH_RANGE
+from ..output._render import STRETCH_RANGE, stretch_colours, stretch_table
 from ..scene._live import CONTACT_REACH, LiveScene, PoseResult
 from ._playback import Series, segments, triangles
 
 __all__ = ["Viewer", "free_port", "open_source"]
 
-#: the two colourings: vtk.js preset, range, the menu's words, the legend's gradient and words
+
+def _rgb(c: np.ndarray) -> str:
+    r, g, b = np.rint(255.0 * np.asarray(c)).astype(int)
+    return f"rgb({r}, {g}, {b})"
+
+
+#: the contact colouring: black (touching), red halfway, yellow at `CONTACT_REACH` and beyond
+_CONTACT_STOPS = np.array([[0.0, 0.0, 0.0], [0.9, 0.0, 0.0], [0.9, 0.9, 0.0]])
+
+
+def contact_colours(distance: np.ndarray) -> np.ndarray:
+    """Each distance's colour (mesh units, clipped to 0-`CONTACT_REACH`): (k, 3) uint8."""
+    u = np.clip(np.asarray(distance, dtype=np.float64), 0.0, CONTACT_REACH) / CONTACT_REACH
+    at = np.linspace(0.0, 1.0, len(_CONTACT_STOPS))
+    rgb = np.column_stack([np.interp(u, at, _CONTACT_STOPS[:, k]) for k in range(3)])
+    return np.rint(255.0 * rgb).astype(np.uint8)
+
+
+_STRETCH = stretch_table()
+
+#: the two colourings: the menu's words, the legend's gradient and words. The colours are
+#: mapped here and sent as RGB (vtk.js draws unsigned-char colours as they are): mapping a
+#: value per vertex through vtk.js's diverging colour function took the page about 66 ms an
+#: update on the gait2392 scene (a profile of the page, BENCHMARKS.md). The stretch is
+#: coloured as the run's pictures colour it (`musclewrap.output._render.stretch_table`).
 #: ("{what}": what the muscles are kept out of, `_kept_out_of`)
 COLOURS = {
     "stretch": (
-        "Cool to Warm",
-        [float(STRETCH_RANGE[0]), float(STRETCH_RANGE[1])],
         "stretch (surface area over rest)",
-        "#3b4cc0, #dddddd, #b40426",
-        f"blue {STRETCH_RANGE[0]:.2f} (compressed), grey 1, red {STRETCH_RANGE[1]:.2f} (stretched)",
+        ", ".join(_rgb(_STRETCH[i]) for i in (0, len(_STRETCH) // 2, -1)),
+        f"blue {STRETCH_RANGE[0]:.2f} (compressed), white 1, red {STRETCH_RANGE[1]:.2f} "
+        "(stretched), in equal ratios",
     ),
-    # black, red, yellow: the preset's first four fifths (its last, white, is the background).
-    # A preset of few colours: with matplotlib's Inferno (256) the page took about 80 ms
-    # more to draw each update (benchmarks/bench_view.py --colour contact, BENCHMARKS.md)
     "contact": (
-        "Black-Body Radiation",
-        [0.0, float(CONTACT_REACH) / 0.8],
         f"contact (distance to {{what}}, 0-{CONTACT_REACH:g} mm)",
-        "#000000, #e60000 50%, #e6e600",
+        ", ".join(_rgb(c) for c in _CONTACT_STOPS),
         f"black: touching {{what}}, yellow: {CONTACT_REACH:g} mm or more away",
     ),
 }
@@ -373,7 +391,6 @@ class Viewer:
         st.lines_look = {"color": [0.1, 0.1, 0.1], "lineWidth": 2}
         st.fibres_look = {"color": [0.55, 0.1, 0.1], "lineWidth": 1}
         st.background = [1, 1, 1]
-        st.preset, st.crange = COLOURS["stretch"][:2]
         st.thumbs = {"serial": 0, "values": {}}
         st.playing = False
         st.status = "solving the first pose ..." if self.live else "reading the first frame ..."
@@ -458,9 +475,9 @@ class Viewer:
                         what = self._kept_out_of()
                         with html.Select(v_model=("colour",), id="colour"):
                             for key in offered:
-                                html.Option(COLOURS[key][2].format(what=what), value=key)
+                                html.Option(COLOURS[key][0].format(what=what), value=key)
                         for key in offered:
-                            _, _, _, gradient, words = COLOURS[key]
+                            _, gradient, words = COLOURS[key]
                             words = words.format(what=what)
                             cond = f"colour == '{key}'"
                             html.Div(
@@ -491,16 +508,16 @@ class Viewer:
             with vtkw.VtkGeometryRepresentation(property=("bone_look",)):
                 vtkw.VtkPolyData(f"bone{i}", points=(f"bone{i}_p",), polys=(f"bone{i}_f",))
         for i, _ in enumerate(self._names["muscle"]):
-            with vtkw.VtkGeometryRepresentation(
-                color_map_preset=("preset",), color_data_range=("crange",)
-            ):  # fmt: skip
+            with vtkw.VtkGeometryRepresentation():
                 with vtkw.VtkPolyData(
                     f"muscle{i}", points=(f"muscle{i}_p",), polys=(f"muscle{i}_f",)
                 ):
                     with vtkw.VtkPointData():
+                        # RGB as they are (unsigned char colours are not mapped by vtk.js)
                         vtkw.VtkDataArray(
-                            registration="setScalars", name="colour", values=(f"muscle{i}_c",)
-                        )
+                            registration="setScalars", name="colour", type="Uint8Array",
+                            number_of_components=("3",), values=(f"muscle{i}_c",),
+                        )  # fmt: skip
         for kind in ("lines", "fibres"):
             for i, _ in enumerate(self._names[kind]):
                 with vtkw.VtkGeometryRepresentation(property=(f"{kind}_look",)):
@@ -539,13 +556,9 @@ class Viewer:
             self._playing_task = asyncio.ensure_future(self._play())
 
     def _on_colour(self, colour: str, **_: Any) -> None:
-        if colour not in COLOURS:
-            return
-        if self._last is None:
-            self.state.preset, self.state.crange = COLOURS[colour][:2]
-            return
-        # the colours in the solver thread (contact's distances take a few tens of ms),
-        # sent with their colour map in one update
+        if colour not in COLOURS or self._last is None:
+            return  # (the first pose comes in the colouring shown)
+        # the colours in the solver thread (contact's distances take a few tens of ms)
         self._recolour = True
         self._wake.set()
 
@@ -685,15 +698,15 @@ class Viewer:
         return up
 
     def _colours(self, res: PoseResult) -> dict[str, Any]:
-        """The muscles' colours of a pose, in the colouring the menu shows, with its map."""
-        colour = self.state.colour if self.state.colour in COLOURS else "stretch"
-        up: dict[str, Any] = dict(zip(("preset", "crange"), COLOURS[colour][:2], strict=True))
+        """The muscles' colours of a pose (RGB), in the colouring the menu shows."""
+        contact = self.state.colour == "contact"
+        up: dict[str, Any] = {}
         for i, n in enumerate(self._names["muscle"]):
-            if colour == "contact":
-                c = np.clip(self.source.contact(res)[n], 0.0, CONTACT_REACH)  # type: ignore[union-attr]
+            if contact:
+                rgb = contact_colours(self.source.contact(res)[n])  # type: ignore[union-attr]
             else:
-                c = np.nan_to_num(res.stretch[n], nan=1.0)
-            up[f"muscle{i}_c"] = _enc(c, np.float32)
+                rgb = stretch_colours(res.stretch[n])
+            up[f"muscle{i}_c"] = _enc(rgb, np.uint8)
         return up
 
     def _series_state(self, k: int) -> dict[str, Any]:
@@ -710,7 +723,7 @@ class Viewer:
                 up[f"{kind}{i}_p"] = _points(d["points"])
                 if kind == "muscle":
                     c = d.get("point:area_stretch", np.ones(len(d["points"])))
-                    up[f"muscle{i}_c"] = _enc(c, np.float32)
+                    up[f"muscle{i}_c"] = _enc(stretch_colours(c), np.uint8)
         for kind in ("lines", "fibres"):
             for i, n in enumerate(self._names[kind]):
                 d = s.part(k, n)
