@@ -34,6 +34,9 @@ distances to the bones and to the muscles kept apart computed on the server).
 
 ``--screenshot PNG [--set COORDINATE=VALUE ...]`` writes the page's picture instead (docs/view.png).
 
+``--compare CHECKOUT ...``: only the first picture and the drag (after the sweep step by step),
+of each checkout's viewer in turns, twice: what a change did, in one sitting.
+
 ``--phases`` times, without a browser, where the first picture's time and a pose's go: the
 check, reading the scene (`LiveScene` without its check), the first pose, then per pose (medians
 over every 10th frame, warm) the waypoints, the solve, the measures and the contact colours'
@@ -406,6 +409,36 @@ def contact_colours(live: Any, frames: range) -> None:
               f"{1e3 * np.median(ts):.1f} ms")  # fmt: skip
 
 
+def compare(scene: Path, checkouts: list[Path], coordinate: str, sweep: tuple, seconds: float,
+            rounds: int = 2) -> None:  # fmt: skip
+    """The first picture and a hand's drag of each checkout's viewer, in turns, ``rounds`` times.
+
+    Each checkout's ``src`` is put first on the viewer's ``PYTHONPATH``; the poses of
+    ``sweep`` are solved step by step first (the waypoints), then the drag. One sitting:
+    the host's speed drifts between sittings by 2-3 times.
+    """
+    import os
+
+    lo, hi, step = sweep
+    values = [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
+    print(
+        f"{scene}: first picture, then a {seconds:g} s drag of {coordinate} {lo:g}-{hi:g} and back"
+    )
+    for _ in range(rounds):
+        for c in checkouts:
+            os.environ["PYTHONPATH"] = str(c.resolve() / "src")
+            with open_page(scene) as (page, first):
+                page.wait_for_timeout(1500)
+                for v in values:
+                    set_slider(page, coordinate, v)
+                d = drag(page, coordinate, sweep, seconds)
+            print(
+                f"  {str(c):<24} first picture {first:5.2f} s  drag {d['updates_per_s']:5.2f} "
+                f"pictures/s, update {d['update_ms']:4.0f} ms, solve {d['solve_ms']:4.0f} ms "
+                f"({d['pictures']} pictures in {d['seconds']:.1f} s)", flush=True,
+            )  # fmt: skip
+
+
 def host_reference() -> float:
     """The host's speed now: the median ms of one float64 ``W @ X``.
 
@@ -436,6 +469,8 @@ def main() -> None:
     ap.add_argument("--colour", default="stretch", choices=("stretch", "contact"),
                     help="the muscles' colouring through the measures")  # fmt: skip
     ap.add_argument("--phases", action="store_true", help="where the time goes (no browser)")
+    ap.add_argument("--compare", type=Path, nargs="+", metavar="CHECKOUT",
+                    help="the first picture and the drag alone, of these checkouts in turns")  # fmt: skip
     ap.add_argument("--screenshot", type=Path, metavar="PNG", help="the page's picture instead")
     ap.add_argument("--set", action="append", default=[], metavar="COORDINATE=VALUE",
                     help="with --screenshot: the sliders moved first")  # fmt: skip
@@ -445,6 +480,13 @@ def main() -> None:
     print(f"host reference: W @ X (15074 x 300, 3 columns) {host_reference():.2f} ms")
     if a.phases:
         phases(a.scene)
+        print(f"host reference again: W @ X {host_reference():.2f} ms")
+        return
+    if a.compare:
+        with tempfile.TemporaryDirectory() as tmp:
+            for v in a.variants:
+                sc = scene_variant(a.scene.resolve(), v, Path(tmp))
+                compare(sc, a.compare, a.coordinate, tuple(a.sweep), a.drag_seconds)
         print(f"host reference again: W @ X {host_reference():.2f} ms")
         return
     if a.screenshot:
