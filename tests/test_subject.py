@@ -392,3 +392,36 @@ def test_init_on_another_model_rajagopal(data_dir, tmp_path):
     assert sc.registration is not None and sc.registration.axes == ("y", "z", "x")
     assert "knee_angle_r_beta" not in sc.coordinates and "knee_angle_r" in sc.coordinates
     assert check_scene(sc).ok
+
+
+def test_checks_measures_are_read_back_and_taken_anew_for_a_changed_mesh(
+    data_dir, tmp_path, monkeypatch
+):
+    """The check's libigl measures at rest (``run`` and ``view`` check at every start) are
+    kept in the cache: a second check measures nothing and finds the same; a moved bone
+    is measured anew."""
+    import igl
+
+    from musclewrap.mesh import read_mesh, write_mesh
+
+    sc = load_scene(EXAMPLES / "lhdl_walk.toml")
+    first = check_scene(sc, cache_dir=tmp_path)
+    kept = {p.name for p in tmp_path.glob("measure-*.npz")}
+    assert {k.split("-")[1] for k in kept} == {"inside", "outside"}
+    calls = []
+    for f in ("point_mesh_squared_distance", "fast_winding_number", "winding_number"):
+        was = getattr(igl, f)
+        monkeypatch.setattr(igl, f, lambda *a, was=was, f=f, **k: calls.append(f) or was(*a, **k))
+    again = check_scene(sc, cache_dir=tmp_path)
+    assert calls == []
+    assert again.findings == first.findings and again.fits == first.fits
+    # the femur 2 mm along x: its measures (the muscles inside it, the paths on it) anew
+    femur = next(b for b in sc.bones if b.name == "femur")
+    V, F = read_mesh(femur.mesh)[:2]
+    moved = tmp_path / "femur_moved.vtp"
+    write_mesh(moved, V + [2.0, 0.0, 0.0], F)
+    text = sc.path.read_text().replace("../../shared/data/lhdl/bones/LHDL_R_Femur.vtk", str(moved))
+    (tmp_path / "moved.toml").write_text(text.replace("../../shared/data", str(data_dir)))
+    check_scene(load_scene(tmp_path / "moved.toml"), cache_dir=tmp_path)
+    new = {p.name for p in tmp_path.glob("measure-*.npz")} - kept
+    assert {k.split("-")[1] for k in new} == {"inside", "outside"} and calls

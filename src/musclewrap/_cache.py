@@ -12,7 +12,7 @@ import numpy as np
 from ._hashing import digest, digest_arrays
 from .mesh import atomic_path
 
-__all__ = ["cached_arrays", "digest"]
+__all__ = ["cached_arrays", "cached_measure", "digest"]
 
 
 def cached_arrays(
@@ -51,3 +51,24 @@ def cached_arrays(
             with atomic_path(path) as tmp, open(tmp, "wb") as fh:
                 np.savez(fh, sha256=np.array(digest_arrays(arrays)), **arrays)
     return arrays
+
+
+def cached_measure(
+    cache_dir: Path | None,
+    kind: str,
+    parts: list[np.ndarray],
+    build: Callable[[], dict[str, np.ndarray]],
+) -> dict[str, np.ndarray]:
+    """`cached_arrays` of a measure of arrays, keyed by the arrays themselves.
+
+    ``kind`` names the measure and its version (change it where the measure changes);
+    the package's version is part of the key too. The file is
+    ``cache_dir/measure-<kind>-<key>.npz``; ``cache_dir`` None: no cache.
+    """
+    from . import __version__
+
+    path = None
+    if cache_dir is not None:
+        key = digest(*(np.ascontiguousarray(a) for a in parts), kind, __version__)
+        path = Path(cache_dir) / f"measure-{kind}-{key[:32]}.npz"
+    return cached_arrays(path, build)

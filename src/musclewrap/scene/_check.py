@@ -183,9 +183,9 @@ def _check(
                 f"'{scene.model_unit}')",
             )  # fmt: skip
             return
-    _check_lines(scene, model, drive, body_m, rep)
+    _check_lines(scene, model, drive, body_m, rep, cache)
     if model is not None:
-        _check_bone_bodies(scene, model, body_b, rep)
+        _check_bone_bodies(scene, model, body_b, rep, cache)
     # every mesh placed in the output frame at rest, once for the overlaps and the picture
     to_out = {
         b: drive.rest_between(b, scene.output_frame)
@@ -193,7 +193,7 @@ def _check(
     }
     rest_m = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_m.items()}
     rest_b = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_b.items()}
-    _check_overlaps(scene, drive, body_m, rest_m, rest_b, rep)
+    _check_overlaps(scene, drive, body_m, rest_m, rest_b, rep, cache)
     if picture is not None:
         from ..output._check_picture import draw_check
 
@@ -270,6 +270,7 @@ def _check_lines(
     drive: Any,
     body_m: dict[str, tuple[FloatArray, IntArray]],
     rep: CheckReport,
+    cache: Path | None = None,
 ) -> None:
     from ..mesh import mean_thickness
     from ._names import match_muscle, path_anatomy
@@ -290,7 +291,7 @@ def _check_lines(
                 "check its paths (musclewrap init matches them by name)",
             )  # fmt: skip
         V, F = body_m[m.name]
-        fit = line_fit(V, F, dict(drive.rest_lines[m.name]))
+        fit = line_fit(V, F, dict(drive.rest_lines[m.name]), cache=cache)
         rep.fits[m.name] = fit
         thick = float(mean_thickness(V, F))
         rep.thickness[m.name] = thick
@@ -373,7 +374,11 @@ def _body(scene: Scene, name: str) -> str:
 
 # ---------------------------------------------------------------------------- bodies
 def _check_bone_bodies(
-    scene: Scene, model: Any, body_b: dict[str, tuple[FloatArray, IntArray]], rep: CheckReport
+    scene: Scene,
+    model: Any,
+    body_b: dict[str, tuple[FloatArray, IntArray]],
+    rep: CheckReport,
+    cache: Path | None = None,
 ) -> None:
     """Each bone against the attachments of the model's paths: whose lie on it."""
     from ._drive import rest_pose
@@ -399,7 +404,9 @@ def _check_bone_bodies(
         # than all the points' queries)
         reach = ATTACHED_M * s
         box = np.flatnonzero(((P >= V.min(0) - reach) & (P <= V.max(0) + reach)).all(axis=1))
-        on = owner_a[box[outside_distance(P[box], V, F) <= reach]] if len(box) else owner_a[:0]
+        on = owner_a[:0]
+        if len(box):
+            on = owner_a[box[outside_distance(P[box], V, F, cache=cache) <= reach]]
         count = {b: int((on == b).sum()) for b in set(owner)}
         best = max(count, key=lambda b: count[b])
         mine = count.get(spec.body, 0)
@@ -419,6 +426,7 @@ def _check_overlaps(
     rest_m: dict[str, tuple[FloatArray, IntArray]],
     rest_b: dict[str, tuple[FloatArray, IntArray]],
     rep: CheckReport,
+    cache: Path | None = None,
 ) -> None:  # fmt: skip
     """Rest overlaps (meshes in the output frame at rest): what the run refuses or resolves."""
     from ._read import check_muscles_apart
@@ -430,7 +438,7 @@ def _check_overlaps(
         near = [m for m in scene.muscles if m.bones is None or b.name in m.bones]
         if not near:
             continue
-        got = inside_depths([rest_m[m.name][0] for m in near], *rest_b[b.name])
+        got = inside_depths([rest_m[m.name][0] for m in near], *rest_b[b.name], cache=cache)
         found.update({(m.name, b.name): g for m, g in zip(near, got, strict=True)})
     for m in scene.muscles:
         V = rest_m[m.name][0]
@@ -460,7 +468,7 @@ def _check_overlaps(
     except SceneError as exc:
         rep.add("error", "scene", str(exc))
         return
-    for name, (n, depth, other) in muscle_overlaps(rest_m).items():
+    for name, (n, depth, other) in muscle_overlaps(rest_m, cache=cache).items():
         if n:
             rep.add(
                 "note", name,

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from .._cache import cached_measure
 from .._typing import FloatArray, IntArray
 
 __all__ = ["LineFit", "line_fit", "line_fits", "outside_distance", "resample_polyline"]
@@ -22,16 +24,27 @@ def resample_polyline(P: FloatArray, step: float) -> FloatArray:
     return np.vstack(out)
 
 
-def outside_distance(P: FloatArray, V: FloatArray, F: IntArray) -> FloatArray:
-    """Each point's distance outside the closed surface ``V, F`` (0 inside it)."""
+def outside_distance(
+    P: FloatArray, V: FloatArray, F: IntArray, *, cache: Path | None = None
+) -> FloatArray:
+    """Each point's distance outside the closed surface ``V, F`` (0 inside it).
+
+    ``cache``: a folder where the same arrays' distances, measured before, are read back
+    (`musclewrap._cache.cached_measure`): libigl builds its trees over ``V, F`` at every
+    call, and ``musclewrap run`` and ``view`` check their scene at every start.
+    """
     import igl
 
     P = np.ascontiguousarray(P, dtype=np.float64)
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
-    d2, _, _ = igl.point_mesh_squared_distance(P, V, F)
-    inside = igl.fast_winding_number(V, F, P) > 0.5
-    return np.where(inside, 0.0, np.sqrt(d2))
+
+    def measure() -> dict[str, np.ndarray]:
+        d2, _, _ = igl.point_mesh_squared_distance(P, V, F)
+        inside = igl.fast_winding_number(V, F, P) > 0.5
+        return {"d": np.where(inside, 0.0, np.sqrt(d2))}
+
+    return cached_measure(cache, "outside-1", [P, V, F], measure)["d"]
 
 
 @dataclass(frozen=True)
@@ -54,12 +67,19 @@ class LineFit:
     extent: float
 
 
-def line_fit(V: FloatArray, F: IntArray, lines: dict[str, FloatArray]) -> LineFit:
-    """The `LineFit` of rest ``lines`` (name -> (k, 3) points) to the mesh ``V, F``."""
-    return line_fits(V, F, [lines])[0]
+def line_fit(
+    V: FloatArray, F: IntArray, lines: dict[str, FloatArray], *, cache: Path | None = None
+) -> LineFit:
+    """The `LineFit` of rest ``lines`` (name -> (k, 3) points) to the mesh ``V, F``.
+
+    ``cache``: as `outside_distance`'s.
+    """
+    return line_fits(V, F, [lines], cache=cache)[0]
 
 
-def line_fits(V: FloatArray, F: IntArray, many: list[dict[str, FloatArray]]) -> list[LineFit]:
+def line_fits(
+    V: FloatArray, F: IntArray, many: list[dict[str, FloatArray]], *, cache: Path | None = None
+) -> list[LineFit]:
     """`line_fit` of several sets of lines to one mesh (one distance query for all)."""
     V = np.asarray(V, dtype=np.float64)
     X = V - V.mean(axis=0)
@@ -67,7 +87,7 @@ def line_fits(V: FloatArray, F: IntArray, many: list[dict[str, FloatArray]]) -> 
     extent = float(np.ptp(X @ axes[0]))
     step = extent / 200
     pts = [np.vstack([resample_polyline(L, step) for L in lines.values()]) for lines in many]
-    d_all = outside_distance(np.vstack(pts), V, F)
+    d_all = outside_distance(np.vstack(pts), V, F, cache=cache)
     out = []
     start = 0
     for lines, P in zip(many, pts, strict=True):

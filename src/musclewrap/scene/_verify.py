@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from .._cache import cached_measure
 from .._typing import FloatArray, IntArray
 from ..mesh import clean_mesh, read_mesh, tidy_mesh, volume
 from ._config import Scene
@@ -29,19 +30,32 @@ def inside_depth(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[int, float]
     return inside_depths([P], V, F)[0]
 
 
-def inside_depths(Ps: list[FloatArray], V: FloatArray, F: IntArray) -> list[tuple[int, float]]:
+def inside_depths(
+    Ps: list[FloatArray], V: FloatArray, F: IntArray, *, cache: Path | None = None
+) -> list[tuple[int, float]]:
     """`inside_depth` of several point sets against one surface, the surface's trees built once.
 
     libigl builds its hierarchy of ``V, F`` on every call, which costs more than the
     queries of a muscle's points against a bone: the sets go in one call. Each
     point's winding number and distance do not depend on the other points queried.
+    ``cache``: a folder where the same arrays' answers, found before, are read back
+    (`musclewrap._cache.cached_measure`; the check's measures at rest, at every start).
     """
-    import igl
-
     if not Ps:
         return []
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
+    Ps = [np.ascontiguousarray(P, dtype=np.float64) for P in Ps]
+    got = cached_measure(
+        cache, "inside-1", [*Ps, V, F],
+        lambda: dict(zip(("n", "depth"), np.array(_inside_depths(Ps, V, F)).T, strict=True)),
+    )  # fmt: skip
+    return [(int(n), float(d)) for n, d in zip(got["n"], got["depth"], strict=True)]
+
+
+def _inside_depths(Ps: list[FloatArray], V: FloatArray, F: IntArray) -> list[tuple[int, float]]:
+    import igl
+
     lo, hi = V.min(0), V.max(0)
     idx = [np.flatnonzero(((P >= lo) & (P <= hi)).all(axis=1)) for P in Ps]
     Q = np.vstack([np.asarray(P, dtype=np.float64)[i] for P, i in zip(Ps, idx, strict=True)])
@@ -67,18 +81,24 @@ def inside_depths(Ps: list[FloatArray], V: FloatArray, F: IntArray) -> list[tupl
 
 
 def muscle_overlaps(
-    meshes: dict[str, tuple[FloatArray, IntArray]],
+    meshes: dict[str, tuple[FloatArray, IntArray]], *, cache: Path | None = None
 ) -> dict[str, tuple[int, float, str]]:
     """Per muscle, its vertices inside the others (`inside_depth` against each).
 
     Returns, per name of ``meshes`` (name -> closed surface ``V, F``): how many of its
     vertices lie inside another surface (a vertex inside two counts twice), the
     deepest one's distance to that surface, and the name of the surface it is in
-    ("" and 0 when none is).
+    ("" and 0 when none is). ``cache``: as `inside_depths`'s.
     """
     # against each surface, the others' vertices in one query (its trees built once)
     against = {
-        b: dict(zip(others, inside_depths([meshes[a][0] for a in others], *meshes[b]), strict=True))
+        b: dict(
+            zip(
+                others,
+                inside_depths([meshes[a][0] for a in others], *meshes[b], cache=cache),
+                strict=True,
+            )
+        )  # fmt: skip
         for b in meshes
         for others in [[a for a in meshes if a != b]]
     }
