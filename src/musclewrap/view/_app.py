@@ -84,7 +84,7 @@ body { margin: 0; font-family: system-ui, sans-serif; font-size: 14px; }
 .mw-view { flex: 1; position: relative; min-height: 200px; }
 .mw-row { margin: 6px 0 10px 0; }
 .mw-row label { display: block; font-weight: 600; }
-.mw-row input[type=range] { width: 100%; }
+.mw-row input[type=range], .mw-row select { width: 100%; box-sizing: border-box; }
 .mw-value { color: #444; font-variant-numeric: tabular-nums; }
 .mw-status { padding: 6px 12px; border-top: 1px solid #ccc; background: #f6f6f6;
   font-variant-numeric: tabular-nums; white-space: pre-wrap; }
