@@ -37,8 +37,12 @@ distances to the bones and to the muscles kept apart computed on the server).
 ``--compare CHECKOUT ...``: only the first picture and the drag (after the sweep step by step),
 of each checkout's viewer in turns, twice: what a change did, in one sitting.
 
+``--profile-page`` (with ``--compare``: of each checkout): the page's own work per update over
+the sweep, step by step, by Chrome's sampling profiler: the functions that took the most time
+themselves, and the time within vtk.js's colour mapping.
+
 ``--phases`` times, without a browser, where the first picture's time and a pose's go: the
-check, reading the scene (`LiveScene` without its check), the first pose, then per pose (medians
+check (then again, its measures read back from the cache, and again taken anew), reading the scene (`LiveScene` without its check), the first pose, then per pose (medians
 over every 10th frame, warm) the waypoints, the solve, the measures and the contact colours'
 distances (then their part to the muscles with the grid's cells 1, 1/2 and 1/3 of the reach
 wide), and each muscle's solve alone against its bones.
@@ -342,6 +346,24 @@ def screenshot(
     print(f"wrote {png}")
 
 
+@contextlib.contextmanager
+def measures_anew() -> Iterator[None]:
+    """The check's cached measures (`musclewrap._cache.cached_measure`) taken anew meanwhile."""
+    from musclewrap import _cache
+    from musclewrap.scene import _fit, _verify
+
+    kept = _cache.cached_measure
+
+    def anew(cache_dir: Any, kind: str, parts: Any, build: Any) -> Any:
+        return kept(None, kind, parts, build)
+
+    _fit.cached_measure = _verify.cached_measure = anew  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        _fit.cached_measure = _verify.cached_measure = kept  # type: ignore[assignment]
+
+
 def phases(scene: Path) -> None:
     import numpy as np
 
@@ -350,7 +372,14 @@ def phases(scene: Path) -> None:
     sc = load_scene(scene)
     t = time.perf_counter()
     check_scene(sc)
-    print(f"check {time.perf_counter() - t:.2f} s")
+    print(f"check {time.perf_counter() - t:.2f} s (the first in this process, as a start's)")
+    t = time.perf_counter()
+    check_scene(sc)
+    print(f"  again: {time.perf_counter() - t:.2f} s (its measures read back from the cache)")
+    with measures_anew():
+        t = time.perf_counter()
+        check_scene(sc)
+    print(f"  again, its measures taken anew: {time.perf_counter() - t:.2f} s")
     t = time.perf_counter()
     live = LiveScene(sc, check=False)
     print(
@@ -373,7 +402,7 @@ def phases(scene: Path) -> None:
         f"a pose, warm, median of {len(got)}: "
         + ", ".join(f"{k} {1e3 * np.median([g[k] for g in got]):.1f} ms" for k in got[0])
     )
-    contact_colours(live, frames)
+    contact_cells(live, frames)
     for name, m in live._prepare().items():
         alone = []
         for k in frames:
@@ -386,7 +415,7 @@ def phases(scene: Path) -> None:
         )
 
 
-def contact_colours(live: Any, frames: range) -> None:
+def contact_cells(live: Any, frames: range) -> None:
     """The contact colours' distances to the muscles by the grid's cell width.
 
     `muscle_gaps` with cells 1, 1/2 and 1/3 of the reach wide, medians over ``frames``
@@ -439,11 +468,62 @@ def compare(scene: Path, checkouts: list[Path], coordinate: str, sweep: tuple, s
             )  # fmt: skip
 
 
-def host_reference() -> float:
-    """The host's speed now: the median ms of one float64 ``W @ X``.
+def profile_page(
+    scene: Path, coordinate: str, sweep: tuple, checkouts: list[Path] | None = None
+) -> None:
+    """The page's own work per update: Chrome's sampling profiler over the sweep, step by step.
 
-    15 074 x 300 times 300 x 3 (numpy): the product BENCHMARKS.md measures every pose against
-    (4-11.5 ms across runs).
+    After one pass to solve the waypoints, the sweep again under the profiler (through
+    Playwright's CDP session); per update, the functions that took the most time themselves,
+    and the time spent within vtk.js's colour mapping (``mapScalars`` and what it calls).
+    ``checkouts``: each one's viewer in turn (its ``src`` first on ``PYTHONPATH``).
+    """
+    import collections
+    import os
+
+    lo, hi, step = sweep
+    values = [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
+    for c in checkouts or [None]:
+        if c is not None:
+            os.environ["PYTHONPATH"] = str(c.resolve() / "src")
+        with open_page(scene) as (page, _):
+            page.wait_for_timeout(1500)
+            for v in values:
+                set_slider(page, coordinate, v)
+            cdp = page.context.new_cdp_session(page)
+            cdp.send("Profiler.enable")
+            cdp.send("Profiler.setSamplingInterval", {"interval": 200})
+            cdp.send("Profiler.start")
+            for v in values:
+                set_slider(page, coordinate, v)
+            prof = cdp.send("Profiler.stop")["profile"]
+        nodes = {n["id"]: n for n in prof["nodes"]}
+        parent = {k: n["id"] for n in prof["nodes"] for k in n.get("children", [])}
+        own: collections.Counter[str] = collections.Counter()
+        within = 0.0
+        for sample, dt in zip(prof["samples"], prof["timeDeltas"], strict=True):
+            f = nodes[sample]["callFrame"]
+            own[f["functionName"] or "(anonymous)"] += dt
+            k, names = sample, set()
+            while k is not None:
+                names.add(nodes[k]["callFrame"]["functionName"])
+                k = parent.get(k)
+            if any(n.endswith("mapScalars") for n in names):
+                within += dt
+        n = len(values)
+        print(f"{c or 'this checkout'}: the page's work per update, {n} updates")
+        print(f"  within vtk.js's colour mapping (mapScalars): {within / 1e3 / n:.1f} ms")
+        for name, dt in own.most_common(12):
+            print(f"  {dt / 1e3 / n:7.1f} ms  {name}")
+
+
+def host_reference() -> str:
+    """The host's speed now, in two measures: BLAS's and single-threaded Python's.
+
+    The median ms of one float64 ``W @ X`` (15 074 x 300 times 300 x 3, numpy: the product
+    BENCHMARKS.md measures every pose against, 4-11.5 ms across runs) and the seconds of a
+    plain Python loop of 10 million additions (most of a pose's time is Python's and
+    single-threaded kernels': a host can be slow there and not in BLAS).
     """
     import numpy as np
 
@@ -454,7 +534,14 @@ def host_reference() -> float:
         t = time.perf_counter()
         W @ X
         ts.append(time.perf_counter() - t)
-    return 1e3 * statistics.median(ts[5:])
+    t, s = time.perf_counter(), 0
+    for i in range(10_000_000):
+        s += i
+    loop = time.perf_counter() - t
+    return (
+        f"W @ X (15074 x 300, 3 columns) {1e3 * statistics.median(ts[5:]):.2f} ms, "
+        f"a Python loop of 10 million additions {loop:.2f} s"
+    )
 
 
 def main() -> None:
@@ -469,6 +556,8 @@ def main() -> None:
     ap.add_argument("--colour", default="stretch", choices=("stretch", "contact"),
                     help="the muscles' colouring through the measures")  # fmt: skip
     ap.add_argument("--phases", action="store_true", help="where the time goes (no browser)")
+    ap.add_argument("--profile-page", action="store_true",
+                    help="the page's own work per update (with --compare: each checkout's)")  # fmt: skip
     ap.add_argument("--compare", type=Path, nargs="+", metavar="CHECKOUT",
                     help="the first picture and the drag alone, of these checkouts in turns")  # fmt: skip
     ap.add_argument("--screenshot", type=Path, metavar="PNG", help="the page's picture instead")
@@ -477,17 +566,23 @@ def main() -> None:
     ap.add_argument("--size", type=int, nargs=2, default=(1100, 640), metavar=("W", "H"),
                     help="with --screenshot: the page's size")  # fmt: skip
     a = ap.parse_args()
-    print(f"host reference: W @ X (15074 x 300, 3 columns) {host_reference():.2f} ms")
+    print(f"host reference: {host_reference()}")
     if a.phases:
         phases(a.scene)
-        print(f"host reference again: W @ X {host_reference():.2f} ms")
+        print(f"host reference again: {host_reference()}")
+        return
+    if a.profile_page:
+        with tempfile.TemporaryDirectory() as tmp:
+            for v in a.variants:
+                sc = scene_variant(a.scene.resolve(), v, Path(tmp))
+                profile_page(sc, a.coordinate, tuple(a.sweep), a.compare)
         return
     if a.compare:
         with tempfile.TemporaryDirectory() as tmp:
             for v in a.variants:
                 sc = scene_variant(a.scene.resolve(), v, Path(tmp))
                 compare(sc, a.compare, a.coordinate, tuple(a.sweep), a.drag_seconds)
-        print(f"host reference again: W @ X {host_reference():.2f} ms")
+        print(f"host reference again: {host_reference()}")
         return
     if a.screenshot:
         screenshot(a.scene, a.screenshot, a.set, tuple(a.size), a.colour)
@@ -540,7 +635,7 @@ def main() -> None:
                 f"{'':<12}the same in a {w['size'][0]}x{w['size'][1]} view: {w['all_ms']:.0f} ms; "
                 f"without the bones {w['nobones_ms']:.0f} ms"
             )
-    print(f"host reference again: W @ X {host_reference():.2f} ms")
+    print(f"host reference again: {host_reference()}")
 
 
 if __name__ == "__main__":

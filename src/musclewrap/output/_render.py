@@ -83,11 +83,19 @@ def stretch_table(n: int = 256) -> np.ndarray:
 
 
 def stretch_colours(stretch: np.ndarray) -> np.ndarray:
-    """Each ``area_stretch`` value's colour from `stretch_table`: (k, 3) uint8 (NaN: as 1)."""
+    """Each ``area_stretch`` value's colour from `stretch_table`: (k, 3) uint8 (NaN: as 1).
+
+    The nearest entry on the table's log scale, as the run's pictures' lookup table takes it.
+    """
+    table = _STRETCH_RGB
     lo, hi = np.log(STRETCH_RANGE[0]), np.log(STRETCH_RANGE[1])
     s = np.log(np.nan_to_num(np.asarray(stretch, dtype=np.float64), nan=1.0).clip(1e-300))
-    i = np.rint((s - lo) / (hi - lo) * 255.0).clip(0, 255).astype(np.intp)
-    return np.rint(255.0 * stretch_table()[i]).astype(np.uint8)
+    last = len(table) - 1
+    return table[np.rint((s - lo) / (hi - lo) * last).clip(0, last).astype(np.intp)]
+
+
+#: `stretch_table` in 8-bit RGB, for `stretch_colours`
+_STRETCH_RGB = np.rint(255.0 * stretch_table()).astype(np.uint8)
 
 
 @dataclass(frozen=True)
