@@ -80,9 +80,13 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
          f"({_A2}, {_I2}, {_A2}, {_I2}, {_I1}, {_I1}, {_I1}, {_I1}, int64, {_A1}, {_A2}, {_I1})"),
         ("contact._muscles", "_closest_kernel", f"({_A2}, {_A2}, {_I2}, {_A1}, {_A2}, {_I1})"),
         ("mesh._geometry", "_normals_kernel", f"({_A2}, {_I2}, {_A2})"),
-        ("mesh._winding", "_grid_kernel", f"({_A2}, {_I2}, int64)"),
+        ("mesh._winding", "_cells_kernel", f"({_A2}, int64)"),
+        ("mesh._winding", "_region_kernel", f"({_A2}, int64, float64, float64, float64, float64)"),
+        ("mesh._winding", "_bin_kernel", f"({_I2}, {_I1}, {_I1}, int64, int64, int64, int64)"),
         ("mesh._winding", "_query_kernel",
-         f"({_A2}, {_A2}, {_I2}, int64, float64, float64, float64, float64, {_I1}, {_I1}, {_I1})"),
+         f"({_A2}, {_A2}, {_I2}, int64, float64, float64, float64, float64, int64, int64, "
+         f"int64, int64, {_I1}, {_I1}, {_I1})"),
+        ("contact._muscles", "_in_box_kernel", f"({_A2}, {_A1}, {_A1}, {_I1})"),
     ),
 }  # fmt: skip
 

@@ -142,7 +142,8 @@ def bone_vertices_inside(
         ip, ix = ob.adjacency
         while len(rows):
             if grid is None:
-                grid = WindingGrid(P, F)
+                # binned where it is asked (a few points near a muscle of thousands of faces)
+                grid = WindingGrid(P, F, lazy=True)
             hit = grid(pl.to_muscle(ob.V[rows])) > 0
             if not hit.any():
                 break

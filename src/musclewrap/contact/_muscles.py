@@ -181,24 +181,49 @@ def overlaps(
     of ``b``'s). Each muscle's list is in the order of the others' names; a
     muscle's result depends on the surfaces alone, not on their order. ``memo``: a
     dict kept by a caller whose surfaces do not all move between calls (rounds):
-    each surface's `WindingGrid` and each pair's result are kept with the position
-    arrays they came from, and taken again while the same arrays come back.
+    each surface's box and `WindingGrid` and each pair's result are kept with the
+    position arrays they came from, and taken again while the same arrays come back.
     """
     memo = {} if memo is None else memo
-    boxes = {n: (V.min(0), V.max(0)) for n, (V, _) in surfaces.items()}
+    boxes = {}
+    for n, (V, _) in surfaces.items():
+        kept = memo.get(("box", n))
+        if kept is None or kept[0] is not V:
+            kept = memo["box", n] = (V, V.min(0), V.max(0))
+        boxes[n] = kept[1:]
     out: dict[str, list[Overlap]] = {n: [] for n in surfaces}
+    todo = []  # (me, other, its points in the other's box) of the pairs looked at anew
     for a, b in sorted(pairs):
         for me, other in ((a, b), (b, a)):
             P = surfaces[me][0]
-            Vo, Fo = surfaces[other]
             kept = memo.get((me, other))
-            if kept is not None and kept[0] is P and kept[1] is Vo:
-                found = kept[2]  # neither has moved since
-            else:
-                found = _inside_other(P, Vo, Fo, boxes[other], facing, (me, other), memo)
-                memo[me, other] = (P, Vo, found)
-            if found is not None:
-                out[me].append(found)
+            if kept is not None and kept[0] is P and kept[1] is surfaces[other][0]:
+                if kept[2] is not None:  # neither has moved since
+                    out[me].append(kept[2])
+                continue
+            todo.append((me, other, in_box(P, *boxes[other])))
+    # one grid per surface looked into (kept while it does not move), binned round every
+    # point that looks into it
+    grids: dict[str, WindingGrid] = {}
+    for me, other, cand in todo:
+        if len(cand):
+            if other not in grids:
+                kept = memo.get(("grid", other))
+                if kept is None or kept[0] is not surfaces[other][0]:
+                    kept = memo["grid", other] = (
+                        surfaces[other][0],
+                        WindingGrid(*surfaces[other], lazy=True),
+                    )
+                grids[other] = kept[1]
+            grids[other].bin_around(surfaces[me][0][cand])
+    for me, other, cand in todo:
+        P, (Vo, Fo) = surfaces[me][0], surfaces[other]
+        found = None
+        if len(cand):
+            found = _inside_other(P, cand, Vo, Fo, grids[other], facing, (me, other))
+        memo[me, other] = (P, Vo, found)
+        if found is not None:
+            out[me].append(found)
     for n in out:
         out[n].sort(key=lambda o: o.other)
     return out
@@ -206,34 +231,45 @@ def overlaps(
 
 def _inside_other(
     P: FloatArray,
+    cand: IntArray,
     Vo: FloatArray,
     Fo: IntArray,
-    box: tuple[FloatArray, FloatArray],
+    grid: WindingGrid,
     facing: Mapping[tuple[str, str], IntArray],
     pair: tuple[str, str],
-    memo: dict[Any, Any],
 ) -> Overlap | None:
-    """The points ``P`` of ``pair[0]`` inside the surface ``Vo, Fo`` of ``pair[1]``, their way out.
+    """The points ``P[cand]`` of ``pair[0]`` inside the surface ``Vo, Fo`` of ``pair[1]``, their way out.
 
-    ``facing[pair]`` is looked up only where some point is inside (`facing_pairs`
-    finds a pair's faces when first looked up).
+    ``grid``: the other surface's `WindingGrid`. ``facing[pair]`` is looked up only
+    where some point is inside (`facing_pairs` finds a pair's faces when first
+    looked up).
     """
-    other = pair[1]
-    lo, hi = box
-    cand = np.flatnonzero(((P >= lo) & (P <= hi)).all(axis=1))
-    if not len(cand):
-        return None
-    grid = memo.get(other)
-    if grid is None or grid[0] is not Vo:
-        grid = memo[other] = (Vo, WindingGrid(Vo, Fo))
-    rows = cand[grid[1](P[cand]) > 0]
+    rows = cand[grid(P[cand]) > 0]
     if not len(rows):
         return None
     f = facing.get(pair)
     every = f is None or not len(f)
     depth, C, which = _closest(P[rows], Vo, Fo if every else Fo[f])
     d = (C - P[rows]) / np.maximum(depth, 1e-300)[:, None]
-    return Overlap(other, rows, depth, d, which if every else f[which], C)
+    return Overlap(pair[1], rows, depth, d, which if every else f[which], C)
+
+
+def in_box(P: FloatArray, lo: FloatArray, hi: FloatArray) -> IntArray:
+    """The rows of the points ``P`` (k, 3) within the box ``lo``-``hi`` (bounds included)."""
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    out = np.empty(len(P), dtype=np.int64)
+    k = _in_box_kernel(P, np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64), out)
+    return out[:k]
+
+
+@numba.njit(cache=True)
+def _in_box_kernel(P, lo, hi, out):  # noqa: ANN001, ANN202 # pragma: no cover
+    k = 0
+    for i in range(P.shape[0]):
+        if lo[0] <= P[i, 0] <= hi[0] and lo[1] <= P[i, 1] <= hi[1] and lo[2] <= P[i, 2] <= hi[2]:
+            out[k] = i
+            k += 1
+    return k
 
 
 def overlap_depths(

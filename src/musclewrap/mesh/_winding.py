@@ -55,29 +55,62 @@ def winding_numbers(P: npt.ArrayLike, V: npt.ArrayLike, F: npt.ArrayLike) -> npt
 class WindingGrid:
     """`winding_numbers` about one surface, for several batches of points.
 
-    The surface's faces are binned over the yz plane once (one pass over the
-    faces); each call then tests a few faces per point.
+    The surface's faces are binned over the yz plane (one pass over the faces);
+    each call then tests a few faces per point.
 
     Parameters
     ----------
     V : (n, 3) float array
     F : (m, 3) int array
         The surface (closed, consistently oriented).
+    lazy : bool, optional
+        Bin no face at construction; each query bins the cells its points need
+        that are not binned yet (the binned cells grow to the box round every point
+        queried, `bin_around` does so beforehand). The cells are those of the whole
+        grid, each with the same faces in the same order, so the winding numbers are
+        the same bit for bit; a few points near a large surface then cost a pass over
+        its vertices and faces, not the binning of every face (about 7 cells a face).
     """
 
-    def __init__(self, V: npt.ArrayLike, F: npt.ArrayLike) -> None:
+    def __init__(self, V: npt.ArrayLike, F: npt.ArrayLike, *, lazy: bool = False) -> None:
         self.V = np.ascontiguousarray(V, dtype=np.float64)
         self.F = np.ascontiguousarray(F, dtype=np.int64)
         g = max(1, int(np.sqrt(len(self.F) / 2.0)))
-        self._grid = _grid_kernel(self.V, self.F, g) if len(self.F) else None
         self._g = g
+        self._cells = _cells_kernel(self.V, g) if len(self.F) else None
+        self._region = (0, -1, 0, -1)  # cells binned: i0, i1, j0, j1 (none)
+        self._bins = (np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64))
+        if self._cells is not None and not lazy:
+            self._bin((0, g - 1, 0, g - 1))
+
+    def bin_around(self, P: npt.ArrayLike) -> None:
+        """Bin the cells that queries of the points ``P`` (k, 3) need (a lazy grid)."""
+        P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
+        if not len(P) or self._cells is None:
+            return
+        y0, z0, hy, hz = self._cells[:4]
+        need = _region_kernel(P, self._g, y0, z0, hy, hz)
+        i0, i1, j0, j1 = self._region
+        if need[0] >= i0 and need[1] <= i1 and need[2] >= j0 and need[3] <= j1:
+            return
+        if i0 <= i1:  # the box round what is binned already and what is needed
+            need = (min(i0, need[0]), max(i1, need[1]), min(j0, need[2]), max(j1, need[3]))
+        self._bin(need)
+
+    def _bin(self, region: tuple[int, int, int, int]) -> None:
+        assert self._cells is not None
+        self._bins = _bin_kernel(self.F, *self._cells[4:], *region)
+        self._region = region
 
     def __call__(self, P: npt.ArrayLike) -> npt.NDArray[np.int64]:
         """Winding numbers of the points ``P`` (k, 3)."""
         P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
         out = np.zeros(len(P), dtype=np.int64)
-        if len(P) and self._grid is not None:
-            _query_kernel(P, self.V, self.F, self._g, *self._grid, out)
+        if len(P) and self._cells is not None:
+            self.bin_around(P)
+            y0, z0, hy, hz = self._cells[:4]
+            _query_kernel(P, self.V, self.F, self._g, y0, z0, hy, hz, *self._region,
+                          *self._bins, out)  # fmt: skip
         return out
 
 
@@ -106,8 +139,10 @@ def _edge_sign(V, u, v, py, pz):  # noqa: ANN001, ANN202 # pragma: no cover
 
 
 @numba.njit(cache=True)
-def _grid_kernel(V, F, g):  # noqa: ANN001, ANN202 # pragma: no cover
-    # the faces binned by their yz boxes over a g x g grid: (y0, z0, hy, hz, CSR of cells)
+def _cells_kernel(V, g):  # noqa: ANN001, ANN202 # pragma: no cover
+    # the g x g grid over the surface's yz box (y0, z0, hy, hz) and each vertex's cell;
+    # a face's cells are the range of its vertices' (a coordinate's cell is monotone in
+    # it: the same range as from the face's own yz box)
     y0 = V[:, 1].min()
     z0 = V[:, 2].min()
     hy = (V[:, 1].max() - y0) / g
@@ -116,20 +151,56 @@ def _grid_kernel(V, F, g):  # noqa: ANN001, ANN202 # pragma: no cover
         hy = 1.0
     if hz <= 0.0:
         hz = 1.0
+    n = V.shape[0]
+    cy = np.empty(n, dtype=np.int64)
+    cz = np.empty(n, dtype=np.int64)
+    for v in range(n):
+        cy[v] = min(g - 1, int((V[v, 1] - y0) / hy))
+        cz[v] = min(g - 1, int((V[v, 2] - z0) / hz))
+    return y0, z0, hy, hz, cy, cz
+
+
+@numba.njit(cache=True)
+def _region_kernel(P, g, y0, z0, hy, hz):  # noqa: ANN001, ANN202 # pragma: no cover
+    # the range of cells (i0, i1, j0, j1) that queries of the points P look in
+    i0, i1, j0, j1 = g - 1, 0, g - 1, 0
+    for q in range(P.shape[0]):
+        i = min(g - 1, int(max(P[q, 1] - y0, 0.0) / hy))
+        j = min(g - 1, int(max(P[q, 2] - z0, 0.0) / hz))
+        i0, i1, j0, j1 = min(i0, i), max(i1, i), min(j0, j), max(j1, j)
+    return i0, i1, j0, j1
+
+
+@numba.njit(cache=True)
+def _bin_kernel(F, cy, cz, i0, i1, j0, j1):  # noqa: ANN001, ANN202 # pragma: no cover
+    # the faces binned by their cell ranges in the cells [i0, i1] x [j0, j1]: the CSR of
+    # those cells (cell (i, j) at (i - i0) * (j1 - j0 + 1) + j - j0), each in face order
+    nj = j1 - j0 + 1
     m = F.shape[0]
-    boxes = np.zeros((m, 6), dtype=np.int64)  # cell ranges of each face's yz box (one x cell)
+    R = np.empty((m, 4), dtype=np.int64)  # each face's cell range, clipped to the region
+    start = np.zeros((i1 - i0 + 1) * nj + 1, dtype=np.int64)
     for t in range(m):
         a, b, c = F[t, 0], F[t, 1], F[t, 2]
-        ya = min(V[a, 1], V[b, 1], V[c, 1])
-        yb = max(V[a, 1], V[b, 1], V[c, 1])
-        za = min(V[a, 2], V[b, 2], V[c, 2])
-        zb = max(V[a, 2], V[b, 2], V[c, 2])
-        boxes[t, 0] = min(g - 1, int((ya - y0) / hy))
-        boxes[t, 1] = min(g - 1, int((yb - y0) / hy))
-        boxes[t, 2] = min(g - 1, int((za - z0) / hz))
-        boxes[t, 3] = min(g - 1, int((zb - z0) / hz))
-    count, cells = bin_boxes(boxes, g, g, 1)
-    return y0, z0, hy, hz, count, cells
+        ia = max(min(cy[a], cy[b], cy[c]), i0)
+        ib = min(max(cy[a], cy[b], cy[c]), i1)
+        ja = max(min(cz[a], cz[b], cz[c]), j0)
+        jb = min(max(cz[a], cz[b], cz[c]), j1)
+        R[t, 0], R[t, 1], R[t, 2], R[t, 3] = ia, ib, ja, jb
+        for i in range(ia, ib + 1):
+            row = (i - i0) * nj - j0 + 1
+            for j in range(ja, jb + 1):
+                start[row + j] += 1
+    for k in range(start.shape[0] - 1):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    cells = np.empty(start[-1], dtype=np.int64)
+    for t in range(m):
+        for i in range(R[t, 0], R[t, 1] + 1):
+            row = (i - i0) * nj - j0
+            for j in range(R[t, 2], R[t, 3] + 1):
+                cells[fill[row + j]] = t
+                fill[row + j] += 1
+    return start, cells
 
 
 @numba.njit(cache=True)
@@ -162,17 +233,20 @@ def bin_boxes(boxes, n0, n1, n2):  # noqa: ANN001, ANN201 # pragma: no cover
 
 
 @numba.njit(cache=True)
-def _query_kernel(P, V, F, g, y0, z0, hy, hz, count, cells, out):  # noqa: ANN001, ANN202 # pragma: no cover
+def _query_kernel(P, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, out):  # noqa: ANN001, ANN202 # pragma: no cover
+    # every point's cell is binned (`WindingGrid.bin_around`)
     y1 = y0 + g * hy
     z1 = z0 + g * hz
+    nj = j1 - j0 + 1
     for q in range(P.shape[0]):
         px, py, pz = P[q, 0], P[q, 1], P[q, 2]
         if not (y0 <= py <= y1 and z0 <= pz <= z1):
             continue  # the ray misses the surface's box
         i = min(g - 1, int((py - y0) / hy))
         j = min(g - 1, int((pz - z0) / hz))
+        cell = (i - i0) * nj + j - j0
         w = 0
-        for k in range(count[i * g + j], count[i * g + j + 1]):
+        for k in range(count[cell], count[cell + 1]):
             t = cells[k]
             a, b, c = F[t, 0], F[t, 1], F[t, 2]
             s = _edge_sign(V, b, c, py, pz)
