@@ -13,6 +13,12 @@ with several motions, such as the sweeps, is checked motion by motion over all i
 2 workers); ``--negate``: coordinates of it negated first, for a motion recorded on a model
 whose sign for them is the other (OpenCap's knee_angle_r is flexion positive, gait2392's
 negative).
+
+``--compare CHECKOUT ...``: the timing only, of this checkout and each other one (a folder
+holding a ``src/musclewrap``, e.g. a ``git worktree`` of the parent commit) in turns, in one
+sitting (the host's speed drifts between sittings): per checkout the median with contact,
+with ``--no-collisions`` and their ratio, and whether its meshes and report values (less
+the timings) are the same bytes as this checkout's.
 """
 
 from __future__ import annotations
@@ -29,10 +35,71 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _run(scene: str, out: Path, frames: str, extra: list[str]) -> float:
-    from musclewrap._bench import timed_run
+def _run(
+    scene: str, out: Path, frames: str, extra: list[str], checkout: Path | None = None
+) -> float:
+    """Wall seconds of one run (``checkout``: another checkout's package, by PYTHONPATH)."""
+    if checkout is None:
+        from musclewrap._bench import timed_run
 
-    return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra])
+        return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra])
+    import os
+    import time
+
+    env = {**os.environ, "PYTHONPATH": str(checkout / "src")}
+    cmd = [sys.executable, "-m", "musclewrap.cli", "run", scene, "-o", str(out)]
+    t0 = time.perf_counter()
+    subprocess.run([*cmd, "--no-gif", "--frames", frames, *extra], check=True,
+                   capture_output=True, env=env)  # fmt: skip
+    return time.perf_counter() - t0
+
+
+def _same_outputs(a: Path, b: Path) -> str:
+    """Whether two run folders hold the same meshes, byte for byte, and report values."""
+    meshes = sorted(p.relative_to(a) for p in a.rglob("*.vt[pk]"))
+    differ = [p for p in meshes if (a / p).read_bytes() != (b / p).read_bytes()]
+
+    def values(folder: Path) -> list[dict]:
+        with open(folder / "report.csv", newline="") as fh:
+            return [
+                {k: v for k, v in row.items() if "second" not in k} for row in csv.DictReader(fh)
+            ]
+
+    same = values(a) == values(b)
+    return (
+        f"{len(meshes) - len(differ)} of {len(meshes)} meshes the same bytes, report values "
+        f"{'the same' if same else 'DIFFER'}"
+    )
+
+
+def compare(scene: str, frames: str, repeats: int, checkouts: list[Path]) -> None:
+    """Each checkout's runs with and without contact in turns, and their outputs."""
+    import os
+
+    subjects: list[tuple[str, Path | None]] = [("this checkout", None)]
+    subjects += [(str(c), c.resolve()) for c in checkouts]
+    times: dict[str, tuple[list[float], list[float]]] = {n: ([], []) for n, _ in subjects}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, (name, c) in enumerate(subjects):  # warm each one's caches and kernels
+            _run(scene, Path(tmp) / f"on{i}", frames, [], c)
+            _run(scene, Path(tmp) / f"off{i}", frames, ["--no-collisions"], c)
+        for _ in range(repeats):
+            for i, (name, c) in enumerate(subjects):
+                times[name][0].append(_run(scene, Path(tmp) / f"on{i}", frames, [], c))
+                times[name][1].append(
+                    _run(scene, Path(tmp) / f"off{i}", frames, ["--no-collisions"], c)
+                )
+        print(
+            f"{scene} frames {frames}, warm, no GIF, {repeats} runs each, in turns "
+            f"({os.cpu_count()} CPUs)"
+        )
+        for i, (name, _) in enumerate(subjects):
+            on, off = (float(np.median(t)) for t in times[name])
+            same = "" if i == 0 else "; " + _same_outputs(Path(tmp) / "on0", Path(tmp) / f"on{i}")
+            print(
+                f"  {name}: contact on {on:.1f} s, --no-collisions {off:.1f} s, "
+                f"{on / off:.2f}x{same}"
+            )
 
 
 def _other(rows: list[dict]) -> str:
@@ -55,7 +122,11 @@ def main() -> None:
     p.add_argument("--no-timing", action="store_true")
     p.add_argument("--motion", default=None)
     p.add_argument("--negate", nargs="*", default=[])
+    p.add_argument("--compare", nargs="+", type=Path, metavar="CHECKOUT")
     a = p.parse_args()
+    if a.compare:
+        compare(a.scene, a.frames, a.repeats, a.compare)
+        return
     import dataclasses
 
     from musclewrap.scene import load_scene, read_motion

@@ -202,20 +202,18 @@ def overlaps(
                     out[me].append(kept[2])
                 continue
             todo.append((me, other, in_box(P, *boxes[other])))
-    # one grid per surface looked into (kept while it does not move), binned round every
-    # point that looks into it
+    # one grid per surface looked into (kept while it does not move), binned once round
+    # every point that looks into it
     grids: dict[str, WindingGrid] = {}
-    for me, other, cand in todo:
-        if len(cand):
-            if other not in grids:
-                kept = memo.get(("grid", other))
-                if kept is None or kept[0] is not surfaces[other][0]:
-                    kept = memo["grid", other] = (
-                        surfaces[other][0],
-                        WindingGrid(*surfaces[other], lazy=True),
-                    )
-                grids[other] = kept[1]
-            grids[other].bin_around(surfaces[me][0][cand])
+    for other in sorted({o for _, o, cand in todo if len(cand)}):
+        kept = memo.get(("grid", other))
+        if kept is None or kept[0] is not surfaces[other][0]:
+            grid = WindingGrid(*surfaces[other], lazy=True)
+            kept = memo["grid", other] = (surfaces[other][0], grid)
+        grids[other] = kept[1]
+        grids[other].bin_around(
+            np.vstack([surfaces[me][0][cand] for me, o, cand in todo if o == other])
+        )
     for me, other, cand in todo:
         P, (Vo, Fo) = surfaces[me][0], surfaces[other]
         found = None
