@@ -64,9 +64,9 @@ class WindingGrid:
     F : (m, 3) int array
         The surface (closed, consistently oriented).
     lazy : bool, optional
-        Bin no face at construction; each query bins the cells its points need
-        that are not binned yet (the binned cells grow to the box round every point
-        queried, `bin_around` does so beforehand). The cells are those of the whole
+        Bin no face at construction; a query whose points lie outside the cells
+        binned last bins the box of cells round them instead (`bin_around` does so
+        beforehand, for several batches at once). The cells are those of the whole
         grid, each with the same faces in the same order, so the winding numbers are
         the same bit for bit; a few points near a large surface then cost a pass over
         its vertices and faces, not the binning of every face (about 7 cells a face).
@@ -84,7 +84,7 @@ class WindingGrid:
             self._bin((0, g - 1, 0, g - 1))
 
     def bin_around(self, P: npt.ArrayLike) -> None:
-        """Bin the cells that queries of the points ``P`` (k, 3) need (a lazy grid)."""
+        """Bin the box of cells that queries of the points ``P`` (k, 3) need, if not binned."""
         P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
         if not len(P) or self._cells is None:
             return
@@ -93,9 +93,7 @@ class WindingGrid:
         i0, i1, j0, j1 = self._region
         if need[0] >= i0 and need[1] <= i1 and need[2] >= j0 and need[3] <= j1:
             return
-        if i0 <= i1:  # the box round what is binned already and what is needed
-            need = (min(i0, need[0]), max(i1, need[1]), min(j0, need[2]), max(j1, need[3]))
-        self._bin(need)
+        self._bin(need)  # these points' cells, in place of the last ones
 
     def _bin(self, region: tuple[int, int, int, int]) -> None:
         assert self._cells is not None
