@@ -250,7 +250,7 @@ def scan(scene, muscle: str, workers: int) -> None:  # noqa: ANN001
 
 def pose_scan(scene, muscle: str, about: str, span: float, by: float, reach: str | None) -> None:  # noqa: ANN001
     """Item 6: mean fibre length, iterations and the unconstrained volume, pose by pose."""
-    import musclewrap.solver._muscle as solver
+    import musclewrap.solver._deformer as solver
     from musclewrap.constants import defaults
     from musclewrap.mesh import volume
     from musclewrap.scene import read_motion, run_scene, write_motion

@@ -183,7 +183,7 @@ def main() -> None:
 
 def _reach(cache: Path) -> None:
     """``line_reach`` on either side of its default (the module's docstring)."""
-    import musclewrap.solver._muscle as solver
+    import musclewrap.solver._deformer as solver
     from bench_moment_arms import _spikes  # the same count as its --smoothness
     from musclewrap.constants import defaults
     from musclewrap.scene import load_scene, run_scene

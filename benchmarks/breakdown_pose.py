@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-import musclewrap.solver._muscle as solver
+import musclewrap.solver._deformer as solver
 from musclewrap import Muscle
 from musclewrap._bench import interleaved_ms
 from musclewrap.synthetic import capsule, capsule_scenario

@@ -484,7 +484,7 @@ def test_newton_path_through_deform_reaches_the_same_mesh(small_muscle, monkeypa
     # plain iterate of least energy and must land where the plain iteration converges
     import dataclasses
 
-    import musclewrap.solver._muscle as solver
+    import musclewrap.solver._deformer as solver
 
     rest, cur = capsule_scenario("bend_short")
     d = small_muscle.bind(rest)

@@ -40,10 +40,10 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("solver._proxy", "_plain_iterations",
          f"({_A2}, {_F2}, {_F2}, {_I2}, float64, int64, float64, float64, float64)"),
         ("solver._proxy", "_mat3", f"({_F2}, {_A2})"),
-        ("solver._muscle", "_point_polyline_distance", f"({_A2}, {_A2})"),
+        ("solver._deformer", "_point_polyline_distance", f"({_A2}, {_A2})"),
         ("mesh._volume", "_combine_kernel", f"({_A2}, float64, {_A1})"),
         ("coordinates._mvc", "_rows_dot_kernel", f"({_A2}, {_A2}, {_A2})"),
-        ("solver._muscle", "_energy_kernel",
+        ("solver._deformer", "_energy_kernel",
          f"({_I1}, {_I1}, {_A1}, {_A2}, {_A2}, {_A2}, {_A2}, float64)"),
     ),
     # with the rotations and lines of the first pose, which come before the solve

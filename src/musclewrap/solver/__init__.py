@@ -1,7 +1,8 @@
 """Per-muscle preparation and per-pose constrained solve."""
 
 from ..mesh import cubic_root_near
-from ._muscle import METHODS, Deformer, Muscle, deform
+from ._deformer import METHODS, Deformer
+from ._muscle import Muscle, deform
 from ._paper import solve_paper
 from ._result import DeformationResult
 from ._together import deform_together, facing_at_rest, meet

@@ -10,7 +10,7 @@ from .._typing import FloatArray
 from ..mesh import mean_rows, volume, volume_gradient
 
 if TYPE_CHECKING:
-    from ._muscle import Deformer
+    from ._deformer import Deformer
 
 __all__ = ["solve_paper"]
 

@@ -32,7 +32,7 @@ from ..contact import (
     overlaps,
     push_apart,
 )
-from ._muscle import Deformer
+from ._deformer import Deformer
 from ._result import DeformationResult
 
 __all__ = ["deform_together", "facing_at_rest", "meet"]
