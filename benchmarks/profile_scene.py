@@ -1,25 +1,111 @@
 """Where a scene's time goes: cProfile of a warm run in one process, on one thread.
 
     python benchmarks/profile_scene.py [SCENE] [--frames 0:211:1] [--muscle NAME]
-        [--no-muscles] [--top 40]
+        [--no-muscles] [--top 40] [--phases]
 
 Runs the scene once to warm the caches (preparations, bone probes, compiled kernels), then
 again under cProfile with ``--workers 1`` and one BLAS and numba thread (as every task runs),
 no GIF and no paper comparison, and prints the cumulative table. ``--no-muscles``: muscles
 against bones only (`[collisions] muscles = false`); ``--muscle``: that muscle alone.
 cProfile slows the Python parts more than the compiled ones: read it for where, not how long.
+
+``--phases``: no cProfile; the timed run with the contact's phases timed by the clock
+(ms per muscle-frame, the pose's solve beside them), then the same frames with
+``--no-collisions``: what the contact's own work costs a muscle-frame, measured as it runs.
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
+import contextlib
 import cProfile
 import dataclasses
+import functools
 import pstats
 import tempfile
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+#: (module, owner, name, label): what --phases times; a label's calls inside another's count
+#: in both (the cage's steps inside the bones' contact and inside a round)
+PHASES = (
+    ("solver._deformer", "Deformer", "_solve_default", "the pose's solve"),
+    ("solver._deformer", None, "Near", "bones: which vertices may be near"),
+    ("solver._contact", "ContactSteps", "_cage_contact", "bones: the cage's steps after the solve"),
+    ("solver._together", None, "overlaps", "muscles: overlap search, rounds"),
+    ("solver._contact", "ContactSteps", "contact_round", "muscles: a round's cage step"),
+    ("solver._together", None, "push_apart", "muscles: a round's fine step"),
+    ("solver._contact", "ContactSteps", "settle", "bones: the fine finish"),
+    ("solver._together", None, "overlap_depths", "muscles: the exact check"),
+    ("solver._contact", "ContactSteps", "_cage_step", "  of which cage steps"),
+    ("solver._contact", "ContactSteps", "_bone_points", "  of which bones' points"),
+)
+_CONTACT = PHASES[1:8]
+
+
+@contextlib.contextmanager
+def _timed(acc: dict[str, float], calls: dict[str, int]) -> Iterator[None]:
+    """Every function of `PHASES` timed by the clock while inside (put back after)."""
+    import importlib
+
+    kept = []
+    for module, owner, name, label in PHASES:
+        mod = importlib.import_module(f"musclewrap.{module}")
+        obj = mod if owner is None else getattr(mod, owner)
+        f = getattr(obj, name)
+
+        def timed(*args, _f=f, _label=label, **kw):  # noqa: ANN002, ANN003, ANN202
+            t0 = time.perf_counter()
+            try:
+                return _f(*args, **kw)
+            finally:
+                acc[_label] += time.perf_counter() - t0
+                calls[_label] += 1
+
+        setattr(obj, name, functools.wraps(f)(timed))
+        kept.append((obj, name, f))
+    try:
+        yield
+    finally:
+        for obj, name, f in kept:
+            setattr(obj, name, f)
+
+
+def phases(scene, frames: str) -> None:  # noqa: ANN001
+    """The contact's phases per muscle-frame, by the clock, beside the run without contact."""
+    from musclewrap.scene import run_scene
+
+    n = len(scene.muscles) * len(range(*(int(x) for x in frames.split(":"))))
+    off = dataclasses.replace(scene, collisions=False, muscle_collisions=False)
+    acc: dict[str, float] = collections.defaultdict(float)
+    calls: dict[str, int] = collections.defaultdict(int)
+    walls = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        kw = dict(frames=frames, workers=1, render=False, progress=None,
+                  cache_dir=Path(tmp) / "cache")  # fmt: skip
+        for label, sc in (("contact on", scene), ("--no-collisions", off)):
+            run_scene(sc, Path(tmp) / "warm", **kw)
+            t0 = time.perf_counter()
+            if label == "contact on":
+                with _timed(acc, calls):
+                    run_scene(sc, Path(tmp) / "on", **kw)
+            else:
+                run_scene(sc, Path(tmp) / "off", **kw)
+            walls[label] = time.perf_counter() - t0
+    on, off_s = walls["contact on"], walls["--no-collisions"]
+    print(f"{scene.name}: frames {frames}, {n} muscle-frames, one process, one thread, warm")
+    print(f"  run with contact {on:.2f} s ({1e3 * on / n:.1f} ms a muscle-frame), "
+          f"--no-collisions {off_s:.2f} s ({1e3 * off_s / n:.1f} ms), {on / off_s:.2f}x")  # fmt: skip
+    own = sum(acc[label] for *_, label in _CONTACT)
+    for *_, label in PHASES:
+        print(f"  {label:<42} {1e3 * acc[label] / n:7.2f} ms a muscle-frame ({calls[label]} calls)")
+    total = "the contact's own work (the seven above)"
+    print(f"  {total:<42} {1e3 * own / n:7.2f} ms a muscle-frame")
 
 
 def main() -> None:
@@ -29,6 +115,7 @@ def main() -> None:
     p.add_argument("--muscle")
     p.add_argument("--no-muscles", action="store_true")
     p.add_argument("--top", type=int, default=40)
+    p.add_argument("--phases", action="store_true")
     a = p.parse_args()
     import numba
     from threadpoolctl import threadpool_limits
@@ -44,6 +131,9 @@ def main() -> None:
         )
     if a.no_muscles:
         scene = dataclasses.replace(scene, muscle_collisions=False)
+    if a.phases:
+        phases(scene, a.frames)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "cache"
         kw = dict(frames=a.frames, workers=1, render=False, progress=None, cache_dir=cache)
