@@ -32,8 +32,8 @@ class SideReference:
     ----------
     positions : (n, 3) float64 array, or callable
         The fine vertices' positions in that state, in the muscle's frame then;
-        or a function of vertex indices ``rows`` that gives ``(k, 3)`` of them
-        (computed only where needed: ``W[rows] @ x`` for a cage state ``x``).
+        or a function of no argument that gives them, called when first needed
+        (``W @ x`` for a cage state ``x``: a reference no pose asks costs nothing).
     placed : sequence of Placed
         The obstacles as they were placed in that state, in the order of the
         pose solved now.
@@ -50,18 +50,18 @@ class SideReference:
 
     def __init__(
         self,
-        positions: FloatArray | Callable[[IntArray], FloatArray],
+        positions: FloatArray | Callable[[], FloatArray],
         placed: Sequence[Placed],
         n: int | None = None,
     ) -> None:
         if callable(positions):
             if n is None:
                 raise ValueError("SideReference: give n with a callable positions")
-            self._rows = positions
+            self._whole = positions
         else:
             P = np.asarray(positions, dtype=np.float64)
             n = len(P)
-            self._rows = lambda rows: P[rows]
+            self._whole = lambda: P
         self.n = int(n)
         self.placed = tuple(placed)
         # per obstacle, made when first asked for: known, directions
@@ -106,7 +106,7 @@ class SideReference:
         """Positions of vertices ``rows`` then, in obstacle ``b``'s frame."""
         if self._frames[b] is None:
             if self._all is None:
-                self._all = self._rows(np.arange(self.n))
+                self._all = self._whole()
             self._frames[b] = np.ascontiguousarray(self.placed[b].to_obstacle(self._all))
         Q = self._frames[b]
         assert Q is not None

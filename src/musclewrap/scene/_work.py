@@ -298,7 +298,8 @@ def sides_at(
     bones = placed_bones(job, probes, place)
     if cage is None:
         return SideReference(muscle.V, bones)
-    return SideReference(lambda rows: muscle.W[rows] @ cage, bones, len(muscle.V))
+    # every vertex (W itself: W[rows] for every row copied the whole matrix first)
+    return SideReference(lambda: muscle.W @ cage, bones, len(muscle.V))
 
 
 def side_reference(
