@@ -502,3 +502,41 @@ def test_faces_within_reach_match_the_distance_over_every_face():
         near = d < reach
         np.testing.assert_allclose(got[near], d[near], rtol=0, atol=1e-9)
         assert np.isinf(got[~near]).all()
+
+
+def test_closest_points_by_the_grid_are_those_of_every_triangle(data_dir):
+    """The closest point on a muscle's triangles, looked for in rings of a grid of their
+    centroids, is the one of a loop over every triangle, bit for bit (distance, point, the
+    lowest row among ties): points near the surface, on its vertices and edges, far away
+    in every direction, against all its faces, a scattered fifth of them (facing faces) and
+    a handful; a triangle of no area is never taken (NaN), nor raises."""
+    import igl
+
+    from musclewrap.contact._inside import _closest_on_triangle
+    from musclewrap.contact._muscles import _closest
+    from musclewrap.mesh import read_mesh
+
+    V, F = read_mesh(data_dir / "lhdl" / "muscles" / "LHDL_R_Psoas.vtk")[:2]  # raw: 4 of no area
+    F = np.asarray(F, dtype=np.int64)
+    rng = np.random.default_rng(11)
+    ext = V.max(0) - V.min(0)
+    sets = [F, F[np.sort(rng.choice(len(F), len(F) // 5, replace=False))], F[:9]]
+    for G in sets:
+        P = np.vstack(
+            [
+                V[rng.integers(0, len(V), 60)] + rng.normal(scale=2.0, size=(60, 3)),
+                V[G[:20, 0]],
+                0.5 * (V[G[:20, 0]] + V[G[:20, 1]]),
+                V.min(0) - ext + 3 * ext * rng.random((40, 3)),
+            ]
+        )
+        dist, C, face = _closest(P, V, G)
+        for i, p in enumerate(P):
+            d = np.array([_closest_on_triangle(*p, V, t)[0] for t in G])
+            best = np.nanmin(d)
+            f = int(np.flatnonzero(d == best)[0])
+            assert face[i] == f and dist[i] == np.sqrt(best)
+            assert np.array_equal(C[i], _closest_on_triangle(*p, V, G[f])[1:])
+        good = igl.doublearea(V, G) > 0
+        ref = np.sqrt(igl.point_mesh_squared_distance(P, V, G[good])[0])
+        assert np.abs(dist - ref).max() < 1e-9

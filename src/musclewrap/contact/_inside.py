@@ -298,10 +298,12 @@ def _closest_on_triangle(p0, p1, p2, V, t):  # noqa: ANN001, ANN202 # pragma: no
     return (p0 - q0) ** 2 + (p1 - q1) ** 2 + (p2 - q2) ** 2, q0, q1, q2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _triangle_weights(p0, p1, p2, a0, a1, a2, b0, b1, b2, c0, c1, c2):  # noqa: ANN001, ANN202 # pragma: no cover
     # Ericson, Real-Time Collision Detection 5.1.5, in scalars (no array per call): the
-    # barycentric weights (u, v, w) of the point of triangle abc closest to p
+    # barycentric weights (u, v, w) of the point of triangle abc closest to p. A triangle
+    # of no area gives NaN (numpy's division, not an exception): its distance compares
+    # false with every other, so it is never taken as the closest
     ab0, ab1, ab2 = b0 - a0, b1 - a1, b2 - a2
     ac0, ac1, ac2 = c0 - a0, c1 - a1, c2 - a2
     ap0, ap1, ap2 = p0 - a0, p1 - a1, p2 - a2

@@ -84,11 +84,12 @@ class Overlap:
 def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, FloatArray, IntArray]:
     """Distances of the points ``P`` to the triangles ``F`` of ``V``, closest points, their rows of F.
 
-    Exact either way: per point, the triangles whose bounding spheres come within the
-    best so far, where there are few points (2-3 ns per triangle and point, no tree),
-    else libigl's AABB tree (about 0.4 us per triangle to build, per call: the surface
-    moves every round); the two take the same time at 200 points (`python
-    benchmarks/bench_closest.py`).
+    Exact either way: where there are few points, per point the triangles whose bounding
+    spheres come within the best so far, looked for in rings of a uniform grid of their
+    centroids round the point (one pass over the triangles to bin them, no tree); else
+    libigl's AABB tree (about 0.4 us per triangle to build, per call: the surface moves
+    every round). At 200 points libigl's tree took as long as the loop over every
+    triangle that came before the grid (`python benchmarks/bench_closest.py`).
     """
     P = np.ascontiguousarray(P, dtype=np.float64)
     V = np.ascontiguousarray(V, dtype=np.float64)
@@ -104,13 +105,20 @@ def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, Flo
     return np.sqrt(np.maximum(sq, 0.0)), np.asarray(C), np.asarray(face, dtype=np.int64)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: no cover
-    # every triangle for every point, but for those whose bounding sphere (about the
-    # centroid) lies further than the best so far; ties go to the lowest row of F
+    # per point, the least distance over the triangles, ties to the lowest row of F. The
+    # triangles' bounding spheres (about their centroids) are binned by centroid in a
+    # uniform grid of cells about a triangle wide; each point looks in rings of cells
+    # round its own, a triangle whose sphere lies further than the best so far skipped,
+    # until a ring's nearest centroid, less the largest radius, lies beyond the best. The
+    # same distance, point and row as every triangle's (the tests compare them with the
+    # loop over all of them); numpy's division: a triangle of no area gives NaN, never
+    # taken, where a loop that reached it first would have raised
     m = F.shape[0]
     cen = np.empty((m, 3))
     rad = np.empty(m)
+    big = 0.0
     for f in range(m):
         r = 0.0
         for k in range(3):
@@ -121,24 +129,70 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
                 e += (V[F[f, j], k] - cen[f, k]) ** 2
             r = max(r, e)
         rad[f] = np.sqrt(r)
-    dc = np.empty(m)
+        big = max(big, rad[f])
+    lo = np.empty(3)
+    ext = np.empty(3)
+    for k in range(3):
+        lo[k] = cen[:, k].min()
+        ext[k] = cen[:, k].max() - lo[k]
+    h = max(2.0 * rad.mean(), 1e-12 * max(ext[0], ext[1], ext[2]), 1e-300)
+    dims = np.empty(3, dtype=np.int64)
+    while True:  # cells about a triangle wide, at most 8 a triangle
+        for k in range(3):
+            dims[k] = int(ext[k] / h) + 1
+        if dims[0] * dims[1] * dims[2] <= 8 * m + 8:
+            break
+        h *= 1.5
+    cell = np.empty(m, dtype=np.int64)
+    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
+    for f in range(m):
+        c = 0
+        for k in range(3):
+            c = c * dims[k] + min(dims[k] - 1, int((cen[f, k] - lo[k]) / h))
+        cell[f] = c
+        start[c + 1] += 1
+    for c in range(start.shape[0] - 1):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    items = np.empty(m, dtype=np.int64)
+    for f in range(m):
+        items[fill[cell[f]]] = f
+        fill[cell[f]] += 1
+    ring_max = max(dims[0], dims[1], dims[2])
+    at = np.empty(3, dtype=np.int64)
     for i in range(P.shape[0]):
         p0, p1, p2 = P[i, 0], P[i, 1], P[i, 2]
-        first, low = 0, np.inf
-        for f in range(m):
-            dc[f] = np.sqrt((p0 - cen[f, 0]) ** 2 + (p1 - cen[f, 1]) ** 2 + (p2 - cen[f, 2]) ** 2)
-            if dc[f] < low:
-                first, low = f, dc[f]
-        best, b0, b1, b2 = _closest_on_triangle(p0, p1, p2, V, F[first])
-        bf = first
-        for f in range(m):
-            lb = dc[f] - rad[f]
-            if f == first or (lb > 0.0 and lb * lb > best):
-                continue
-            d, q0, q1, q2 = _closest_on_triangle(p0, p1, p2, V, F[f])
-            if d < best or (d == best and f < bf):
-                best, bf = d, f
-                b0, b1, b2 = q0, q1, q2
+        for k in range(3):
+            at[k] = min(dims[k] - 1, max(0, int(max(P[i, k] - lo[k], 0.0) / h)))
+        best, bf = np.inf, -1
+        b0 = b1 = b2 = 0.0
+        for ring in range(ring_max + 1):
+            # every centroid in this ring lies at least (ring - 1) h from the point
+            if ring >= 2 and bf >= 0:
+                gap = (ring - 1) * h - big
+                if gap > 0.0 and gap * gap > best * (1.0 + 1e-9):
+                    break
+            for a0 in range(max(0, at[0] - ring), min(dims[0] - 1, at[0] + ring) + 1):
+                for a1 in range(max(0, at[1] - ring), min(dims[1] - 1, at[1] + ring) + 1):
+                    shell = abs(a0 - at[0]) == ring or abs(a1 - at[1]) == ring
+                    step = 1 if shell or ring == 0 else 2 * ring  # else its two ends only
+                    for a2 in range(at[2] - ring, at[2] + ring + 1, step):
+                        if a2 < 0 or a2 >= dims[2]:
+                            continue
+                        c = (a0 * dims[1] + a1) * dims[2] + a2
+                        for q in range(start[c], start[c + 1]):
+                            f = items[q]
+                            dc = np.sqrt(
+                                (p0 - cen[f, 0]) ** 2 + (p1 - cen[f, 1]) ** 2
+                                + (p2 - cen[f, 2]) ** 2
+                            )  # fmt: skip
+                            lb = dc - rad[f]
+                            if lb > 0.0 and lb * lb > best:
+                                continue
+                            d, q0, q1, q2 = _closest_on_triangle(p0, p1, p2, V, F[f])
+                            if d < best or (d == best and f < bf):
+                                best, bf = d, f
+                                b0, b1, b2 = q0, q1, q2
         dist[i] = np.sqrt(best)
         C[i, 0], C[i, 1], C[i, 2] = b0, b1, b2
         face[i] = bf
