@@ -81,6 +81,13 @@ class Overlap:
     point: FloatArray
 
 
+#: up to this many points the grid search (`_closest_kernel`), beyond it libigl's tree. On
+#: capsules the grid is as quick at 10,000 points (`benchmarks/bench_closest.py`), but on the
+#: gait2392 walk every 10th frame the calls of 200-5,000 points took 0.81 s by the grid against
+#: 1.05 s by the tree: too little to change the results' last bits for
+_GRID_POINTS = 200
+
+
 def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, FloatArray, IntArray]:
     """Distances of the points ``P`` to the triangles ``F`` of ``V``, closest points, their rows of F.
 
@@ -88,13 +95,13 @@ def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, Flo
     spheres come within the best so far, looked for in rings of a uniform grid of their
     centroids round the point (one pass over the triangles to bin them, no tree); else
     libigl's AABB tree (about 0.4 us per triangle to build, per call: the surface moves
-    every round). At 200 points libigl's tree took as long as the loop over every
-    triangle that came before the grid (`python benchmarks/bench_closest.py`).
+    every round). On capsules the grid is 5-25 times quicker than the tree up to 1,000
+    points (`python benchmarks/bench_closest.py`).
     """
     P = np.ascontiguousarray(P, dtype=np.float64)
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
-    if len(P) <= 200:
+    if len(P) <= _GRID_POINTS:
         dist, C = np.empty(len(P)), np.empty((len(P), 3))
         face = np.empty(len(P), dtype=np.int64)
         _closest_kernel(P, V, F, dist, C, face)
@@ -118,7 +125,6 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
     m = F.shape[0]
     cen = np.empty((m, 3))
     rad = np.empty(m)
-    big = 0.0
     for f in range(m):
         r = 0.0
         for k in range(3):
@@ -129,7 +135,6 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
                 e += (V[F[f, j], k] - cen[f, k]) ** 2
             r = max(r, e)
         rad[f] = np.sqrt(r)
-        big = max(big, rad[f])
     lo = np.empty(3)
     ext = np.empty(3)
     for k in range(3):
@@ -143,9 +148,17 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
         if dims[0] * dims[1] * dims[2] <= 8 * m + 8:
             break
         h *= 1.5
+    # triangles wider than a cell are looked at for every point (a few slivers would
+    # otherwise hold the rings open); the rest bound how far the rings go
+    wide = np.flatnonzero(rad > h)
+    big = 0.0
     cell = np.empty(m, dtype=np.int64)
     start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
     for f in range(m):
+        if rad[f] > h:
+            cell[f] = -1
+            continue
+        big = max(big, rad[f])
         c = 0
         for k in range(3):
             c = c * dims[k] + min(dims[k] - 1, int((cen[f, k] - lo[k]) / h))
@@ -154,10 +167,11 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
     for c in range(start.shape[0] - 1):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
-    items = np.empty(m, dtype=np.int64)
+    items = np.empty(start[-1], dtype=np.int64)
     for f in range(m):
-        items[fill[cell[f]]] = f
-        fill[cell[f]] += 1
+        if cell[f] >= 0:
+            items[fill[cell[f]]] = f
+            fill[cell[f]] += 1
     ring_max = max(dims[0], dims[1], dims[2])
     at = np.empty(3, dtype=np.int64)
     for i in range(P.shape[0]):
@@ -166,6 +180,11 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
             at[k] = min(dims[k] - 1, max(0, int(max(P[i, k] - lo[k], 0.0) / h)))
         best, bf = np.inf, -1
         b0 = b1 = b2 = 0.0
+        for f in wide:
+            d, q0, q1, q2 = _closest_on_triangle(p0, p1, p2, V, F[f])
+            if d < best or (d == best and f < bf):
+                best, bf = d, f
+                b0, b1, b2 = q0, q1, q2
         for ring in range(ring_max + 1):
             # every centroid in this ring lies at least (ring - 1) h from the point
             if ring >= 2 and bf >= 0:
