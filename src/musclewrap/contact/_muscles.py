@@ -148,14 +148,15 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
         if dims[0] * dims[1] * dims[2] <= 8 * m + 8:
             break
         h *= 1.5
-    # triangles wider than a cell are looked at for every point (a few slivers would
-    # otherwise hold the rings open); the rest bound how far the rings go
-    wide = np.flatnonzero(rad > h)
+    # triangles wider than two cells (four times the mean) are looked at for every point
+    # (a few slivers would otherwise hold the rings open); the rest bound how far the
+    # rings go, two rings more at most
+    wide = np.flatnonzero(rad > 2.0 * h)
     big = 0.0
     cell = np.empty(m, dtype=np.int64)
     start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
     for f in range(m):
-        if rad[f] > h:
+        if rad[f] > 2.0 * h:
             cell[f] = -1
             continue
         big = max(big, rad[f])
