@@ -1,6 +1,7 @@
 """Closest points on another muscle's faces: the compiled search against libigl's tree.
 
     python benchmarks/bench_closest.py [--repeats 7]
+    python benchmarks/bench_closest.py --scene SCENE [--frames 0:211:10]
 
 `musclewrap.contact._muscles._closest` takes, per point, the triangles whose bounding spheres
 come within the best distance so far, looked for in rings of a uniform grid of their centroids
@@ -11,12 +12,19 @@ faces, an LHDL muscle, the VHF vastus lateralis) and 10 to 10,000 points within 
 wall, the median time of each and the largest difference of their distances (the threshold of
 200 points came from the loop over every triangle that came before the grid; `_GRID_POINTS`
 says why it stays).
+
+``--scene``: the calls a run makes instead (one process, warm: the overlap search's and the
+facing faces' own inputs, recorded), each timed again by the grid search and by libigl's tree,
+summed by how many points a call has: what the threshold of 200 points gives up or gains there.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -30,10 +38,60 @@ def _median(f, repeats: int) -> float:  # noqa: ANN001
     return float(np.median(times))
 
 
+def scene_calls(scene_path: str, frames: str) -> None:
+    """The grid search against libigl's tree on the calls a run of the scene makes."""
+    import igl
+    import numba
+    from threadpoolctl import threadpool_limits
+
+    import musclewrap.contact._muscles as muscles
+    from musclewrap.scene import load_scene, run_scene
+
+    threadpool_limits(1)
+    numba.set_num_threads(1)
+    scene = dataclasses.replace(load_scene(scene_path), paper_frames=0, gif=False)
+    calls = []
+    closest = muscles._closest
+
+    def recorded(P, V, F):  # noqa: ANN001, ANN202
+        calls.append((np.ascontiguousarray(P), np.ascontiguousarray(V), np.ascontiguousarray(F)))
+        return closest(P, V, F)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        kw = dict(frames=frames, workers=1, render=False, progress=None,
+                  cache_dir=Path(tmp) / "cache")  # fmt: skip
+        run_scene(scene, Path(tmp) / "warm", **kw)
+        muscles._closest = recorded
+        try:
+            run_scene(scene, Path(tmp) / "timed", **kw)
+        finally:
+            muscles._closest = closest
+    groups = {"<= 200": (0, 200), "201-5000": (201, 5000), "> 5000": (5001, 10**12)}
+    print(f"{scene_path} frames {frames}: {len(calls)} calls of _closest (one process)")
+    print("points     calls  grid s  libigl s")
+    for label, (lo, hi) in groups.items():
+        sel = [c for c in calls if lo <= len(c[0]) <= hi]
+        grid = tree = 0.0
+        for P, V, F in sel:
+            out = np.empty(len(P)), np.empty((len(P), 3)), np.empty(len(P), dtype=np.int64)
+            t0 = time.perf_counter()
+            muscles._closest_kernel(P, V, F, *out)
+            grid += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            igl.point_mesh_squared_distance(P, V, F)
+            tree += time.perf_counter() - t0
+        print(f"{label:<9} {len(sel):6d} {grid:7.3f} {tree:9.3f}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--repeats", type=int, default=7)
+    p.add_argument("--scene")
+    p.add_argument("--frames", default="0:211:10")
     a = p.parse_args()
+    if a.scene:
+        scene_calls(a.scene, a.frames)
+        return
     import igl
 
     from musclewrap.contact._muscles import _closest_kernel

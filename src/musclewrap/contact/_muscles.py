@@ -81,10 +81,11 @@ class Overlap:
     point: FloatArray
 
 
-#: up to this many points the grid search (`_closest_kernel`), beyond it libigl's tree. On
-#: capsules the grid is as quick at 10,000 points (`benchmarks/bench_closest.py`), but on the
-#: gait2392 walk every 10th frame the calls of 200-5,000 points took 0.81 s by the grid against
-#: 1.05 s by the tree: too little to change the results' last bits for
+#: up to this many points the grid search (`_closest_kernel`), beyond it libigl's tree. On the
+#: gait2392 walk every 10th frame the grid takes the calls of 201-5,000 points in 0.34 s against
+#: the tree's 0.56 s, those of over 5,000 in 2.2 against 0.48 s (`python
+#: benchmarks/bench_closest.py --scene examples/gait2392_walk.toml`): 200 kept, too little to
+#: gain to change the results' last bits for
 _GRID_POINTS = 200
 
 
