@@ -38,20 +38,10 @@ ROOT = Path(__file__).resolve().parents[1]
 def _run(
     scene: str, out: Path, frames: str, extra: list[str], checkout: Path | None = None
 ) -> float:
-    """Wall seconds of one run (``checkout``: another checkout's package, by PYTHONPATH)."""
-    if checkout is None:
-        from musclewrap._bench import timed_run
+    """Wall seconds of one run (``checkout``: another checkout's package)."""
+    from musclewrap._bench import timed_run
 
-        return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra])
-    import os
-    import time
-
-    env = {**os.environ, "PYTHONPATH": str(checkout / "src")}
-    cmd = [sys.executable, "-m", "musclewrap.cli", "run", scene, "-o", str(out)]
-    t0 = time.perf_counter()
-    subprocess.run([*cmd, "--no-gif", "--frames", frames, *extra], check=True,
-                   capture_output=True, env=env)  # fmt: skip
-    return time.perf_counter() - t0
+    return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra], checkout)
 
 
 def _same_outputs(a: Path, b: Path) -> str:

@@ -35,6 +35,30 @@ def test_overlap_of_two_spheres_is_their_lens():
     assert out["c"] == (0, 0.0, "")
 
 
+def test_overlaps_kept_over_rounds_whatever_the_muscles_are_called():
+    """The rounds' memo keeps each surface's box and grid and each pair's result: muscles
+    named like its own words ("box", "grid") get the same overlaps, a round after one of
+    them moved, as a search without the memo."""
+    from musclewrap.contact import overlaps
+
+    for names in (("a", "b", "c"), ("box", "grid", "psoas")):
+        x, y, z = names
+        surf = {
+            x: _sphere(10.0, [0.0, 0.0, 0.0]),
+            y: _sphere(10.0, [16.0, 0.0, 0.0]),
+            z: _sphere(10.0, [8.0, 12.0, 0.0]),
+        }
+        pairs = [tuple(sorted(p)) for p in ((x, y), (x, z), (y, z))]
+        memo: dict = {}
+        overlaps(surf, pairs, {}, memo)
+        surf[y] = (surf[y][0] + [1.0, 0.0, 0.0], surf[y][1])  # one moves: a new array
+        kept, fresh = overlaps(surf, pairs, {}, memo), overlaps(surf, pairs, {})
+        for n in names:
+            assert [o.other for o in kept[n]] == [o.other for o in fresh[n]]
+            for a, b in zip(kept[n], fresh[n], strict=True):
+                assert np.array_equal(a.rows, b.rows) and np.array_equal(a.depth, b.depth)
+
+
 def test_overlaps_of_one_muscle_alone_are_none():
     from musclewrap.scene._verify import inside_depths
 

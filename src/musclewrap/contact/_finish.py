@@ -14,6 +14,7 @@ from ..constants import defaults, tol
 from ..mesh import (
     barycentric,
     cubic_root_near,
+    in_box,
     mean_edge_length,
     mean_rows,
     vertex_adjacency,
@@ -297,7 +298,7 @@ def _bone_vertices_in_muscle(
 
     lo, hi = P.min(axis=0) - depth, P.max(axis=0) + depth
     B = pl.to_muscle(pl.obstacle.V)
-    rows = np.flatnonzero(((B >= lo) & (B <= hi)).all(axis=1))
+    rows = in_box(B, lo, hi)
     if not len(rows):
         return _NONE_INSIDE
     B = np.ascontiguousarray(B[rows])

@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..mesh import WindingGrid, bin_boxes
+from ..mesh import WindingGrid, bin_boxes, in_box
 from ._inside import _closest_on_triangle
 
 __all__ = ["FacesWithin", "muscle_gaps"]
@@ -70,7 +70,7 @@ class FacesWithin:
         P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
         out = np.full(len(P), self.reach)
         lo, hi = self.lo - self.reach, self.hi + self.reach
-        near = np.flatnonzero(((P >= lo) & (P <= hi)).all(axis=1))
+        near = in_box(P, lo, hi)
         if len(near):
             if self._sides is None:
                 self._sides = WindingGrid(self.V, self.F)

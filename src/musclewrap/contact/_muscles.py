@@ -33,7 +33,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..mesh import WindingGrid, mean_edge_length, vertex_adjacency, volume
+from ..mesh import WindingGrid, bin_boxes, in_box, mean_edge_length, vertex_adjacency, volume
 from ._finish import longest_pushes, nudge, triangle_pushes
 from ._inside import _closest_on_triangle
 
@@ -96,7 +96,7 @@ def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, Flo
     spheres come within the best so far, looked for in rings of a uniform grid of their
     centroids round the point (one pass over the triangles to bin them, no tree); else
     libigl's AABB tree (about 0.4 us per triangle to build, per call: the surface moves
-    every round). On capsules the grid is 5-25 times quicker than the tree up to 1,000
+    every round). On capsules the grid is 5-23 times quicker than the tree up to 1,000
     points (`python benchmarks/bench_closest.py`).
     """
     P = np.ascontiguousarray(P, dtype=np.float64)
@@ -154,26 +154,16 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
     # rings go, two rings more at most
     wide = np.flatnonzero(rad > 2.0 * h)
     big = 0.0
-    cell = np.empty(m, dtype=np.int64)
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
+    boxes = np.zeros((m, 6), dtype=np.int64)  # each in its centroid's cell, the wide in none
     for f in range(m):
         if rad[f] > 2.0 * h:
-            cell[f] = -1
+            boxes[f, 0] = 1
             continue
         big = max(big, rad[f])
-        c = 0
         for k in range(3):
-            c = c * dims[k] + min(dims[k] - 1, int((cen[f, k] - lo[k]) / h))
-        cell[f] = c
-        start[c + 1] += 1
-    for c in range(start.shape[0] - 1):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    items = np.empty(start[-1], dtype=np.int64)
-    for f in range(m):
-        if cell[f] >= 0:
-            items[fill[cell[f]]] = f
-            fill[cell[f]] += 1
+            c = min(dims[k] - 1, int((cen[f, k] - lo[k]) / h))
+            boxes[f, 2 * k] = boxes[f, 2 * k + 1] = c
+    start, items = bin_boxes(boxes, dims[0], dims[1], dims[2])
     ring_max = max(dims[0], dims[1], dims[2])
     at = np.empty(3, dtype=np.int64)
     for i in range(P.shape[0]):
@@ -234,7 +224,7 @@ def facing_faces(
     """
     cen = Vb[Fb].mean(axis=1)
     lo, hi = Va.min(0) - reach, Va.max(0) + reach
-    cand = np.flatnonzero(((cen >= lo) & (cen <= hi)).all(axis=1))
+    cand = in_box(cen, lo, hi)
     if not len(cand):
         return cand.astype(np.int64)
     inside = (WindingGrid(Va, Fa) if grid is None else grid)(cen[cand]) > 0
@@ -260,11 +250,15 @@ def overlaps(
     position arrays they came from, and taken again while the same arrays come back.
     """
     memo = {} if memo is None else memo
+    # by name: each surface's box and grid, with the positions they came from (string keys:
+    # a pair's result is kept under the tuple of its names)
+    kept_boxes = memo.setdefault("boxes", {})
+    kept_grids = memo.setdefault("grids", {})
     boxes = {}
     for n, (V, _) in surfaces.items():
-        kept = memo.get(("box", n))
+        kept = kept_boxes.get(n)
         if kept is None or kept[0] is not V:
-            kept = memo["box", n] = (V, V.min(0), V.max(0))
+            kept = kept_boxes[n] = (V, V.min(0), V.max(0))
         boxes[n] = kept[1:]
     out: dict[str, list[Overlap]] = {n: [] for n in surfaces}
     todo = []  # (me, other, its points in the other's box) of the pairs looked at anew
@@ -281,10 +275,12 @@ def overlaps(
     # every point that looks into it
     grids: dict[str, WindingGrid] = {}
     for other in sorted({o for _, o, cand in todo if len(cand)}):
-        kept = memo.get(("grid", other))
+        kept = kept_grids.get(other)
         if kept is None or kept[0] is not surfaces[other][0]:
-            grid = WindingGrid(*surfaces[other], lazy=True)
-            kept = memo["grid", other] = (surfaces[other][0], grid)
+            kept = kept_grids[other] = (
+                surfaces[other][0],
+                WindingGrid(*surfaces[other], lazy=True),
+            )
         grids[other] = kept[1]
         grids[other].bin_around(
             np.vstack([surfaces[me][0][cand] for me, o, cand in todo if o == other])
@@ -325,24 +321,6 @@ def _inside_other(
     depth, C, which = _closest(P[rows], Vo, Fo if every else Fo[f])
     d = (C - P[rows]) / np.maximum(depth, 1e-300)[:, None]
     return Overlap(pair[1], rows, depth, d, which if every else f[which], C)
-
-
-def in_box(P: FloatArray, lo: FloatArray, hi: FloatArray) -> IntArray:
-    """The rows of the points ``P`` (k, 3) within the box ``lo``-``hi`` (bounds included)."""
-    P = np.ascontiguousarray(P, dtype=np.float64)
-    out = np.empty(len(P), dtype=np.int64)
-    k = _in_box_kernel(P, np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64), out)
-    return out[:k]
-
-
-@numba.njit(cache=True)
-def _in_box_kernel(P, lo, hi, out):  # noqa: ANN001, ANN202 # pragma: no cover
-    k = 0
-    for i in range(P.shape[0]):
-        if lo[0] <= P[i, 0] <= hi[0] and lo[1] <= P[i, 1] <= hi[1] and lo[2] <= P[i, 2] <= hi[2]:
-            out[k] = i
-            k += 1
-    return k
 
 
 def overlap_depths(

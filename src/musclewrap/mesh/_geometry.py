@@ -12,6 +12,7 @@ __all__ = [
     "barycentric",
     "face_areas",
     "half_edges",
+    "in_box",
     "mean_edge_length",
     "umbrella_laplacian",
     "vertex_adjacency",
@@ -92,3 +93,21 @@ def barycentric(C: FloatArray, tri: FloatArray) -> FloatArray:
     b1 = (d11 * d20 - d01 * d21) / den
     b2 = (d00 * d21 - d01 * d20) / den
     return np.stack([1 - b1 - b2, b1, b2], axis=1)
+
+
+def in_box(P: FloatArray, lo: FloatArray, hi: FloatArray) -> IntArray:
+    """The rows of the points ``P`` (k, 3) within the box ``lo``-``hi`` (bounds included)."""
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    out = np.empty(len(P), dtype=np.int64)
+    k = _in_box_kernel(P, np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64), out)
+    return out[:k]
+
+
+@numba.njit(cache=True)
+def _in_box_kernel(P, lo, hi, out):  # noqa: ANN001, ANN202 # pragma: no cover
+    k = 0
+    for i in range(P.shape[0]):
+        if lo[0] <= P[i, 0] <= hi[0] and lo[1] <= P[i, 1] <= hi[1] and lo[2] <= P[i, 2] <= hi[2]:
+            out[k] = i
+            k += 1
+    return k

@@ -69,7 +69,7 @@ class WindingGrid:
         beforehand, for several batches at once). The cells are those of the whole
         grid, each with the same faces in the same order, so the winding numbers are
         the same bit for bit; a few points near a large surface then cost a pass over
-        its vertices and faces, not the binning of every face (about 7 cells a face).
+        its vertices and faces, not the binning of every face (about 6 cells a face).
     """
 
     def __init__(self, V: npt.ArrayLike, F: npt.ArrayLike, *, lazy: bool = False) -> None:
@@ -171,34 +171,18 @@ def _region_kernel(P, g, y0, z0, hy, hz):  # noqa: ANN001, ANN202 # pragma: no c
 
 @numba.njit(cache=True)
 def _bin_kernel(F, cy, cz, i0, i1, j0, j1):  # noqa: ANN001, ANN202 # pragma: no cover
-    # the faces binned by their cell ranges in the cells [i0, i1] x [j0, j1]: the CSR of
-    # those cells (cell (i, j) at (i - i0) * (j1 - j0 + 1) + j - j0), each in face order
-    nj = j1 - j0 + 1
+    # the faces binned by their cell ranges in the cells [i0, i1] x [j0, j1] (`bin_boxes`:
+    # cell (i, j) at (i - i0) * (j1 - j0 + 1) + j - j0, each in face order); a face
+    # outside them gets an empty range
     m = F.shape[0]
-    R = np.empty((m, 4), dtype=np.int64)  # each face's cell range, clipped to the region
-    start = np.zeros((i1 - i0 + 1) * nj + 1, dtype=np.int64)
+    boxes = np.zeros((m, 6), dtype=np.int64)
     for t in range(m):
         a, b, c = F[t, 0], F[t, 1], F[t, 2]
-        ia = max(min(cy[a], cy[b], cy[c]), i0)
-        ib = min(max(cy[a], cy[b], cy[c]), i1)
-        ja = max(min(cz[a], cz[b], cz[c]), j0)
-        jb = min(max(cz[a], cz[b], cz[c]), j1)
-        R[t, 0], R[t, 1], R[t, 2], R[t, 3] = ia, ib, ja, jb
-        for i in range(ia, ib + 1):
-            row = (i - i0) * nj - j0 + 1
-            for j in range(ja, jb + 1):
-                start[row + j] += 1
-    for k in range(start.shape[0] - 1):
-        start[k + 1] += start[k]
-    fill = start[:-1].copy()
-    cells = np.empty(start[-1], dtype=np.int64)
-    for t in range(m):
-        for i in range(R[t, 0], R[t, 1] + 1):
-            row = (i - i0) * nj - j0
-            for j in range(R[t, 2], R[t, 3] + 1):
-                cells[fill[row + j]] = t
-                fill[row + j] += 1
-    return start, cells
+        boxes[t, 0] = max(min(cy[a], cy[b], cy[c]), i0) - i0
+        boxes[t, 1] = min(max(cy[a], cy[b], cy[c]), i1) - i0
+        boxes[t, 2] = max(min(cz[a], cz[b], cz[c]), j0) - j0
+        boxes[t, 3] = min(max(cz[a], cz[b], cz[c]), j1) - j0
+    return bin_boxes(boxes, i1 - i0 + 1, j1 - j0 + 1, 1)
 
 
 @numba.njit(cache=True)
@@ -212,19 +196,22 @@ def bin_boxes(boxes, n0, n1, n2):  # noqa: ANN001, ANN201 # pragma: no cover
     m = boxes.shape[0]
     start = np.zeros(n0 * n1 * n2 + 1, dtype=np.int64)
     for t in range(m):
+        k0, k1 = boxes[t, 4], boxes[t, 5] + 1
         for i in range(boxes[t, 0], boxes[t, 1] + 1):
             for j in range(boxes[t, 2], boxes[t, 3] + 1):
-                for k in range(boxes[t, 4], boxes[t, 5] + 1):
-                    start[(i * n1 + j) * n2 + k + 1] += 1
+                row = (i * n1 + j) * n2 + 1
+                for k in range(row + k0, row + k1):
+                    start[k] += 1
     for c in range(n0 * n1 * n2):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
     items = np.empty(start[-1], dtype=np.int64)
     for t in range(m):
+        k0, k1 = boxes[t, 4], boxes[t, 5] + 1
         for i in range(boxes[t, 0], boxes[t, 1] + 1):
             for j in range(boxes[t, 2], boxes[t, 3] + 1):
-                for k in range(boxes[t, 4], boxes[t, 5] + 1):
-                    c = (i * n1 + j) * n2 + k
+                row = (i * n1 + j) * n2
+                for c in range(row + k0, row + k1):
                     items[fill[c]] = t
                     fill[c] += 1
     return start, items
