@@ -201,9 +201,8 @@ class _Empty:
 def part_overhead(tmp: Path, n: int = 400) -> None:
     import distributed
 
+    from musclewrap.run import DaskExecutor, Node, Runner
     from musclewrap.scene import ProcessExecutor
-    from musclewrap.scene._dask import DaskExecutor
-    from musclewrap.scene._execute import Node, Runner
 
     def per_task(ex: object) -> float:
         runner = Runner(ex, None)  # type: ignore[arg-type]
@@ -229,7 +228,7 @@ def part_overhead(tmp: Path, n: int = 400) -> None:
 
 
 def part_phases(tmp: Path) -> None:
-    import musclewrap.scene._run as run
+    import musclewrap.run._run as run
     from musclewrap.scene import load_scene, run_batch
 
     spent: dict[str, float] = {}

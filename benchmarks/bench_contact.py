@@ -6,7 +6,7 @@
 Runs the scene warm (preparations cached by a first run) with contact on and with
 ``--no-collisions``, alternately, three times each, and prints the medians and their ratio;
 then checks the written meshes of the contact run against the full-resolution bones
-(`musclewrap.scene._verify.verify_run`: exact winding numbers and distances) on every
+(`musclewrap.run.verify_run`: exact winding numbers and distances) on every
 ``--check-every``-th frame. ``--no-timing``: one run with contact, then the check (a scene
 with several motions, such as the sweeps, is checked motion by motion over all its frames).
 ``--motion``: the scene driven by another motion instead (with ``--no-timing``; run here on
@@ -119,8 +119,8 @@ def main() -> None:
         return
     import dataclasses
 
+    from musclewrap.run import verify_run
     from musclewrap.scene import load_scene, read_motion
-    from musclewrap.scene._verify import verify_run
 
     if a.no_timing:
         scene = load_scene(a.scene)

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def main() -> None:
     import igl
 
-    import musclewrap.scene._work as work
+    import musclewrap.run._work as work
     from musclewrap.fibres import fibres_at_rest
     from musclewrap.scene import load_scene, run_scene
 

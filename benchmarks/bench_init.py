@@ -8,7 +8,7 @@ folder ``--repeats`` times in this process after one warm-up (the meshes' cache 
 imports warm), and prints the medians. The 30 s target is for both together.
 
 ``--paths SCENE...``: the threshold of check's "lines far from their muscle"
-(`musclewrap.scene._check.FAR_THICKNESSES`) on either side: per muscle of each scene, its
+(`musclewrap.run._check.FAR_THICKNESSES`) on either side: per muscle of each scene, its
 own paths' nearest quarter outside it, and the nearest of every other muscle's paths, in
 mean thicknesses (4 V / A).
 """
@@ -64,10 +64,10 @@ def _paths(scenes: list[str]) -> None:
     import numpy as np
 
     from musclewrap.mesh import mean_thickness
+    from musclewrap.model import line_fits
+    from musclewrap.run._read import _read_muscle, default_cache_dir
     from musclewrap.scene import OpenSimModel, drive_scene, load_scene
     from musclewrap.scene._drive import apply, rest_pose
-    from musclewrap.scene._fit import line_fits
-    from musclewrap.scene._read import _read_muscle, default_cache_dir
     from musclewrap.subject import path_anatomy
 
     print(f"{'scene':20s} {'muscle':22s} own  nearest other path")

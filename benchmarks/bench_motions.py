@@ -11,7 +11,7 @@ Drives SCENE's model (default: examples/lhdl_walk.toml) with
   scene's coordinates (seeds 1..K, 20 frames per second),
 
 runs each with contact (and, with ``--no-collisions-too``, without), and checks the written
-meshes independently (`musclewrap.scene._verify.verify_run`) on every ``--check-every``-th
+meshes independently (`musclewrap.run.verify_run`) on every ``--check-every``-th
 frame; prints per motion and muscle the deepest muscle vertex in a bone, bone vertex in the
 muscle and vertex in another muscle, the largest shape change (with how many frames exceed 0.5) and the skeleton fit (the
 per-frame mean distance of the action line's samples from where the surface puts them), over all
@@ -50,6 +50,7 @@ def main() -> None:
     p.add_argument("--no-collisions-too", action="store_true")
     a = p.parse_args()
 
+    from musclewrap.run import verify_run
     from musclewrap.scene import (
         OpenSimModel,
         load_scene,
@@ -58,7 +59,6 @@ def main() -> None:
         run_scene,
         write_motion,
     )
-    from musclewrap.scene._verify import verify_run
 
     scene = load_scene(a.scene)
     model = OpenSimModel(scene.osim)

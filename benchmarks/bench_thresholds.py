@@ -4,7 +4,7 @@
 
 Drives `examples/lhdl_squat.toml` (the OpenCap deep squat, hip flexion to 106 deg) and, per
 setting, runs the muscles it matters for with the setting replaced, checks the written meshes
-independently (`musclewrap.scene._verify.verify_run`: muscle vertex in bone, bone vertex in
+independently (`musclewrap.run.verify_run`: muscle vertex in bone, bone vertex in
 muscle) and prints the largest shape change (and on how many frames it exceeds 0.5):
 
 - ``path_step`` (`musclewrap.constants.Defaults.path_step`, the waypoints' spacing): 5, 10
@@ -49,8 +49,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _run(scene, muscles, frames, check, cache, **setting):  # noqa: ANN001, ANN003, ANN202
     from musclewrap.constants import defaults
+    from musclewrap.run import verify_run
     from musclewrap.scene import run_scene
-    from musclewrap.scene._verify import verify_run
 
     sc = dataclasses.replace(
         scene, muscles=tuple(m for m in scene.muscles if m.name in muscles), paper_frames=0

@@ -350,7 +350,8 @@ def screenshot(
 def measures_anew() -> Iterator[None]:
     """The check's cached measures (`musclewrap._cache.cached_measure`) taken anew meanwhile."""
     from musclewrap import _cache
-    from musclewrap.scene import _fit, _verify
+    from musclewrap.model import _fit
+    from musclewrap.run import _verify
 
     kept = _cache.cached_measure
 
@@ -424,7 +425,7 @@ def contact_cells(live: Any, frames: range) -> None:
     import numpy as np
 
     from musclewrap.contact import muscle_gaps
-    from musclewrap.scene._live import CONTACT_REACH
+    from musclewrap.run._live import CONTACT_REACH
 
     poses = [live.solve(frame=k) for k in frames]
     for part in (1.0, 0.5, 1 / 3):

@@ -429,8 +429,8 @@ def test_lhdl_walk_subset_stays_out_of_the_bones(data_dir, tmp_path):
     from pathlib import Path
 
     from musclewrap.mesh import read_mesh
+    from musclewrap.run._verify import verify_run
     from musclewrap.scene import load_scene, run_scene
-    from musclewrap.scene._verify import verify_run
 
     examples = Path(__file__).resolve().parents[1] / "examples"
     scene = load_scene(examples / "lhdl_walk.toml")

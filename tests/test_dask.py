@@ -158,7 +158,7 @@ def test_a_worker_killed_mid_batch(tmp_path, cluster):
 
 
 def test_an_output_folder_the_workers_cannot_reach_is_refused(tmp_path, cluster, monkeypatch):
-    from musclewrap.scene import _dask
+    from musclewrap.run import _dask
 
     address, _ = cluster
     scenes = _batch(tmp_path, n_frames=4)

@@ -13,8 +13,8 @@ import pytest
 from musclewrap.cli import main
 from musclewrap.mesh import read_mesh, volume
 from musclewrap.output._render import STRETCH_RANGE, View, frame_view
+from musclewrap.run._run import picture_view
 from musclewrap.scene import SceneError, drive_scene, load_scene, run_scene
-from musclewrap.scene._run import picture_view
 from musclewrap.solver import Muscle
 from musclewrap.synthetic import knee_demo, write_knee_scene
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from musclewrap.scene._verify import muscle_overlaps
+from musclewrap.run._verify import muscle_overlaps
 from musclewrap.synthetic import capsule
 
 
@@ -60,7 +60,7 @@ def test_overlaps_kept_over_rounds_whatever_the_muscles_are_called():
 
 
 def test_overlaps_of_one_muscle_alone_are_none():
-    from musclewrap.scene._verify import inside_depths
+    from musclewrap.run._verify import inside_depths
 
     assert muscle_overlaps({"a": _sphere(10.0, [0, 0, 0])}) == {"a": (0, 0.0, "")}
     assert inside_depths([], *_sphere(10.0, [0, 0, 0])) == []
@@ -243,7 +243,7 @@ def test_muscles_that_overlap_at_rest_are_taken_apart_both_sides_volumes_exact()
 def test_taking_apart_at_rest_read_back_from_the_cache_is_the_same(tmp_path):
     """The scene's rest step cached: the second read gives the same positions, pairs and
     rounds as computing it (and as no cache), and muscles not moved stay the given arrays."""
-    from musclewrap.scene._read import _apart_cached
+    from musclewrap.run._read import _apart_cached
 
     a, b, c = _sphere(10.0, [0, 0, 0]), _sphere(10.0, [17, 0, 0]), _sphere(4.0, [0, 30, 0])
     rest = {"a": a, "b": b, "c": c}
@@ -352,8 +352,8 @@ def test_collisions_pairs_name_muscles_of_the_scene(data_dir, tmp_path):
 @pytest.mark.realdata
 def test_a_scene_takes_its_muscles_apart_at_rest_once_and_says_so(data_dir, tmp_path):
     """The LHDL psoas and iliacus overlap by up to 2.5 mm as segmented."""
+    from musclewrap.run._read import read_inputs
     from musclewrap.scene import load_scene, run_scene
-    from musclewrap.scene._read import read_inputs
 
     iliacus = data_dir / "lhdl" / "muscles" / "LHDL_R_Iliacus.vtk"
     toml = tmp_path / "s.toml"
@@ -400,8 +400,8 @@ def test_muscles_taken_apart_at_rest_give_the_same_files_from_a_cold_and_a_warm_
 def test_a_muscle_inside_another_at_rest_is_refused(tmp_path):
     from types import SimpleNamespace
 
+    from musclewrap.run._read import check_muscles_apart
     from musclewrap.scene import SceneError
-    from musclewrap.scene._read import check_muscles_apart
 
     big, small = _sphere(10.0, [0, 0, 0]), _sphere(3.0, [2, 0, 0])
     near = _sphere(10.0, [19, 0, 0])  # overlaps big by 1: allowed (pushed apart per frame)
@@ -423,8 +423,8 @@ def test_gait2392_thigh_muscles_stay_apart_whatever_their_order(data_dir, tmp_pa
     import dataclasses
     from pathlib import Path
 
+    from musclewrap.run._verify import verify_run
     from musclewrap.scene import load_scene, run_scene
-    from musclewrap.scene._verify import verify_run
 
     examples = Path(__file__).resolve().parents[1] / "examples"
     scene = load_scene(examples / "gait2392_walk.toml")

@@ -85,7 +85,7 @@ def _check(scene, out, frames, rows, *, shape=0.5):
     ``shape``: the bound on the shape change, or per muscle (a dict, 0.5 for the others).
     With two or more muscles, none more than 0.5 inside another (issue 24).
     """
-    from musclewrap.scene._verify import verify_run
+    from musclewrap.run._verify import verify_run
 
     bound = shape if isinstance(shape, dict) else {}
     for r in rows:

@@ -275,7 +275,7 @@ def test_unit_mismatch_is_an_error_with_a_hint(tmp_path):
 
 
 def test_registration_similarity_and_landmarks():
-    from musclewrap.scene._register import (
+    from musclewrap.model._register import (
         axes_rotation,
         fit_sphere,
         similarity,
@@ -1149,8 +1149,8 @@ def test_the_documented_columns_are_the_files_columns_and_the_keys_the_readers()
     """The documentation's tables (generated from OUTPUT_COLUMNS and SCENE_KEYS) cannot drift
     from what a run writes and what a scene may say."""
     import musclewrap.scene._config as config
+    from musclewrap.run._fibres import FIBRE_FIELDS, MOMENT_ARM_FIELDS
     from musclewrap.scene import OUTPUT_COLUMNS, REPORT_FIELDS, SCENE_KEYS
-    from musclewrap.scene._fibres import FIBRE_FIELDS, MOMENT_ARM_FIELDS
 
     assert list(OUTPUT_COLUMNS["report.csv"]) == REPORT_FIELDS
     assert list(OUTPUT_COLUMNS["fibres.csv"]) == FIBRE_FIELDS

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from musclewrap.cli import main
-from musclewrap.scene import check_scene, load_scene, run_scene
-from musclewrap.scene._names import (
+from musclewrap.model._names import (
     match_bone,
     match_muscle,
     mesh_name_tokens,
     path_anatomy,
     split_path_name,
 )
+from musclewrap.scene import check_scene, load_scene, run_scene
 from musclewrap.subject import init_scene
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

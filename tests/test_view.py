@@ -135,7 +135,7 @@ def test_the_sides_kept_or_dropped_give_the_same_pose(data_dir, tmp_path):
     matter (the femur past the ischium). A pose solved after others, again (its sides
     kept), and after more waypoints than are kept (its sides dropped): each the same, bit
     for bit, as the pose solved first in a new scene."""
-    from musclewrap.scene._live import _SIDES_KEPT
+    from musclewrap.run._live import _SIDES_KEPT
 
     scene = _scene(data_dir, tmp_path, "lhdl_squat")
     pose = {"hip_flexion_r": 105.0, "hip_adduction_r": -6.0}

@@ -427,7 +427,7 @@ def _cmd_run(a: argparse.Namespace) -> int:
         for sc in scenes:
             rep = check_scene(sc, cache_dir=cache)  # the run's cache: --no-cache writes none
             if not rep.ok:
-                from .scene._live import refusal
+                from .run import refusal
 
                 print(f"error: {refusal(sc, rep)}", file=sys.stderr)
                 return 2
@@ -460,7 +460,7 @@ def _cmd_run(a: argparse.Namespace) -> int:
     with contextlib.ExitStack() as stack:
         client = None
         if a.scheduler:
-            from .scene._dask import connect
+            from .run import connect
 
             client = stack.enter_context(
                 connect(a.scheduler, log=lambda m: print(m, file=sys.stderr))

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Defaults", "Tolerances", "defaults", "tol"]
+__all__ = ["UNITS", "Defaults", "Tolerances", "defaults", "tol"]
+
+#: length units accepted in a scene's ``[units]``, in metres
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
 @dataclass(frozen=True)

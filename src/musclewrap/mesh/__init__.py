@@ -6,7 +6,6 @@ from ._checks import (
     available_memory,
     check_memory,
     check_mesh,
-    clean_mesh,
     merge_duplicate_vertices,
     orient_faces,
     self_intersecting_faces,
@@ -14,6 +13,7 @@ from ._checks import (
     tidy_mesh,
     vertex_origins,
 )
+from ._clean import clean_mesh
 from ._cubic import cubic_root_near
 from ._geometry import (
     barycentric,

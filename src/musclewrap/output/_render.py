@@ -29,7 +29,7 @@ import numpy as np
 
 from .._runs import contiguous_runs
 from .._typing import PathLike
-from ..mesh import atomic_path
+from ..mesh import atomic_path, read_mesh
 
 __all__ = [
     "PictureTask",
@@ -561,7 +561,7 @@ def render_series(
     colours: dict[str, str] = {}
     shown = [(t, label_files(files, bones, colours, colour)) for t, files in steps[::every]]
     if view is None:
-        view = frame_view(*_muscles_box(pvd.parent, shown), turn, size)
+        view = frame_view(*muscles_box(pvd.parent, shown), turn, size)
     k = processes or min(os.cpu_count() or 1, 4)
     runs = contiguous_runs(len(shown), k)
     middle = len(shown) // 2
@@ -595,12 +595,10 @@ def render_series(
     return Path(gif)
 
 
-def _muscles_box(
+def muscles_box(
     folder: Path, shown: Sequence[tuple[float, tuple[Shown, ...]]]
 ) -> tuple[np.ndarray, np.ndarray]:
     """The box round every muscle of every time step shown (or everything, without muscles)."""
-    from ..mesh import read_mesh
-
     files = [f for _, parts in shown for _, kind, f in parts if kind not in ("line", _rgb(_BONE))]
     if not files:
         files = [f for _, parts in shown for _, _, f in parts]

@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._typing import PathLike
+from ..constants import UNITS
 from ..mesh import atomic_path
 
 __all__ = [
@@ -302,8 +303,6 @@ def plot_moment_arms(
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from ..scene._config import UNITS
 
     per_q = np.asarray(per_q, dtype=np.float64)
     to_mm = UNITS[unit] * 1e3

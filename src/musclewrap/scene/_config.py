@@ -12,14 +12,12 @@ from typing import Any
 import numpy as np
 
 from .._typing import PathLike
-from ..constants import defaults
-from ._errors import SceneError, suggest
+from ..constants import UNITS, defaults
+from ..errors import SceneError, suggest
+from ..model import axes_rotation
 from ._keys import SCENE_KEYS
 
 __all__ = ["UNITS", "BoneSpec", "FibreSpec", "MuscleSpec", "Scene", "load_scene"]
-
-#: length units accepted in ``[units]``, in metres
-UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 # the keys each table may hold: one table with their meanings (`_keys.SCENE_KEYS`), which the
 # documentation's scene reference is generated from
@@ -573,8 +571,6 @@ def _registration(raw: dict[str, Any], base: Path, src: Path, osim: Path | None)
             and sorted(a.lstrip("+-") for a in axes) == ["x", "y", "z"]
         )
         if ok:
-            from ._register import axes_rotation
-
             ok = bool(np.isclose(np.linalg.det(axes_rotation(axes)), 1.0))
         if not ok:
             raise SceneError(

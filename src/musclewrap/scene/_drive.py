@@ -10,22 +10,35 @@ import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
 from ..conditions import PathLines, csv_rows
+from ..constants import defaults
+from ..errors import SceneError, suggest
+from ..mesh import read_mesh, tidy_mesh
+from ..model import (
+    OpenSimModel,
+    axes_rotation,
+    check_landmarks,
+    landmark_point,
+    read_motion,
+    similarity,
+)
 from ._config import UNITS, Scene
-from ._errors import SceneError, suggest
-from ._motion import read_motion
-from ._opensim import OpenSimModel
-from ._plan import CENTRAL, Stencil
 
 __all__ = [
+    "CENTRAL",
     "Drive",
     "MomentArmPoses",
     "Poser",
+    "Stencil",
     "Waypoints",
     "apply",
     "drive_scene",
     "invert_rigid",
+    "lattice_parent",
+    "lattice_paths",
+    "one_sided",
     "parse_frames",
     "polyline_length",
+    "rest_pose",
 ]
 
 
@@ -45,9 +58,6 @@ def invert_rigid(T: FloatArray) -> FloatArray:
 
 def _register(scene: Scene, g: dict[str, FloatArray], s: float, notes: list[str]) -> FloatArray:
     """Similarity from the registration's mesh frame to ground (mesh units), with a note."""
-    from ..mesh import read_mesh, tidy_mesh
-    from ._register import axes_rotation, check_landmarks, landmark_point, similarity
-
     reg = scene.registration
     assert reg is not None
     P, Q, names, fits = [], [], [], []
@@ -237,6 +247,26 @@ def one_sided(sign: int, second_order: bool) -> tuple[tuple[float, ...], tuple[f
     if second_order:
         return (0.0, sign, 2.0 * sign), (-1.5 * sign, 2.0 * sign, -0.5 * sign)
     return (0.0, float(sign)), (-1.0 * sign, 1.0 * sign)
+
+
+#: the central difference ``dL/dq ~ sum(w L(q + o h)) / h``: offsets ``o`` and weights ``w``
+CENTRAL = ((-1.0, 1.0), (-0.5, 0.5))
+
+
+@dataclass(frozen=True)
+class Stencil:
+    """A frame's one-sided moment arm of one muscle about one coordinate.
+
+    Per pose of the difference (``dL/dq ~ sum(weights * L) / h``): the muscle's lines and
+    reference point (as in `musclewrap.scene._drive.Drive`), its body's transform
+    ``to_output`` (P, 4, 4) and each bone's ``bone_T`` (P, 4, 4).
+    """
+
+    weights: tuple[float, ...]
+    lines: tuple[dict[str, FloatArray], ...]
+    references: tuple[FloatArray | None, ...]
+    to_output: FloatArray
+    bone_T: dict[str, FloatArray]
 
 
 @dataclass
@@ -694,8 +724,6 @@ def _waypoints(
     output_transforms: Any,
 ) -> Waypoints:
     """The lattice of poses between the rest pose and the frames (`Waypoints`)."""
-    from ..constants import defaults
-
     steps = np.array(
         [
             np.radians(defaults.path_step)

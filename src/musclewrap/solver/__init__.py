@@ -2,13 +2,14 @@
 
 from ..mesh import cubic_root_near
 from ._deformer import METHODS, Deformer
-from ._muscle import Muscle, deform
+from ._muscle import PREPARATION_FORMAT, Muscle, deform
 from ._paper import solve_paper
 from ._result import DeformationResult
 from ._together import deform_together, facing_at_rest, meet
 
 __all__ = [
     "METHODS",
+    "PREPARATION_FORMAT",
     "DeformationResult",
     "Deformer",
     "Muscle",

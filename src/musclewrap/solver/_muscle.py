@@ -42,7 +42,8 @@ from ._result import DeformationResult
 
 __all__ = ["Muscle", "deform"]
 
-_FORMAT = 4  # 4: input_id
+#: the format of a cached preparation (its file says it; another is prepared anew)
+PREPARATION_FORMAT = 4  # 4: input_id
 
 
 @dataclass(eq=False)
@@ -326,7 +327,7 @@ class Muscle:
         """Save the preparation to an ``.npz`` file (written atomically)."""
         c = self.cage
         meta = {
-            "format": _FORMAT,
+            "format": PREPARATION_FORMAT,
             "notes": list(self.notes),
             "source": self.source,
             "seconds_prepare": self.seconds_prepare,
@@ -368,9 +369,10 @@ class Muscle:
             meta = json.loads(str(data["meta"]))
         except Exception as exc:  # noqa: BLE001 - any damage is reported the same way
             raise ValueError(f"{p}: not a readable musclewrap preparation ({exc})") from None
-        if meta.get("format") != _FORMAT:
+        if meta.get("format") != PREPARATION_FORMAT:
             raise ValueError(
-                f"{p}: preparation format {meta.get('format')} is not {_FORMAT}; run prepare again"
+                f"{p}: preparation format {meta.get('format')} is not "
+                f"{PREPARATION_FORMAT}; run prepare again"
             )
         cage = Cage(C=data["C"], CF=data["CF"], **meta["cage"])
         m = cls(

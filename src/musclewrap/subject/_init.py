@@ -1,6 +1,6 @@
 """``musclewrap init``: a scene from an OpenSim model and a folder of meshes.
 
-Each mesh is classified (muscle, bone or landmark) by its file name (`musclewrap.scene._names`) and its
+Each mesh is classified (muscle, bone or landmark) by its file name (`musclewrap.model._names`) and its
 shape; each muscle is matched to the model's paths by anatomical name, each bone to its
 body. Then the placement that makes the paths run through their muscles at rest is
 chosen among: the meshes in their bodies' frames (at the pose where the scene's bodies
@@ -23,20 +23,27 @@ from pathlib import Path
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..mesh import atomic_path
-from ..scene._config import UNITS
-from ..scene._errors import SceneError
-from ..scene._fit import LineFit, line_fits
-from ..scene._names import (
+from ..errors import SceneError
+from ..mesh import atomic_path, check_mesh, read_mesh, tidy_mesh
+from ..model import (
     BONES,
     LANDMARKS,
     MUSCLES,
+    LineFit,
     NameMatch,
+    OpenSimModel,
+    axes_rotation,
+    landmark_point,
+    line_fits,
     match_bone,
     match_muscle,
     mesh_name_tokens,
     path_anatomy,
+    read_motion,
+    similarity,
+    write_motion,
 )
+from ..scene import UNITS
 
 __all__ = ["MESH_SUFFIXES", "InitResult", "MeshInfo", "init_scene", "survey"]
 
@@ -73,8 +80,6 @@ class MeshInfo:
 
 def survey(folder: Path) -> list[MeshInfo]:
     """Every mesh of ``folder`` (not its subfolders), read and classified."""
-    from ..mesh import check_mesh, read_mesh, tidy_mesh
-
     if not folder.is_dir():
         raise SceneError(f"{folder}: no such folder of meshes")
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in MESH_SUFFIXES and p.is_file())
@@ -193,8 +198,6 @@ def init_scene(
         If the model cannot be read, the folder holds no mesh, or no muscle of it
         could be matched to the model.
     """
-    from ..scene._opensim import OpenSimModel
-
     say = log or (lambda s: None)
     out = Path(out)
     model = OpenSimModel(osim)
@@ -285,8 +288,6 @@ def init_scene(
     coords, locked = model.coordinates_between(sorted(used), output_frame)
     lacking: list[str] = []
     if motion is not None:
-        from ..scene._motion import read_motion
-
         mot = read_motion(motion)
         lacking = [c for c in coords if c not in mot.columns]
         coords = [c for c in coords if c in mot.columns]
@@ -495,8 +496,6 @@ def _candidates(
         out.insert(0, _Placement("body", pose, why))
     marks = _landmarks(model, meshes, side)
     if len(marks) >= 2:
-        from ..scene._register import axes_rotation, similarity
-
         model.set_pose(default)
         P = np.array([point for _, _, point, _, _ in marks])
         Q = np.array([model.transform(b, "ground")[:3, 3] * s for _, _, _, b, _ in marks])
@@ -521,8 +520,6 @@ def _landmarks(
     model, meshes: list[MeshInfo], side: str
 ) -> list[tuple[str, MeshInfo, FloatArray, str, str]]:  # noqa: ANN001
     """The hip and knee landmarks found among the meshes: (name, mesh, point, body, fit)."""
-    from ..scene._register import landmark_point
-
     # landmark surface -> (landmark, fit, the body whose origin it marks)
     marks = {
         "femoral_head": ("hip", "sphere", "femur"),
@@ -550,8 +547,6 @@ def _landmarks(
 
 def _proper_axes() -> list[tuple[str, str, str]]:
     """The 24 turns of the axes onto each other (signed permutations of det +1)."""
-    from ..scene._register import axes_rotation
-
     out = []
     for perm in itertools.permutations("xyz"):
         for signs in itertools.product(("", "-"), repeat=3):
@@ -589,8 +584,6 @@ def _fit_in(model, cand: _Placement, m: _Muscle, s: float) -> LineFit:  # noqa: 
 # ------------------------------------------------------------------------ writing
 def _write_sweep(model, coords: list[str], rest: dict[str, float], path: Path) -> None:  # noqa: ANN001
     """Each coordinate from its rest value to the ends of its range and back, in turn."""
-    from ..scene._motion import write_motion
-
     rows = []
     n = 21
     for c in coords:

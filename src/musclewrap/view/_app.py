@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from ..output._render import STRETCH_RANGE, stretch_colours, stretch_table
-from ..scene._live import CONTACT_REACH, LiveScene, PoseResult
+from ..output import STRETCH_RANGE, stretch_colours, stretch_table
+from ..run import CONTACT_REACH, LiveScene, PoseResult
 from ._playback import Series, segments, triangles
 
 __all__ = ["Viewer", "free_port", "open_source"]

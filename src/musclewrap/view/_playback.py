@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..output import frame_view, label_files, muscles_box
 
 __all__ = ["Series", "read_polydata"]
 
@@ -115,8 +116,6 @@ class Series:
         (its first and last among them; the GIF's camera takes every step drawn), seen
         from the side, not turned (a run's ``[output] view`` is not in its folder).
         """
-        from ..output._render import _muscles_box, frame_view, label_files
-
         bones = tuple(n for n, kind in self.parts.items() if kind == "bone")
         picked = np.unique(np.linspace(0, len(self) - 1, steps).round().astype(int))
         shown = [
@@ -128,7 +127,7 @@ class Series:
             )
             for k in picked
         ]
-        return frame_view(*_muscles_box(self.folder, shown), (0.0, 0.0), size)
+        return frame_view(*muscles_box(self.folder, shown), (0.0, 0.0), size)
 
     def part(self, k: int, name: str) -> dict[str, np.ndarray] | None:
         """Part ``name`` at step ``k`` (None where it has no file there); the last few kept."""

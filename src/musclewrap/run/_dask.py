@@ -59,8 +59,6 @@ def _identity(x: Any) -> Any:
 
 def _run_with_job(task: Any, job: Any) -> Any:
     """On a worker: the task with its muscle's job put back (it travelled once per worker)."""
-    from ._execute import run_task
-
     return run_task(dataclasses.replace(task, job=job))
 
 

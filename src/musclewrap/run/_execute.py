@@ -166,9 +166,6 @@ def warm_up() -> None:
     """Import what the tasks need (a worker does this while the client reads the scene)."""
     import igl  # noqa: F401
 
-    from .. import contact  # noqa: F401
-    from ..solver import Muscle  # noqa: F401
-
 
 class ProcessExecutor(Executor):
     """Spawned worker processes on this machine, with a queue for the frames-done ticks."""

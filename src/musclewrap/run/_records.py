@@ -1,26 +1,10 @@
-"""A run as a plan of typed tasks: what each task gets, and what it gives back.
+"""The run's records: what each task gets and gives back, typed, frozen and small.
 
-Reading a scene (`._read`) gives one `MuscleJob` per muscle (what every task of
-that muscle needs, the same for all of them) and one `FrameSpan` (the motion's
-per-frame data: lines, transforms, the moment arms' side poses), cut into chunks.
-The tasks are:
-
-- `Prepare`: a muscle's preparation (and its fibres) into the cache;
-- `ProbeBone`: a bone's signed-distance probe into the cache;
-- `FollowPath`: one muscle at the waypoints between the rest pose and the frames, against
-  its bones (where contact takes its sides, see `._drive.Waypoints`);
-- `DeformChunk`: one muscle on one chunk of frames, its files written;
-- `Compare`: one muscle's comparison with the paper's iteration on a few frames.
-
-Each is a frozen dataclass whose ``run`` method (in `._work`) executes it in any
-process: the executor (`._execute`) only hands tasks to workers and results back.
-Large data (prepared muscles, bone probes, fibres) travels through the cache folder,
-which every worker reads; tasks carry only what differs between them. Results are
-small records that the journal keeps as JSON, so that an interrupted run goes on.
-
-A chunk task names the tasks it waits for (``after``): its muscle's and its bones'
-preparation today; the same mechanism lets a later muscle of the same frames wait
-for the muscles already placed (muscle-muscle contact in an order).
+A run (`._plan`) gives one `MuscleJob` per muscle (what every task of that muscle
+needs), one `FrameSpan` and `PathSpan` per muscle (the motion's per-frame and per-waypoint
+data), and its tasks give back `Prepared`, `PathStates`, `ChunkResult` and `Comparison`;
+`MuscleOutcome` gathers a muscle's chunks. Every other module of the run imports these;
+they import nothing of the run.
 """
 
 from __future__ import annotations
@@ -35,11 +19,12 @@ import numpy as np
 
 from .. import __version__
 from .._cache import digest
-from .._runs import contiguous_runs
 from .._typing import FloatArray, IntArray
+from ..scene import CENTRAL, Stencil, invert_rigid
+from ..solver import PREPARATION_FORMAT
 
 __all__ = [
-    "CENTRAL",
+    "FIBRES_FORMAT",
     "BoneMesh",
     "ChunkResult",
     "Comparison",
@@ -48,12 +33,30 @@ __all__ = [
     "FrameSpan",
     "MomentArmSettings",
     "MuscleJob",
+    "MuscleOutcome",
     "PathSpan",
     "PathStates",
     "Prepared",
     "SidePoses",
-    "Stencil",
+    "fibres_key",
 ]
+
+FIBRES_FORMAT = 1  # of the cached fibres
+
+
+def fibres_key(muscle_key: str, job: MuscleJob) -> str:
+    """The cache key of a muscle's fibres: its preparation's key, rest lines and settings."""
+    spec, lines = job.fibres, job.rest_lines
+    assert spec is not None
+    areas = [
+        np.asarray([-1] if a is None else a, dtype=np.int64) for a in (spec.origin, spec.insertion)
+    ]
+    return digest(
+        muscle_key,
+        *areas,
+        *(np.asarray(lines[p], dtype=np.float64) for p in sorted(lines)),
+        f"{spec.count}|{spec.points}|{spec.voxels}|{FIBRES_FORMAT}|{__version__}",
+    )[:32]
 
 
 @dataclass(frozen=True)
@@ -117,14 +120,12 @@ class MuscleJob:
     @cached_property
     def cache_key(self) -> str:
         """Hash of the mesh and the preparation's settings (names its cache file; once)."""
-        from ..solver._muscle import _FORMAT
-
         return digest(
             np.asarray(self.V, dtype=np.float64),
             np.asarray(self.F, dtype=np.int64),
             np.asarray(self.input_id, dtype=np.int64),
             *(() if self.cage_around is None else (np.asarray(self.cage_around),)),
-            f"{self.cage_size}|{self.cage_coarsening}|{_FORMAT}|{__version__}",
+            f"{self.cage_size}|{self.cage_coarsening}|{PREPARATION_FORMAT}|{__version__}",
         )[:32]
 
     def prepare_path(self) -> Path | None:
@@ -137,29 +138,7 @@ class MuscleJob:
         """The cache file of the muscle's fibres (None: no cache or no fibres)."""
         if self.cache_dir is None or self.fibres is None:
             return None
-        from ._fibres import fibres_key
-
         return Path(self.cache_dir) / f"fibres-{self.name}-{fibres_key(self.cache_key, self)}.npz"
-
-
-#: the central difference ``dL/dq ~ sum(w L(q + o h)) / h``: offsets ``o`` and weights ``w``
-CENTRAL = ((-1.0, 1.0), (-0.5, 0.5))
-
-
-@dataclass(frozen=True)
-class Stencil:
-    """A frame's one-sided moment arm of one muscle about one coordinate.
-
-    Per pose of the difference (``dL/dq ~ sum(weights * L) / h``): the muscle's lines and
-    reference point (as in `musclewrap.scene._drive.Drive`), its body's transform
-    ``to_output`` (P, 4, 4) and each bone's ``bone_T`` (P, 4, 4).
-    """
-
-    weights: tuple[float, ...]
-    lines: tuple[dict[str, FloatArray], ...]
-    references: tuple[FloatArray | None, ...]
-    to_output: FloatArray
-    bone_T: dict[str, FloatArray]
 
 
 @dataclass(frozen=True)
@@ -272,8 +251,6 @@ class PathSpan:
 
     def placement(self, k: int) -> dict[str, FloatArray]:
         """Per bone, the transform from the muscle's body frame into the bone's at waypoint ``k``."""
-        from ._drive import invert_rigid
-
         return {b: invert_rigid(T[k]) @ self.to_output[k] for b, T in self.bone_T.items()}
 
 
@@ -399,138 +376,3 @@ class MuscleOutcome:
             note="; ".join(dict.fromkeys(notes)) or None,
             comparison=comparison,
         )
-
-
-# ---------------------------------------------------------------------------- planning
-def chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
-    """Frame ranges per muscle: about three tasks per worker, for an even finish.
-
-    At most 128 frames each: a chunk is also what an interrupted run keeps.
-    """
-    k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), n_frames // 20))
-    return contiguous_runs(n_frames, max(k, -(-n_frames // 128)))
-
-
-def muscle_jobs(inputs: Any, outdir: Path, run: str) -> list[MuscleJob]:
-    """One job per muscle of a read scene (`._read.Inputs`), largest first.
-
-    Largest first: the workers then finish about together.
-    """
-    from ._read import attachment_area
-
-    scene, drive = inputs.scene, inputs.drive
-    bones = tuple(inputs.bones[b.name] for b in scene.bones)
-    cache = inputs.cache
-    jobs = []
-    for spec in scene.muscles:
-        V, F = inputs.muscles[spec.name]
-        ids = inputs.input_ids.get(spec.name, np.arange(len(V)))
-        fibres = None
-        if scene.fibres is not None:
-            f = scene.fibres
-            fibres = FibreSettings(
-                f.count,
-                f.points,
-                f.voxels,
-                attachment_area(scene, drive, spec, "origin", V, ids),
-                attachment_area(scene, drive, spec, "insertion", V, ids),
-            )
-        ma = drive.moment_arms
-        jobs.append(
-            MuscleJob(
-                name=spec.name,
-                source=str(spec.mesh),
-                V=V,
-                F=F,
-                input_id=ids,
-                cage_size=spec.cage_size,
-                cage_coarsening=spec.cage_coarsening,
-                method=spec.method,
-                max_iterations=spec.max_iterations,
-                rest_lines=drive.rest_lines[spec.name],
-                rest_reference=drive.rest_reference[spec.name],
-                anchors=None if inputs.anchors is None else inputs.anchors[spec.name],
-                contact=None if inputs.contact is None else inputs.contact[spec.name],
-                margin=scene.margin,
-                bones=bones,
-                fibres=fibres,
-                moment_arms=(
-                    None
-                    if fibres is None or ma is None
-                    else MomentArmSettings(
-                        tuple(ma.coordinates),
-                        np.asarray(ma.steps),
-                        np.asarray(ma.per_q),
-                        scene.fibres.moment_arm_contact,
-                    )
-                ),
-                paper_frames=scene.paper_frames,
-                cache_dir=None if cache is None else str(cache),
-                outdir=str(outdir),
-                run=run,
-                cage_around=inputs.cage_around.get(spec.name),
-            )
-        )
-    jobs.sort(key=lambda j: -len(j.V))
-    return jobs
-
-
-def frame_span(inputs: Any, name: str) -> FrameSpan:
-    """A muscle's per-frame data over the whole run."""
-    scene, drive = inputs.scene, inputs.drive
-    spec = next(s for s in scene.muscles if s.name == name)
-    ma = drive.moment_arms
-    side = None
-    if scene.fibres is not None and ma is not None:
-        side = SidePoses(
-            ma.lines[name],
-            ma.references[name],
-            ma.to_output[spec.body],
-            {b.name: ma.to_output[b.body] for b in scene.bones},
-            ma.one_sided[name],
-        )
-    wp = drive.waypoints
-    return FrameSpan(
-        0,
-        np.asarray(drive.frames),
-        np.asarray(drive.times),
-        drive.lines[name],
-        drive.references[name],
-        drive.to_output[spec.body],
-        {b.name: drive.to_output[b.body] for b in scene.bones},
-        side,
-        None if inputs.contact is None else _frame_waypoints(wp, len(drive.frames)),
-    )
-
-
-def _frame_waypoints(wp: Any, n: int) -> IntArray:
-    """Each frame's waypoint, -1 (the rest pose) for all where there are none."""
-    return np.full(n, -1, dtype=np.int64) if wp is None else np.asarray(wp.frame, dtype=np.int64)
-
-
-def rest_placements(inputs: Any, name: str) -> dict[str, FloatArray]:
-    """Per bone, the transform from muscle ``name``'s body frame into the bone's at rest."""
-    scene, drive = inputs.scene, inputs.drive
-    body = next(s.body for s in scene.muscles if s.name == name)
-    return {b.name: drive.rest_between(body, b.body) for b in scene.bones}
-
-
-def path_span(inputs: Any, name: str) -> PathSpan:
-    """A muscle's waypoints and its bones' placements there and at rest."""
-    scene, drive = inputs.scene, inputs.drive
-    spec = next(s for s in scene.muscles if s.name == name)
-    wp = drive.waypoints
-    rest_T = rest_placements(inputs, name)
-    if wp is None:
-        empty = np.zeros((0, 4, 4))
-        return PathSpan(
-            np.zeros(0, np.int64), [], [], empty, {b.name: empty for b in scene.bones}, rest_T
-        )
-    return PathSpan(
-        np.asarray(wp.parent, dtype=np.int64),
-        wp.lines[name],
-        wp.references[name],
-        wp.to_output[spec.body],
-        {b.name: wp.to_output[b.body] for b in scene.bones},
-        rest_T,
-    )

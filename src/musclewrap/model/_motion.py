@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from .._typing import FloatArray, PathLike
-from ._errors import SceneError
+from ..errors import SceneError
+from ..mesh import atomic_path
 
 __all__ = ["Motion", "random_motion", "read_motion", "write_motion"]
 
@@ -154,8 +155,6 @@ def write_motion(
     -------
     pathlib.Path
     """
-    from ..mesh import atomic_path
-
     t = np.asarray(time, dtype=np.float64)
     if t.ndim != 1 or not len(t) or (len(t) > 1 and not (np.diff(t) > 0).all()):
         raise ValueError("time must be a non-empty increasing sequence")

@@ -20,14 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
-from .._cache import cached_arrays, digest
+from .._cache import cached_arrays
 from .._typing import FloatArray
-from ..fibres import keep_inside
+from ..fibres import Fibres, fibres_at_rest, keep_inside
 from ..mesh import write_mesh
-from ._drive import Drive, apply
-from ._keys import OUTPUT_COLUMNS
-from ._plan import MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
+from ..output import plot_moment_arms, write_csv
+from ..scene import OUTPUT_COLUMNS, Drive, apply
+from ._records import MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
 
 __all__ = [
     "FIBRES_CSV",
@@ -35,7 +34,6 @@ __all__ = [
     "MOMENT_ARMS_CSV",
     "MOMENT_ARM_FIELDS",
     "PLOT_MOMENT_ARMS",
-    "fibres_key",
     "fibres_of",
     "frame_fibres",
     "write_fibre_outputs",
@@ -46,24 +44,8 @@ FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS = "fibres.csv", "moment_arms.csv",
 # their meanings: `OUTPUT_COLUMNS` (the documentation lists them)
 FIBRE_FIELDS = list(OUTPUT_COLUMNS[FIBRES_CSV])
 MOMENT_ARM_FIELDS = list(OUTPUT_COLUMNS[MOMENT_ARMS_CSV])
-_FORMAT = 1  # of the cached fibres
 #: how far inside the surface a fibre point outside it is put, in grid cells of its field
 INSIDE_DEPTH = 0.1
-
-
-def fibres_key(muscle_key: str, job: MuscleJob) -> str:
-    """The cache key of a muscle's fibres: its preparation's key, rest lines and settings."""
-    spec, lines = job.fibres, job.rest_lines
-    assert spec is not None
-    areas = [
-        np.asarray([-1] if a is None else a, dtype=np.int64) for a in (spec.origin, spec.insertion)
-    ]
-    return digest(
-        muscle_key,
-        *areas,
-        *(np.asarray(lines[p], dtype=np.float64) for p in sorted(lines)),
-        f"{spec.count}|{spec.points}|{spec.voxels}|{_FORMAT}|{__version__}",
-    )[:32]
 
 
 def fibres_of(muscle: Any, job: MuscleJob, path: Path | None) -> tuple[Any, str | None]:
@@ -73,8 +55,6 @@ def fibres_of(muscle: Any, job: MuscleJob, path: Path | None) -> tuple[Any, str 
     -------
     Fibres or None, and a note: None, or why the muscle has no fibres
     """
-    from ..fibres import Fibres, fibres_at_rest
-
     spec = job.fibres
     assert spec is not None
 
@@ -284,8 +264,6 @@ def write_fibre_outputs(
         (a one-sided difference there), and per muscle with unconverged moment-arm
         solves.
     """
-    from ..output import write_csv
-
     fibre_rows, arm_rows = _rows(drive, results, muscles)
     files = [write_csv(outdir / FIBRES_CSV, fibre_rows, FIBRE_FIELDS)]
     for res in results:
@@ -333,7 +311,6 @@ def write_fibre_outputs(
                 "a smaller [fibres] step separates the two changes"
             )
     files.append(write_csv(outdir / MOMENT_ARMS_CSV, arm_rows, MOMENT_ARM_FIELDS))
-    from ..output import plot_moment_arms
 
     files.append(
         plot_moment_arms(

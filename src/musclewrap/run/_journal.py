@@ -7,8 +7,8 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+from ..errors import SceneError
 from ..mesh import atomic_path
-from ._errors import SceneError
 
 __all__ = ["Journal"]
 

@@ -10,8 +10,7 @@ import numpy as np
 from .._cache import cached_measure
 from .._typing import FloatArray, IntArray
 from ..mesh import clean_mesh, read_mesh, tidy_mesh, volume
-from ._config import Scene
-from ._drive import apply, drive_scene
+from ..scene import Scene, apply, drive_scene
 
 __all__ = ["inside_depth", "inside_depths", "muscle_overlaps", "verify_run"]
 

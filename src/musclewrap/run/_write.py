@@ -17,12 +17,11 @@ import numpy as np
 from .._cache import cached_arrays, digest
 from .._typing import FloatArray, IntArray
 from ..mesh import write_mesh
-from ._config import Scene
-from ._drive import Drive, apply
+from ..output import plot_convergence, plot_penetration, plot_volume_error, write_csv, write_pvd
+from ..scene import OUTPUT_COLUMNS, Drive, Scene, apply
 from ._fibres import FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS, write_fibre_outputs
 from ._journal import JOURNAL
-from ._keys import OUTPUT_COLUMNS
-from ._plan import BoneMesh, MuscleOutcome
+from ._records import BoneMesh, MuscleOutcome
 
 __all__ = ["REPORT_FIELDS", "TOP_FILES", "Progress", "RunSummary", "write_bones", "write_outputs"]
 
@@ -130,7 +129,6 @@ def _bone_display(
 def _plots(
     outdir: Path, scene: Scene, results: list[MuscleOutcome], collisions: bool
 ) -> list[Path]:
-    from ..output import plot_convergence, plot_penetration, plot_volume_error
 
     series = {}
     for res in results:
@@ -304,8 +302,6 @@ def write_outputs(
     notes: list[str],
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """The series, the report, the fibres' tables and the plots; returns the rows and files."""
-    from ..output import write_csv, write_pvd
-
     rows = [r for res in results for r in res.rows]
     entries = sorted(entries + [e for res in results for e in res.entries], key=lambda e: e[0])
     for res in results:

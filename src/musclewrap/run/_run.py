@@ -24,7 +24,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..output._render import (
+from ..errors import SceneError
+from ..model import resample_polyline
+from ..output import (
     Pictures,
     PictureTask,
     RenderingError,
@@ -34,26 +36,25 @@ from ..output._render import (
     label_files,
     save_gif,
 )
-from ._config import Scene
-from ._drive import apply
-from ._errors import SceneError
-from ._execute import Executor, LocalExecutor, Node, ProcessExecutor, Runner
-from ._journal import Journal
-from ._plan import (
-    ChunkResult,
-    Comparison,
-    MuscleOutcome,
-    chunks,
-    frame_span,
-    muscle_jobs,
-    path_span,
+from ..scene import Scene, apply
+from ._dask import DaskExecutor
+from ._execute import (
+    Executor,
+    LocalExecutor,
+    Node,
+    ProcessExecutor,
+    Runner,
+    import_plotting_meanwhile,
 )
+from ._journal import Journal
+from ._plan import chunks, frame_span, muscle_jobs, path_span
 from ._read import (
     Inputs,
     check_outputs_spare_inputs,
     default_cache_dir,
     read_inputs,
 )
+from ._records import ChunkResult, Comparison, MuscleOutcome
 from ._work import Compare, DeformChunk, DeformGroup, FollowPath, Prepare, ProbeBone
 from ._write import GIF, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
 
@@ -204,7 +205,6 @@ def run_batch(
                 runner.add(r.picture_nodes(bar))  # they show the bones too
                 runner.poll(0)  # take in what finished meanwhile, submit what it unblocked
                 _finish_ready(runs, runner)
-            from ._execute import import_plotting_meanwhile
 
             import_plotting_meanwhile()
             while any(not (r.finished and r.drawn) for r in runs):
@@ -233,8 +233,6 @@ def picture_view(
     lies from its rest lines; seen as `frame_view` places it, turned by ``[output]
     view``, for pictures of ``size`` (default the scene's ``[output] image_size``).
     """
-    from ._fit import resample_polyline
-
     pts, reach = [], 0.0
     for spec in scene.muscles:
         rest = drive.rest_lines[spec.name].values()
@@ -268,7 +266,6 @@ def _executor(executor: Any, workers: int, muscles: int, stack: contextlib.ExitS
     if executor is not None:
         if isinstance(executor, Executor):
             return executor
-        from ._dask import DaskExecutor
 
         return stack.enter_context(DaskExecutor(executor))  # a distributed.Client
     if workers > 1 and muscles > 1:

@@ -17,11 +17,14 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
+from ..conditions import LineError
 from ..constants import defaults
+from ..contact import Obstacle, Placed, SideReference, line_inside_depth
 from ..mesh import write_mesh
-from ._drive import apply, invert_rigid
+from ..scene import apply, invert_rigid
+from ..solver import DeformationResult, Muscle, facing_at_rest, meet
 from ._fibres import fibres_of, frame_fibres, write_frame_fibres
-from ._plan import (
+from ._records import (
     BoneMesh,
     ChunkResult,
     Comparison,
@@ -71,8 +74,6 @@ def _tick(n: int = 1) -> None:
 
 def _prepare(job: MuscleJob) -> tuple[Any, bool, str | None]:
     """The prepared muscle: read from the cache, else built (and cached)."""
-    from ..solver import Muscle
-
     path = job.prepare_path()
     note = None
     if path is not None and path.is_file():
@@ -102,8 +103,6 @@ def _prepare(job: MuscleJob) -> tuple[Any, bool, str | None]:
 
 def bone_probe(bone: BoneMesh, cache_dir: str | None) -> Any:
     """The bone's signed-distance probe: kept per process, cached."""
-    from ..contact import Obstacle
-
     key = (bone.probe, cache_dir)
     if key not in _probes:
         _probes[key] = Obstacle.cached(
@@ -242,8 +241,6 @@ def placed_bones(
     ``allow``: with each bone's allowance (the obstacles of a solve), else without (the
     bones a `musclewrap.contact.SideReference` takes the sides of).
     """
-    from ..contact import Placed
-
     contact = job.contact or {}
     return [
         Placed(probe, place[b], contact[b] if allow else None, b)
@@ -293,8 +290,6 @@ def sides_at(
     ``cage``: the muscle's cage at a waypoint (None: the muscle at rest); ``place`` the
     bones' placements there (the muscle's frame into each bone's).
     """
-    from ..contact import SideReference
-
     bones = placed_bones(job, probes, place)
     if cage is None:
         return SideReference(muscle.V, bones)
@@ -419,8 +414,6 @@ class _MuscleFrames:
 
     def obstacles(self, T: FloatArray, bone_T: dict[str, FloatArray], bones: bool = True) -> Any:
         """The scene's bones where contact is on (and ``bones``), else None."""
-        from ..contact import Placed
-
         contact = self.contact
         if contact is None or not bones:
             return None
@@ -441,8 +434,6 @@ class _MuscleFrames:
         bones: bool = True,
         sides: Any = None,
     ) -> Any:
-        from ..conditions import LineError
-        from ..solver import DeformationResult
 
         obstacles = self.obstacles(T, bone_T, bones)
         try:
@@ -482,8 +473,6 @@ class _MuscleFrames:
 
     def bones_here(self, k: int) -> dict[str, Any]:
         """Every bone placed in frame ``k`` (the muscle's frame into the bone's)."""
-        from ..contact import Placed
-
         span, T = self.span, self.span.to_output[k]
         return {
             bname: Placed(probe, invert_rigid(span.bone_T[bname][k]) @ T, None, bname)
@@ -519,8 +508,6 @@ class _MuscleFrames:
         ``overlap``: the deepest vertex of this muscle inside another (muscles in
         contact; NaN otherwise).
         """
-        from ..contact import line_inside_depth
-
         job, span, muscle, d = self.job, self.span, self.muscle, self.d
         contact, out, name, result = self.contact, self.out, job.name, self.result
         fb = self.fb
@@ -631,7 +618,6 @@ class DeformGroup:
     pairs: tuple[tuple[str, str], ...] | None = None
 
     def run(self) -> dict[str, ChunkResult]:
-        from ..solver import facing_at_rest
 
         order = sorted(range(len(self.jobs)), key=lambda i: self.jobs[i].name)
         ms = {
@@ -669,8 +655,6 @@ def meet_frame(
     Each against its bones, then they meet (`musclewrap.solver.meet`); ``ms`` in the
     order of their names.
     """
-    from ..solver import meet
-
     return meet(  # type: ignore[no-any-return]
         {n: m.d for n, m in ms.items()},
         {n: m.solve_frame(k, finish=False) for n, m in ms.items()},

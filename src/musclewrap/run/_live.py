@@ -27,16 +27,20 @@ from threadpoolctl import ThreadpoolController
 
 from .._typing import FloatArray, IntArray
 from ..contact import every_pair, muscle_gaps
+from ..errors import SceneError
 from ..mesh import write_mesh
-from ._config import Scene, load_scene
-from ._drive import apply, invert_rigid, lattice_paths
-from ._errors import SceneError
-from ._plan import FrameSpan, PathStates, muscle_jobs, rest_placements
+from ..scene import Scene, apply, invert_rigid, lattice_paths, load_scene
+from ..solver import facing_at_rest
+from ._check import check_scene
+from ._fibres import frame_fibres
+from ._plan import muscle_jobs, rest_placements
 from ._read import Inputs, default_cache_dir, read_inputs
+from ._records import ChunkResult, FrameSpan, PathStates
+from ._run import picture_view
 from ._work import _MuscleFrames, meet_frame, sides_at, waypoint_cage
 from ._write import _bone_display
 
-__all__ = ["CheckError", "Coordinate", "LiveScene", "PoseResult"]
+__all__ = ["CONTACT_REACH", "CheckError", "Coordinate", "LiveScene", "PoseResult", "refusal"]
 
 #: vertices within this distance of a bone or of a muscle kept apart from theirs (mesh
 #: units: mm) are coloured as in contact
@@ -173,8 +177,6 @@ class LiveScene:
             cache = None if cache_dir is False else Path(cache_dir)
         self.cache = cache
         if check:
-            from ._check import check_scene
-
             rep = check_scene(scene, cache_dir=cache if cache is not None else False)
             if not rep.ok:
                 raise CheckError(scene, rep)
@@ -415,8 +417,6 @@ class LiveScene:
             m.path, m.refs = path, sides[j.name]
         if self.grouped:
             if self._facing is None:
-                from ..solver import facing_at_rest
-
                 to_common = {j.name: np.linalg.inv(drive.to_body[j.name]) for j in self.jobs}
                 self._facing = facing_at_rest({n: m.d for n, m in ms.items()}, to_common)
             results = meet_frame(ms, 0, self._facing, self.jobs[0].margin, self.scene.muscle_pairs)
@@ -452,8 +452,6 @@ class LiveScene:
             stretch[n] = m.muscle.area_stretch(r.V) if ok else np.full(len(r.V), np.nan)
             lines[n] = [apply(T, np.asarray(P, dtype=np.float64)) for P in L[n].values()]
             if m.fb is not None and ok:
-                from ._fibres import frame_fibres
-
                 got = frame_fibres(m.fb, m.muscle.F, r, 0, None, None, m.solve)
                 if got["points"] is not None:
                     fibres[n] = apply(T, got["points"].reshape(-1, 3)).reshape(got["points"].shape)
@@ -503,8 +501,6 @@ class LiveScene:
 
     def view(self, size: tuple[int, int] | None = None) -> Any:
         """The run's pictures' camera (`._run.picture_view`), for pictures of ``size``."""
-        from ._run import picture_view
-
         return picture_view(self.scene, self.drive, self.inputs.muscles, size)
 
     def muscle_faces(self, name: str) -> IntArray:
@@ -524,8 +520,6 @@ class LiveScene:
         ``pose.json`` (the coordinates' values). Returns the files written.
         """
         import json
-
-        from ._plan import ChunkResult
 
         folder = Path(folder)
         ms, results, out_T = result.solved

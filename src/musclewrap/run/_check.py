@@ -17,9 +17,29 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray, IntArray, PathLike
-from ._config import UNITS, Scene, load_scene
-from ._errors import SceneError
-from ._fit import LineFit, line_fit, line_fits, outside_distance
+from ..errors import SceneError, suggest
+from ..mesh import MeshError, mean_thickness
+from ..model import (
+    LineFit,
+    OpenSimModel,
+    line_fit,
+    line_fits,
+    match_muscle,
+    outside_distance,
+    path_anatomy,
+    read_motion,
+    resample_polyline,
+)
+from ..output import draw_check
+from ..scene import UNITS, Scene, apply, drive_scene, load_scene, rest_pose
+from ._read import (
+    _read_bone,
+    _read_muscle,
+    check_muscles_apart,
+    default_cache_dir,
+    rest_lines_problem,
+)
+from ._verify import inside_depths, muscle_overlaps
 
 __all__ = ["CheckReport", "Finding", "check_scene"]
 
@@ -116,8 +136,6 @@ def _check(
     cache_dir: Path | None | bool,
     say: Callable[[str], None],
 ) -> None:
-    from ..mesh import MeshError
-    from ._read import _read_bone, _read_muscle, default_cache_dir
 
     cache: Path | None
     if cache_dir is True:
@@ -128,8 +146,6 @@ def _check(
         cache = Path(cache_dir)
     model = None
     if scene.osim is not None:
-        from ._opensim import OpenSimModel
-
         model = OpenSimModel(scene.osim)
         if not _check_model(scene, model, rep):
             return
@@ -159,7 +175,6 @@ def _check(
         bones[b.name] = (V, F)
     if rep.errors:
         return
-    from ._drive import apply, drive_scene
 
     say("the action lines at rest")
     drive = drive_scene(scene, "0:1", {n: V.mean(axis=0) for n, (V, _) in bones.items()})
@@ -195,8 +210,6 @@ def _check(
     rest_b = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_b.items()}
     _check_overlaps(scene, drive, body_m, rest_m, rest_b, rep, cache)
     if picture is not None:
-        from ..output._check_picture import draw_check
-
         say("drawing the rest pose")
         data = _picture_data(scene, model, drive, body_m, to_out, rep)
         rep.picture = draw_check(Path(picture), {**data, "muscles": rest_m, "bones": rest_b})
@@ -205,9 +218,6 @@ def _check(
 # ---------------------------------------------------------------------------- model, motion
 def _check_model(scene: Scene, model: Any, rep: CheckReport) -> bool:
     """Bodies, paths and coordinates named by the scene; the coordinates the motion lacks."""
-    from ._errors import suggest
-    from ._motion import read_motion
-
     ok = True
     for x in (*scene.muscles, *scene.bones):
         named = [("body", x.body)] + [("path", p) for p in getattr(x, "paths", ())]
@@ -272,9 +282,6 @@ def _check_lines(
     rep: CheckReport,
     cache: Path | None = None,
 ) -> None:
-    from ..mesh import mean_thickness
-    from ._names import match_muscle, path_anatomy
-    from ._read import rest_lines_problem
 
     far = []
     refused: set[str] = set()
@@ -359,8 +366,6 @@ def _nearest_paths(
     model: Any, spec: Any, mesh: tuple[FloatArray, IntArray], scene: Scene
 ) -> list[tuple[str, float]]:
     """The three model paths whose nearest quarter comes closest to the muscle at rest."""
-    from ._drive import rest_pose
-
     names = list(model.path_names)
     model.set_pose(rest_pose(scene, model))
     fits = line_fits(*mesh, [{p: model.path_points(p, spec.body) * scene.scale} for p in names])
@@ -381,8 +386,6 @@ def _check_bone_bodies(
     cache: Path | None = None,
 ) -> None:
     """Each bone against the attachments of the model's paths: whose lie on it."""
-    from ._drive import rest_pose
-
     model.set_pose(rest_pose(scene, model))
     s = scene.scale
     owner: list[str] = []
@@ -429,9 +432,6 @@ def _check_overlaps(
     cache: Path | None = None,
 ) -> None:  # fmt: skip
     """Rest overlaps (meshes in the output frame at rest): what the run refuses or resolves."""
-    from ._read import check_muscles_apart
-    from ._verify import inside_depths, muscle_overlaps
-
     unit = scene.mesh_unit
     found = {}  # (muscle, bone): its vertices inside the bone, the deepest; per bone one query
     for b in scene.bones:
@@ -481,9 +481,6 @@ def _picture_data(
     scene: Scene, model: Any, drive: Any, body_m: dict, to_out: dict, rep: CheckReport
 ) -> dict[str, Any]:  # noqa: ANN401
     """The action lines in the output frame at rest, with their distances; the view."""
-    from ._drive import apply
-    from ._fit import resample_polyline
-
     lines = []
     for m in scene.muscles:
         for L in drive.rest_lines[m.name].values():

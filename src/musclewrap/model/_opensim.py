@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray, PathLike
-from ._errors import SceneError, suggest
+from ..errors import SceneError, suggest
 
 __all__ = ["OpenSimModel", "import_opensim"]
 

@@ -8,10 +8,17 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..conditions._rotation import _minimal_rotation, kabsch
+from ..errors import SceneError
 from ..mesh import face_areas
-from ._errors import SceneError
 
-__all__ = ["axes_rotation", "fit_sphere", "landmark_point", "similarity", "surface_centroid"]
+__all__ = [
+    "axes_rotation",
+    "check_landmarks",
+    "fit_sphere",
+    "landmark_point",
+    "similarity",
+    "surface_centroid",
+]
 
 
 def fit_sphere(P: FloatArray) -> tuple[FloatArray, float, float]:

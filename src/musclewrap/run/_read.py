@@ -21,15 +21,33 @@ from .. import __version__
 from .._cache import cached_arrays, digest
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
+from ..conditions import placement_problem
 from ..constants import defaults
-from ..contact import Obstacle
-from ..mesh import check_mesh, clean_mesh, read_mesh, tidy_mesh, vertex_origins
-from ._config import Scene
-from ._drive import Drive, apply, drive_scene, invert_rigid
-from ._errors import SceneError
+from ..contact import (
+    ContactReport,
+    Obstacle,
+    Placed,
+    RestPair,
+    anchors_at_rest,
+    apart_at_rest,
+    bone_surface,
+    kept_allowance,
+    rest_push_out,
+)
+from ..errors import SceneError
+from ..mesh import (
+    MeshError,
+    WindingGrid,
+    check_mesh,
+    clean_mesh,
+    read_mesh,
+    tidy_mesh,
+    vertex_origins,
+)
+from ..scene import Drive, Scene, apply, drive_scene, invert_rigid
 from ._execute import Node
-from ._plan import BoneMesh
-from ._work import bone_probe
+from ._records import BoneMesh
+from ._work import ProbeBone, bone_probe
 from ._write import TOP_FILES
 
 __all__ = ["Inputs", "default_cache_dir", "read_inputs"]
@@ -275,9 +293,6 @@ def _closed_bone(
     Contact needs an inside: a bone with holes is closed by PyMeshFix, as a muscle is, and
     the run says so; one that cannot be is refused, naming the file.
     """
-    from ..contact import bone_surface
-    from ..mesh import MeshError
-
     if not boundary_edges:
         return V, F
 
@@ -303,8 +318,6 @@ def _push_out_rest(
     V: FloatArray, F: IntArray, placed: list[Any], margin: float, cache: Path | None
 ) -> tuple[FloatArray | None, Any, str]:
     """`musclewrap.contact.rest_push_out`, cached by its inputs."""
-    from ..contact import ContactReport, rest_push_out
-
     key = digest(
         V,
         F,
@@ -368,8 +381,6 @@ def _rest_overlap(
     (`RestOutcome`, after its bones' probes), run by ``runner``'s executor where
     it is not cached yet, else here.
     """
-    from ._work import ProbeBone
-
     cache_str = None if cache is None else str(cache)
     body_of = {b.name: b.body for b in scene.bones}
     tasks: dict[str, RestOutcome] = {}
@@ -466,8 +477,6 @@ def _apart_cached(
     cache: Path | None,
 ) -> tuple[dict[str, FloatArray], list[Any], int]:
     """`musclewrap.contact.apart_at_rest`, read from the cache where it was made before."""
-    from ..contact import RestPair, apart_at_rest
-
     names = sorted(rest)
     path = None
     if cache is not None:
@@ -517,8 +526,6 @@ def check_muscles_apart(
     Two muscles that are the same mesh (the same file, or the same vertices), or one
     whose every vertex lies inside another at rest (a wrong file, frame or unit).
     """
-    from ..mesh import WindingGrid
-
     specs = {m.name: m for m in scene.muscles}
     names = list(specs)
     rest = {n: apply(drive.rest_poses[specs[n].body], muscles[n][0]) for n in names}
@@ -590,8 +597,6 @@ class RestOutcome:
     @cached_property
     def key(self) -> str:
         """Hash of everything the outcome depends on (names its cache file; once)."""
-        from ..constants import defaults
-
         scene, spec, names = self.scene, self.spec, list(self.bones)
         lines = self.lines
         return digest(
@@ -615,7 +620,6 @@ class RestOutcome:
         return cached_arrays(self.path, self._build)
 
     def _build(self) -> dict[str, np.ndarray]:
-        from ..contact import Placed, anchors_at_rest, kept_allowance
 
         scene, spec, V, F = self.scene, self.spec, self.V, self.F
         cache = None if self.cache is None else Path(self.cache)
@@ -739,8 +743,6 @@ def _check_units(
 
 def rest_lines_problem(scene: Scene, spec: Any, V: FloatArray, lines: Any) -> str | None:
     """Why a muscle's rest lines cannot belong to its mesh (`placement_problem`), or None."""
-    from ..conditions import placement_problem
-
     problem = placement_problem(V, lines)
     if problem is None:
         return None

@@ -1,0 +1,61 @@
+"""The OpenSim side of a scene: the model, its motion, names, registration and the lines' fit.
+
+What a scene takes from a musculoskeletal model: `OpenSimModel` (bodies, coordinates,
+paths, posed), `Motion` (coordinate values per frame), the lower limb's anatomy by name
+(`match_muscle`, `match_bone`), the similarity that places meshes of another subject
+(`similarity`, `axes_rotation`) and how well a mesh sits on its lines (`line_fits`).
+"""
+
+from ._fit import LineFit, line_fit, line_fits, outside_distance, resample_polyline
+from ._motion import Motion, random_motion, read_motion, write_motion
+from ._names import (
+    BONES,
+    LANDMARKS,
+    MUSCLES,
+    Anatomy,
+    NameMatch,
+    match_bone,
+    match_muscle,
+    mesh_name_tokens,
+    path_anatomy,
+    split_path_name,
+)
+from ._opensim import OpenSimModel, import_opensim
+from ._register import (
+    axes_rotation,
+    check_landmarks,
+    fit_sphere,
+    landmark_point,
+    similarity,
+    surface_centroid,
+)
+
+__all__ = [
+    "BONES",
+    "LANDMARKS",
+    "MUSCLES",
+    "Anatomy",
+    "LineFit",
+    "Motion",
+    "NameMatch",
+    "OpenSimModel",
+    "axes_rotation",
+    "check_landmarks",
+    "fit_sphere",
+    "import_opensim",
+    "landmark_point",
+    "line_fit",
+    "line_fits",
+    "match_bone",
+    "match_muscle",
+    "mesh_name_tokens",
+    "outside_distance",
+    "path_anatomy",
+    "random_motion",
+    "read_motion",
+    "resample_polyline",
+    "similarity",
+    "split_path_name",
+    "surface_centroid",
+    "write_motion",
+]
