@@ -63,11 +63,10 @@ def main() -> None:
 def _paths(scenes: list[str]) -> None:
     import numpy as np
 
-    from musclewrap.mesh import mean_thickness
+    from musclewrap.mesh import apply_transform, mean_thickness
     from musclewrap.model import line_fits
     from musclewrap.run._read import _read_muscle, default_cache_dir
-    from musclewrap.scene import OpenSimModel, drive_scene, load_scene
-    from musclewrap.scene._drive import apply, rest_pose
+    from musclewrap.scene import OpenSimModel, drive_scene, load_scene, rest_pose
     from musclewrap.subject import path_anatomy
 
     print(f"{'scene':20s} {'muscle':22s} own  nearest other path")
@@ -78,7 +77,7 @@ def _paths(scenes: list[str]) -> None:
         model.set_pose(rest_pose(sc, model))
         for m in sc.muscles:
             V, F, _, _ = _read_muscle(m, default_cache_dir())
-            V = apply(drive.to_body[m.name], V)
+            V = apply_transform(drive.to_body[m.name], V)
             t = mean_thickness(V, F)
             own = line_fits(V, F, [dict(drive.rest_lines[m.name])])[0].near / t
             mine = {path_anatomy(p)[0].name for p in m.paths}

@@ -103,13 +103,16 @@ def _contact_colours_measure_bones_and_muscles(live, r) -> None:
     import igl
 
     from musclewrap.mesh import winding_numbers
-    from musclewrap.scene._drive import apply
 
     reach = 5.0
     got = live.contact(r)
     assert r.pairs and got is live.contact(r)  # computed once
     ms = r.solved[0]
-    bones = {b: (apply(r.bones[b], bone.V), bone.F) for b, bone in live.inputs.bones.items()}
+    from musclewrap.mesh import apply_transform
+
+    bones = {
+        b: (apply_transform(r.bones[b], bone.V), bone.F) for b, bone in live.inputs.bones.items()
+    }
     by_muscles = by_bones = 0
     for me, P in r.muscles.items():
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import FloatArray
+from ..mesh import apply_transform
 from ._obstacle import Obstacle
 
 __all__ = ["Placed"]
@@ -47,7 +48,7 @@ class Placed:
         """Points of the muscle's frame in the obstacle's frame."""
         if self.T is None:
             return P
-        return P @ self.T[:3, :3].T + self.T[:3, 3]
+        return apply_transform(self.T, P)
 
     def to_muscle(self, P: FloatArray, *, direction: bool = False) -> FloatArray:
         """Points (or, with ``direction``, vectors) of the obstacle's frame in the muscle's."""

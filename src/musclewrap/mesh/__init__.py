@@ -16,10 +16,12 @@ from ._checks import (
 from ._clean import clean_mesh
 from ._cubic import cubic_root_near
 from ._geometry import (
+    apply_transform,
     barycentric,
     face_areas,
     half_edges,
     in_box,
+    invert_rigid,
     mean_edge_length,
     umbrella_laplacian,
     vertex_adjacency,
@@ -40,6 +42,8 @@ from ._volume import (
 from ._winding import WindingGrid, bin_boxes, winding_numbers
 
 __all__ = [
+    "apply_transform",
+    "invert_rigid",
     "FORMATS",
     "MeshCheck",
     "MeshError",

@@ -9,15 +9,31 @@ import scipy.sparse as sp
 from .._typing import FloatArray, IntArray
 
 __all__ = [
+    "apply_transform",
     "barycentric",
     "face_areas",
     "half_edges",
     "in_box",
+    "invert_rigid",
     "mean_edge_length",
     "umbrella_laplacian",
     "vertex_adjacency",
     "vertex_normals",
 ]
+
+
+def apply_transform(T: FloatArray, P: FloatArray) -> FloatArray:
+    """Points ``P`` (n, 3) moved by the 4x4 affine transform ``T``: ``P R^T + t``."""
+    return P @ T[:3, :3].T + T[:3, 3]
+
+
+def invert_rigid(T: FloatArray) -> FloatArray:
+    """Inverse of a 4x4 rigid transform (rotation transposed)."""
+    R = T[:3, :3]
+    out = np.eye(4)
+    out[:3, :3] = R.T
+    out[:3, 3] = -R.T @ T[:3, 3]
+    return out
 
 
 def half_edges(F: IntArray) -> IntArray:

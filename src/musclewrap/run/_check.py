@@ -18,7 +18,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray, PathLike
 from ..errors import SceneError, suggest
-from ..mesh import MeshError, mean_thickness
+from ..mesh import MeshError, apply_transform, mean_thickness
 from ..model import (
     LineFit,
     OpenSimModel,
@@ -31,7 +31,7 @@ from ..model import (
     resample_polyline,
 )
 from ..output import draw_check
-from ..scene import UNITS, Scene, apply, drive_scene, load_scene, rest_pose
+from ..scene import UNITS, Scene, drive_scene, load_scene, rest_pose
 from ._read import (
     _read_bone,
     _read_muscle,
@@ -178,8 +178,8 @@ def _check(
 
     say("the action lines at rest")
     drive = drive_scene(scene, "0:1", {n: V.mean(axis=0) for n, (V, _) in bones.items()})
-    body_m = {n: (apply(drive.to_body[n], V), F) for n, (V, F) in muscles.items()}
-    body_b = {n: (apply(drive.to_body[n], V), F) for n, (V, F) in bones.items()}
+    body_m = {n: (apply_transform(drive.to_body[n], V), F) for n, (V, F) in muscles.items()}
+    body_b = {n: (apply_transform(drive.to_body[n], V), F) for n, (V, F) in bones.items()}
     if scene.registration is not None and scene.muscles:
         T = drive.to_body[scene.muscles[0].name]
         scale = float(np.cbrt(abs(np.linalg.det(T[:3, :3]))))
@@ -206,8 +206,8 @@ def _check(
         b: drive.rest_between(b, scene.output_frame)
         for b in {x.body for x in (*scene.muscles, *scene.bones)} | {"ground"}
     }
-    rest_m = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_m.items()}
-    rest_b = {n: (apply(to_out[_body(scene, n)], V), F) for n, (V, F) in body_b.items()}
+    rest_m = {n: (apply_transform(to_out[_body(scene, n)], V), F) for n, (V, F) in body_m.items()}
+    rest_b = {n: (apply_transform(to_out[_body(scene, n)], V), F) for n, (V, F) in body_b.items()}
     _check_overlaps(scene, drive, body_m, rest_m, rest_b, rep, cache)
     if picture is not None:
         say("drawing the rest pose")
@@ -401,7 +401,7 @@ def _check_bone_bodies(
         if spec.name not in body_b or spec.body == "ground":
             continue
         Ti = np.linalg.inv(model.transform(spec.body, "ground"))
-        P = (G @ Ti[:3, :3].T + Ti[:3, 3]) * s  # into the bone's body, mesh units
+        P = apply_transform(Ti, G) * s  # into the bone's body, mesh units
         V, F = body_b[spec.name]
         # only the points within reach of the bone's box can lie on it (its trees cost more
         # than all the points' queries)
@@ -485,14 +485,14 @@ def _picture_data(
     for m in scene.muscles:
         for L in drive.rest_lines[m.name].values():
             P = resample_polyline(L, rep.fits[m.name].extent / 100)
-            lines.append((apply(to_out[m.body], P), outside_distance(P, *body_m[m.name])))
+            lines.append((apply_transform(to_out[m.body], P), outside_distance(P, *body_m[m.name])))
     if model is not None:
         # OpenSim's ground: x forward, y up; in the output frame
         R = to_out["ground"][:3, :3]
         view = np.array([R @ [1.0, 0, 0], R @ [0, 1.0, 0]])
     else:
         # no model, no convention: from the muscles' thinnest extent, their longest one up
-        P = np.vstack([apply(to_out[m.body], body_m[m.name][0]) for m in scene.muscles])
+        P = np.vstack([apply_transform(to_out[m.body], body_m[m.name][0]) for m in scene.muscles])
         ext = np.ptp(P, axis=0)
         view = np.eye(3)[[int(np.argmin(ext)), int(np.argmax(ext))]]
     return {

@@ -23,9 +23,9 @@ import numpy as np
 from .._cache import cached_arrays
 from .._typing import FloatArray
 from ..fibres import Fibres, fibres_at_rest, keep_inside
-from ..mesh import write_mesh
+from ..mesh import apply_transform, write_mesh
 from ..output import plot_moment_arms, write_csv
-from ..scene import OUTPUT_COLUMNS, Drive, apply
+from ..scene import OUTPUT_COLUMNS, Drive
 from ._records import MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
 
 __all__ = [
@@ -167,7 +167,7 @@ def write_frame_fibres(path: Path, fb: Any, points: FloatArray, T: FloatArray) -
     lengths = fb.lengths(points)
     write_mesh(
         path,
-        apply(T, points.reshape(-1, 3)),
+        apply_transform(T, points.reshape(-1, 3)),
         np.zeros((0, 3), dtype=np.int64),
         lines=np.arange(n * k).reshape(n, k),
         cell_data={

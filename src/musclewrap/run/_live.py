@@ -28,8 +28,8 @@ from threadpoolctl import ThreadpoolController
 from .._typing import FloatArray, IntArray
 from ..contact import every_pair, muscle_gaps
 from ..errors import SceneError
-from ..mesh import write_mesh
-from ..scene import Scene, apply, invert_rigid, lattice_paths, load_scene
+from ..mesh import apply_transform, invert_rigid, write_mesh
+from ..scene import Scene, lattice_paths, load_scene
 from ..solver import facing_at_rest
 from ._check import check_scene
 from ._fibres import frame_fibres
@@ -448,13 +448,15 @@ class LiveScene:
             T = m.span.to_output[0]
             _, depth, _ = m.penetration(r, m.bones_here(0))
             ok = np.isfinite(r.V).all()
-            muscles[n] = apply(T, r.V)
+            muscles[n] = apply_transform(T, r.V)
             stretch[n] = m.muscle.area_stretch(r.V) if ok else np.full(len(r.V), np.nan)
-            lines[n] = [apply(T, np.asarray(P, dtype=np.float64)) for P in L[n].values()]
+            lines[n] = [apply_transform(T, np.asarray(P, dtype=np.float64)) for P in L[n].values()]
             if m.fb is not None and ok:
                 got = frame_fibres(m.fb, m.muscle.F, r, 0, None, None, m.solve)
                 if got["points"] is not None:
-                    fibres[n] = apply(T, got["points"].reshape(-1, 3)).reshape(got["points"].shape)
+                    fibres[n] = apply_transform(T, got["points"].reshape(-1, 3)).reshape(
+                        got["points"].shape
+                    )
             rows[n] = {
                 "relative_volume_error": r.relative_volume_error,
                 "penetration_depth_max": depth,
@@ -531,7 +533,7 @@ class LiveScene:
             written += [folder / f for _, f in w.result.entries]
         for b, (V, F) in self.bone_meshes().items():
             f = folder / b / f"{b}.vtp"
-            write_mesh(f, apply(out_T[self.bone_body[b]], V), F)
+            write_mesh(f, apply_transform(out_T[self.bone_body[b]], V), F)
             written.append(f)
         f = folder / "pose.json"
         f.write_text(

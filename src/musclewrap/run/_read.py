@@ -38,13 +38,15 @@ from ..errors import SceneError
 from ..mesh import (
     MeshError,
     WindingGrid,
+    apply_transform,
     check_mesh,
     clean_mesh,
+    invert_rigid,
     read_mesh,
     tidy_mesh,
     vertex_origins,
 )
-from ..scene import Drive, Scene, apply, drive_scene, invert_rigid
+from ..scene import Drive, Scene, drive_scene
 from ._execute import Node
 from ._records import BoneMesh
 from ._work import ProbeBone, bone_probe
@@ -125,10 +127,10 @@ def read_inputs(
     drive = drive_scene(scene, frames, centroids, waypoints=collisions, keep_poser=keep_poser)
     notes += drive.notes
     # every mesh in the frame of the body that carries it
-    muscles = {m: (apply(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}
+    muscles = {m: (apply_transform(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}
     meshes = {}
     for b, (V, F) in bones.items():
-        Vb = apply(drive.to_body[b], V)
+        Vb = apply_transform(drive.to_body[b], V)
         meshes[b] = BoneMesh(b, Vb, F, Obstacle.cache_name(Vb, F))  # the probe's name, once
     _check_units(scene, drive, muscles)
     contact = anchors = None
@@ -444,7 +446,7 @@ def _apart_at_rest(
     names = sorted(muscles)
     # every muscle in the ground's frame at rest (each is in its body's)
     to_g = {m.name: drive.rest_poses[m.body] for m in scene.muscles}
-    rest = {n: (apply(to_g[n], muscles[n][0]), muscles[n][1]) for n in names}
+    rest = {n: (apply_transform(to_g[n], muscles[n][0]), muscles[n][1]) for n in names}
     keep = scene.rest_overlap == "keep"
     V, found, rounds = _apart_cached(rest, scene.muscle_pairs, not keep, cache)
     unit = scene.mesh_unit
@@ -466,7 +468,7 @@ def _apart_at_rest(
     out = dict(muscles)
     for n in names:
         if V[n] is not rest[n][0]:
-            out[n] = (apply(invert_rigid(to_g[n]), V[n]), muscles[n][1])
+            out[n] = (apply_transform(invert_rigid(to_g[n]), V[n]), muscles[n][1])
     return out
 
 
@@ -528,7 +530,7 @@ def check_muscles_apart(
     """
     specs = {m.name: m for m in scene.muscles}
     names = list(specs)
-    rest = {n: apply(drive.rest_poses[specs[n].body], muscles[n][0]) for n in names}
+    rest = {n: apply_transform(drive.rest_poses[specs[n].body], muscles[n][0]) for n in names}
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             Va, Vb = rest[a], rest[b]
@@ -770,7 +772,7 @@ def attachment_area(
             )
         return area
     # landmark points, in the mesh's coordinates: the surface within landmark_radius
-    P = apply(drive.to_body[spec.name], np.array(given, dtype=np.float64))
+    P = apply_transform(drive.to_body[spec.name], np.array(given, dtype=np.float64))
     from scipy.spatial import cKDTree
 
     d, _ = cKDTree(P).query(V)

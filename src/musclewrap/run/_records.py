@@ -20,7 +20,8 @@ import numpy as np
 from .. import __version__
 from .._cache import digest
 from .._typing import FloatArray, IntArray
-from ..scene import CENTRAL, Stencil, invert_rigid
+from ..mesh import invert_rigid
+from ..scene import CENTRAL, Stencil
 from ..solver import PREPARATION_FORMAT
 
 __all__ = [

@@ -25,6 +25,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import SceneError
+from ..mesh import apply_transform
 from ..model import resample_polyline
 from ..output import (
     Pictures,
@@ -36,7 +37,7 @@ from ..output import (
     label_files,
     save_gif,
 )
-from ..scene import Scene, apply
+from ..scene import Scene
 from ._dask import DaskExecutor
 from ._execute import (
     Executor,
@@ -242,7 +243,7 @@ def picture_view(
         reach = max(reach, float(d.max()))
         T = drive.to_output[spec.body]
         for k, lines in enumerate(drive.lines[spec.name]):
-            pts += [apply(T[k], np.asarray(P, dtype=np.float64)) for P in lines.values()]
+            pts += [apply_transform(T[k], np.asarray(P, dtype=np.float64)) for P in lines.values()]
     P = np.vstack(pts)
     return frame_view(
         P.min(axis=0) - reach, P.max(axis=0) + reach, scene.view, size or scene.image_size

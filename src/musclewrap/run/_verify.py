@@ -9,8 +9,8 @@ import numpy as np
 
 from .._cache import cached_measure
 from .._typing import FloatArray, IntArray
-from ..mesh import clean_mesh, read_mesh, tidy_mesh, volume
-from ..scene import Scene, apply, drive_scene
+from ..mesh import apply_transform, clean_mesh, read_mesh, tidy_mesh, volume
+from ..scene import Scene, drive_scene
 
 __all__ = ["inside_depth", "inside_depths", "muscle_overlaps", "verify_run"]
 
@@ -155,7 +155,7 @@ def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[di
     rows = []
     for k, frame in enumerate(drive.frames):
         placed = {
-            n: (apply(drive.to_output[body][k], apply(drive.to_body[n], V)), F)
+            n: (apply_transform(drive.to_output[body][k], apply_transform(drive.to_body[n], V)), F)
             for n, (V, F, body) in bones.items()
         }
         written = {}

@@ -20,8 +20,7 @@ from .._typing import FloatArray
 from ..conditions import LineError
 from ..constants import defaults
 from ..contact import Obstacle, Placed, SideReference, line_inside_depth
-from ..mesh import write_mesh
-from ..scene import apply, invert_rigid
+from ..mesh import apply_transform, invert_rigid, write_mesh
 from ..solver import DeformationResult, Muscle, facing_at_rest, meet
 from ._fibres import fibres_of, frame_fibres, write_frame_fibres
 from ._records import (
@@ -523,7 +522,7 @@ class _MuscleFrames:
         )
         n_in, depth, bone_depth = self.penetration(res, here)
         if ok_values:
-            Vo = apply(T, res.V)
+            Vo = apply_transform(T, res.V)
             fname = f"{name}/{name}_{frame:04d}.vtp"
             write_mesh(
                 out / fname,
@@ -538,7 +537,7 @@ class _MuscleFrames:
         lname = f"{name}/{name}_lines_{frame:04d}.vtp"
         P, segs, o = [], [], 0
         for pts in span.lines[k].values():
-            Pp = apply(T, np.asarray(pts, dtype=np.float64))
+            Pp = apply_transform(T, np.asarray(pts, dtype=np.float64))
             P.append(Pp)
             segs += [[o + i, o + i + 1] for i in range(len(Pp) - 1)]
             o += len(Pp)

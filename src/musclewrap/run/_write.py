@@ -16,9 +16,9 @@ import numpy as np
 
 from .._cache import cached_arrays, digest
 from .._typing import FloatArray, IntArray
-from ..mesh import write_mesh
+from ..mesh import apply_transform, write_mesh
 from ..output import plot_convergence, plot_penetration, plot_volume_error, write_csv, write_pvd
-from ..scene import OUTPUT_COLUMNS, Drive, Scene, apply
+from ..scene import OUTPUT_COLUMNS, Drive, Scene
 from ._fibres import FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS, write_fibre_outputs
 from ._journal import JOURNAL
 from ._records import BoneMesh, MuscleOutcome
@@ -282,12 +282,12 @@ def write_bones(
         DV, DF = _bone_display(b.V, b.F, faces, cache)
         if np.allclose(T, T[0], atol=1e-9 * (1 + np.abs(T).max())):
             fname = f"{b.name}/{b.name}.vtp"
-            write_mesh(outdir / fname, apply(T[0], DV), DF)
+            write_mesh(outdir / fname, apply_transform(T[0], DV), DF)
             entries.extend((k, fname) for k in range(n))
             continue
         for k, frame in enumerate(frames):
             fname = f"{b.name}/{b.name}_{frame:04d}.vtp"
-            write_mesh(outdir / fname, apply(T[k], DV), DF)
+            write_mesh(outdir / fname, apply_transform(T[k], DV), DF)
             entries.append((k, fname))
     return entries
 

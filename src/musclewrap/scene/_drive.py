@@ -12,7 +12,7 @@ from .._typing import FloatArray, IntArray
 from ..conditions import PathLines, csv_rows
 from ..constants import defaults
 from ..errors import SceneError, suggest
-from ..mesh import read_mesh, tidy_mesh
+from ..mesh import apply_transform, invert_rigid, read_mesh, tidy_mesh
 from ..model import (
     OpenSimModel,
     axes_rotation,
@@ -30,9 +30,7 @@ __all__ = [
     "Poser",
     "Stencil",
     "Waypoints",
-    "apply",
     "drive_scene",
-    "invert_rigid",
     "lattice_parent",
     "lattice_paths",
     "one_sided",
@@ -40,20 +38,6 @@ __all__ = [
     "polyline_length",
     "rest_pose",
 ]
-
-
-def apply(T: FloatArray, P: FloatArray) -> FloatArray:
-    """Apply a 4x4 affine transform to (n, 3) points."""
-    return P @ T[:3, :3].T + T[:3, 3]
-
-
-def invert_rigid(T: FloatArray) -> FloatArray:
-    """Inverse of a 4x4 rigid transform (rotation transposed)."""
-    R = T[:3, :3]
-    out = np.eye(4)
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ T[:3, 3]
-    return out
 
 
 def _register(scene: Scene, g: dict[str, FloatArray], s: float, notes: list[str]) -> FloatArray:
@@ -67,14 +51,14 @@ def _register(scene: Scene, g: dict[str, FloatArray], s: float, notes: list[str]
         if said:
             fits.append(said)
         P.append(c)
-        Q.append(apply(g[lm.body], np.array(lm.point)[None] * s)[0])
+        Q.append(apply_transform(g[lm.body], np.array(lm.point)[None] * s)[0])
         names.append(lm.name)
     check_landmarks(np.array(P), names, str(scene.path))
     check_landmarks(np.array(Q), names, str(scene.path))
     R0 = None if reg.axes is None else axes_rotation(reg.axes)
     T = similarity(np.array(P), np.array(Q), R0)
     scale = float(np.cbrt(np.linalg.det(T[:3, :3])))
-    res = np.linalg.norm(apply(T, np.array(P)) - np.array(Q), axis=1)
+    res = np.linalg.norm(apply_transform(T, np.array(P)) - np.array(Q), axis=1)
     notes.append(
         f"registration: meshes scaled by {scale:.4f}; landmark misfit "
         + ", ".join(f"{n} {d:.2g}" for n, d in zip(names, res, strict=True))
@@ -867,7 +851,7 @@ def _drive_csv(scene: Scene, frames_text: str | None, centroids: dict[str, Float
 
     def centroid(bone: str, i: int) -> FloatArray:
         # a bone's centroid in the scene's frame at the rest frame (0) or at frame pos[i - 1]
-        return apply(poses[body_of[bone]][i] @ to_body[bone], centroids[bone])
+        return apply_transform(poses[body_of[bone]][i] @ to_body[bone], centroids[bone])
 
     rest_lines, rest_ref = frame_lines(scene.rest_frame)
     for m in scene.muscles:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
 
 import igl
 import numba
@@ -48,11 +47,10 @@ from ..mesh import (
     volume_hessian_reduced,
 )
 from ._contact import ContactSteps
+from ._paper import PaperSteps
+from ._prepared import PreparedMuscle
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
 from ._result import DeformationResult
-
-if TYPE_CHECKING:
-    from ._muscle import Muscle
 
 __all__ = ["METHODS", "Deformer"]
 
@@ -101,7 +99,7 @@ def _energy_kernel(indptr, indices, data, S, x, d_L, s_cur, w2):  # noqa: ANN001
     return e1 + w2 * e2, Sx
 
 
-class Deformer(ContactSteps):
+class Deformer(ContactSteps, PaperSteps):
     """Per-pose solver for one muscle bound to its rest action lines.
 
     Holds the skeleton matrix ``S`` and the inverse of
@@ -137,7 +135,7 @@ class Deformer(ContactSteps):
 
     def __init__(
         self,
-        muscle: Muscle,
+        muscle: PreparedMuscle,
         rest_lines: Mapping[str, npt.ArrayLike],
         *,
         reference_point: npt.ArrayLike | None = None,
@@ -438,8 +436,6 @@ class Deformer(ContactSteps):
             cur, s_cur, d_L = self._targets(current_lines, reference_point)
             try:
                 if method == "paper":
-                    from ._paper import solve_paper
-
                     b = self._rhs(d_L, s_cur)
                     x_ls = self._solve(b)
                 else:
@@ -448,8 +444,7 @@ class Deformer(ContactSteps):
                 if not np.isfinite(x_ls).all():
                     raise FloatingPointError("the conditions overflow (line coordinates too large)")
                 if method == "paper":
-                    x, V, its, ok, reason, hist = solve_paper(
-                        self,
+                    x, V, its, ok, reason, hist = self.solve_paper(
                         x_ls,
                         b,
                         d_L,
@@ -713,14 +708,14 @@ class Deformer(ContactSteps):
         return x, lam, budget, False
 
 
-def _outside(P: FloatArray, muscle: Muscle) -> FloatArray:
+def _outside(P: FloatArray, muscle: PreparedMuscle) -> FloatArray:
     """Each point's distance outside the muscle's surface (0 inside it)."""
     d2, _, _ = igl.point_mesh_squared_distance(P, muscle.V, muscle.F)
     inside = igl.fast_winding_number(muscle.V, muscle.F, P) > 0.5
     return np.where(inside, 0.0, np.sqrt(d2))
 
 
-def _feather(muscle: Muscle, anchors: IntArray, depth: int) -> FloatArray:
+def _feather(muscle: PreparedMuscle, anchors: IntArray, depth: int) -> FloatArray:
     """Per anchor, ``min(1, k / depth)`` for an anchor ``k`` rings from the nearest other vertex."""
     if depth <= 0:
         return np.ones(len(anchors))

@@ -32,6 +32,7 @@ from ..contact import (
     overlaps,
     push_apart,
 )
+from ..mesh import apply_transform
 from ._deformer import Deformer
 from ._result import DeformationResult
 
@@ -39,7 +40,7 @@ __all__ = ["deform_together", "facing_at_rest", "meet"]
 
 
 def _apply(T: FloatArray | None, P: FloatArray) -> FloatArray:
-    return P if T is None else P @ T[:3, :3].T + T[:3, 3]
+    return P if T is None else apply_transform(T, P)
 
 
 def facing_at_rest(

@@ -24,7 +24,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import SceneError
-from ..mesh import atomic_path, check_mesh, read_mesh, tidy_mesh
+from ..mesh import apply_transform, atomic_path, check_mesh, read_mesh, tidy_mesh
 from ..model import (
     BONES,
     LANDMARKS,
@@ -567,7 +567,7 @@ def _lines_in(model, cand: _Placement, m: _Muscle, s: float) -> dict[str, FloatA
             P = model.path_points(p, "ground") * s
             if cand.T is not None:
                 Ti = np.linalg.inv(cand.T)
-                P = P @ Ti[:3, :3].T + Ti[:3, 3]
+                P = apply_transform(Ti, P)
         lines[p] = P
     return lines
 

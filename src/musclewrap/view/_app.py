@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from ..mesh import apply_transform
 from ..output import STRETCH_RANGE, stretch_colours, stretch_table
 from ..run import CONTACT_REACH, LiveScene, PoseResult
 from ._playback import Series, segments, triangles
@@ -661,7 +662,7 @@ class Viewer:
             T = res.bones[b]
             if not np.array_equal(self._sent.get(b), T):  # a bone moved in the output frame
                 V = self._bone_meshes[b][0]
-                up[f"bone{i}_p"] = _points(V @ T[:3, :3].T + T[:3, 3])
+                up[f"bone{i}_p"] = _points(apply_transform(T, V))
                 self._sent[b] = T
         for i, n in enumerate(self._names["muscle"]):
             up[f"muscle{i}_p"] = _points(res.muscles[n])
