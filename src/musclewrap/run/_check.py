@@ -31,7 +31,7 @@ from ..model import (
     resample_polyline,
 )
 from ..output import draw_check
-from ..scene import UNITS, Scene, drive_scene, load_scene, rest_pose
+from ..scene import UNITS, Drive, MuscleSpec, Scene, drive_scene, load_scene, rest_pose
 from ._read import (
     _read_bone,
     _read_muscle,
@@ -216,7 +216,7 @@ def _check(
 
 
 # ---------------------------------------------------------------------------- model, motion
-def _check_model(scene: Scene, model: Any, rep: CheckReport) -> bool:
+def _check_model(scene: Scene, model: OpenSimModel, rep: CheckReport) -> bool:
     """Bodies, paths and coordinates named by the scene; the coordinates the motion lacks."""
     ok = True
     for x in (*scene.muscles, *scene.bones):
@@ -276,8 +276,8 @@ def _check_model(scene: Scene, model: Any, rep: CheckReport) -> bool:
 # ---------------------------------------------------------------------------- lines
 def _check_lines(
     scene: Scene,
-    model: Any,
-    drive: Any,
+    model: OpenSimModel,
+    drive: Drive,
     body_m: dict[str, tuple[FloatArray, IntArray]],
     rep: CheckReport,
     cache: Path | None = None,
@@ -363,7 +363,7 @@ def _check_lines(
 
 
 def _nearest_paths(
-    model: Any, spec: Any, mesh: tuple[FloatArray, IntArray], scene: Scene
+    model: OpenSimModel, spec: MuscleSpec, mesh: tuple[FloatArray, IntArray], scene: Scene
 ) -> list[tuple[str, float]]:
     """The three model paths whose nearest quarter comes closest to the muscle at rest."""
     names = list(model.path_names)
@@ -380,7 +380,7 @@ def _body(scene: Scene, name: str) -> str:
 # ---------------------------------------------------------------------------- bodies
 def _check_bone_bodies(
     scene: Scene,
-    model: Any,
+    model: OpenSimModel,
     body_b: dict[str, tuple[FloatArray, IntArray]],
     rep: CheckReport,
     cache: Path | None = None,
@@ -424,7 +424,7 @@ def _check_bone_bodies(
 
 # ---------------------------------------------------------------------------- overlaps
 def _check_overlaps(
-    scene: Scene, drive: Any,
+    scene: Scene, drive: Drive,
     body_m: dict[str, tuple[FloatArray, IntArray]],
     rest_m: dict[str, tuple[FloatArray, IntArray]],
     rest_b: dict[str, tuple[FloatArray, IntArray]],
@@ -478,7 +478,7 @@ def _check_overlaps(
 
 
 def _picture_data(
-    scene: Scene, model: Any, drive: Any, body_m: dict, to_out: dict, rep: CheckReport
+    scene: Scene, model: OpenSimModel, drive: Drive, body_m: dict, to_out: dict, rep: CheckReport
 ) -> dict[str, Any]:  # noqa: ANN401
     """The action lines in the output frame at rest, with their distances; the view."""
     lines = []

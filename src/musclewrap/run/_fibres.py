@@ -26,6 +26,7 @@ from ..fibres import Fibres, fibres_at_rest, keep_inside
 from ..mesh import apply_transform, write_mesh
 from ..output import plot_moment_arms, write_csv
 from ..scene import OUTPUT_COLUMNS, Drive
+from ..solver import DeformationResult, Muscle
 from ._records import MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
 
 __all__ = [
@@ -48,7 +49,7 @@ MOMENT_ARM_FIELDS = list(OUTPUT_COLUMNS[MOMENT_ARMS_CSV])
 INSIDE_DEPTH = 0.1
 
 
-def fibres_of(muscle: Any, job: MuscleJob, path: Path | None) -> tuple[Any, str | None]:
+def fibres_of(muscle: Muscle, job: MuscleJob, path: Path | None) -> tuple[Fibres, str | None]:
     """The muscle's fibres at rest, read from the cache file ``path`` or built (and cached).
 
     Returns
@@ -90,9 +91,9 @@ def fibres_of(muscle: Any, job: MuscleJob, path: Path | None) -> tuple[Any, str 
 
 
 def frame_fibres(
-    fb: Any,
+    fb: Fibres,
     F: Any,
-    res: Any,
+    res: DeformationResult,
     k: int,
     ma: MomentArmSettings | None,
     side: SidePoses | None,
@@ -161,7 +162,7 @@ def frame_fibres(
     return out
 
 
-def write_frame_fibres(path: Path, fb: Any, points: FloatArray, T: FloatArray) -> None:
+def write_frame_fibres(path: Path, fb: Fibres, points: FloatArray, T: FloatArray) -> None:
     """A frame's fibres as one poly-line cell each, in the output frame (VTP)."""
     n, k = points.shape[:2]
     lengths = fb.lengths(points)

@@ -31,7 +31,7 @@ from ..errors import SceneError
 from ..mesh import apply_transform, invert_rigid, write_mesh
 from ..scene import Scene, lattice_paths, load_scene
 from ..solver import facing_at_rest
-from ._check import check_scene
+from ._check import CheckReport, check_scene
 from ._fibres import frame_fibres
 from ._plan import muscle_jobs, rest_placements
 from ._read import Inputs, default_cache_dir, read_inputs
@@ -53,12 +53,12 @@ _SIDES_KEPT = 8
 class CheckError(SceneError):
     """The scene fails `check_scene`: what ``run`` refuses to run (``report`` says why)."""
 
-    def __init__(self, scene: Scene, report: Any) -> None:
+    def __init__(self, scene: Scene, report: CheckReport) -> None:
         self.report = report
         super().__init__(refusal(scene, report))
 
 
-def refusal(scene: Scene, report: Any) -> str:
+def refusal(scene: Scene, report: CheckReport) -> str:
     """What ``run`` prints for a scene its check refuses (the findings, one a line)."""
     return "\n".join(
         [

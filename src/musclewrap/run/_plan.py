@@ -32,7 +32,7 @@ import numpy as np
 
 from .._runs import contiguous_runs
 from .._typing import FloatArray, IntArray
-from ._read import attachment_area
+from ._read import Inputs, attachment_area
 from ._records import (
     FibreSettings,
     FrameSpan,
@@ -61,7 +61,7 @@ def chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
     return contiguous_runs(n_frames, max(k, -(-n_frames // 128)))
 
 
-def muscle_jobs(inputs: Any, outdir: Path, run: str) -> list[MuscleJob]:
+def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
     """One job per muscle of a read scene (`._read.Inputs`), largest first.
 
     Largest first: the workers then finish about together.
@@ -123,7 +123,7 @@ def muscle_jobs(inputs: Any, outdir: Path, run: str) -> list[MuscleJob]:
     return jobs
 
 
-def frame_span(inputs: Any, name: str) -> FrameSpan:
+def frame_span(inputs: Inputs, name: str) -> FrameSpan:
     """A muscle's per-frame data over the whole run."""
     scene, drive = inputs.scene, inputs.drive
     spec = next(s for s in scene.muscles if s.name == name)
@@ -156,14 +156,14 @@ def _frame_waypoints(wp: Any, n: int) -> IntArray:
     return np.full(n, -1, dtype=np.int64) if wp is None else np.asarray(wp.frame, dtype=np.int64)
 
 
-def rest_placements(inputs: Any, name: str) -> dict[str, FloatArray]:
+def rest_placements(inputs: Inputs, name: str) -> dict[str, FloatArray]:
     """Per bone, the transform from muscle ``name``'s body frame into the bone's at rest."""
     scene, drive = inputs.scene, inputs.drive
     body = next(s.body for s in scene.muscles if s.name == name)
     return {b.name: drive.rest_between(body, b.body) for b in scene.bones}
 
 
-def path_span(inputs: Any, name: str) -> PathSpan:
+def path_span(inputs: Inputs, name: str) -> PathSpan:
     """A muscle's waypoints and its bones' placements there and at rest."""
     scene, drive = inputs.scene, inputs.drive
     spec = next(s for s in scene.muscles if s.name == name)

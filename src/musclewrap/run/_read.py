@@ -46,8 +46,8 @@ from ..mesh import (
     tidy_mesh,
     vertex_origins,
 )
-from ..scene import Drive, Scene, drive_scene
-from ._execute import Node
+from ..scene import BoneSpec, Drive, MuscleSpec, Scene, drive_scene
+from ._execute import Node, Runner
 from ._records import BoneMesh
 from ._work import ProbeBone, bone_probe
 from ._write import TOP_FILES
@@ -84,7 +84,7 @@ def read_inputs(
     collisions: bool,
     say: Callable[[str], None],
     notes: list[str],
-    runner: Any = None,
+    runner: Runner | None = None,
     muscles_apart: bool = False,
     keep_poser: bool = False,
 ) -> Inputs:
@@ -163,7 +163,7 @@ def read_inputs(
 class ReadMuscle:
     """A muscle's mesh read and cleaned (or repaired); cached by the file's bytes."""
 
-    spec: Any
+    spec: MuscleSpec
     cache: str | None
 
     def cached(self) -> bool:
@@ -180,7 +180,7 @@ class ReadMuscle:
 class ReadBone:
     """A bone's mesh read, oriented outward and, for contact, closed; cached."""
 
-    bone: Any
+    bone: BoneSpec
     cache: str | None
     closed: bool
 
@@ -237,7 +237,9 @@ def _mesh_cache_file(path: Path, cache: Path | None, tag: str) -> Path | None:
 _MUSCLE_TAG = "self-intersection, fans, orientation, input_id"
 
 
-def _read_muscle(spec: Any, cache: Path | None) -> tuple[FloatArray, IntArray, list[str], IntArray]:
+def _read_muscle(
+    spec: MuscleSpec, cache: Path | None
+) -> tuple[FloatArray, IntArray, list[str], IntArray]:
     """Read and clean (or repair) a muscle mesh; cached.
 
     Returns the mesh, the notes, and each vertex's index in the file (``input_id``,
@@ -358,7 +360,7 @@ def _rest_overlap(
     cache: Path | None,
     say: Callable[[str], None],
     notes: list[str],
-    runner: Any = None,
+    runner: Runner | None = None,
 ) -> tuple[
     dict[str, tuple[FloatArray, IntArray]],
     dict[str, dict[str, FloatArray | None]],
@@ -560,7 +562,7 @@ def check_muscles_apart(
                     )
 
 
-def gather(runner: Any, nodes: list[Node]) -> dict[Any, Any]:
+def gather(runner: Runner, nodes: list[Node]) -> dict[Any, Any]:
     """Run ``nodes`` through ``runner`` and wait; results by key.
 
     Here, in order, without a runner, and for a task whose result is cached already
@@ -587,7 +589,7 @@ class RestOutcome:
     """
 
     scene: Scene
-    spec: Any
+    spec: MuscleSpec
     V: FloatArray
     F: IntArray
     bones: dict[str, BoneMesh]
@@ -656,7 +658,7 @@ def _silent(_: str) -> None:
 
 
 def _resolve_rest(
-    spec: Any,
+    spec: MuscleSpec,
     V: FloatArray,
     F: IntArray,
     placed: list[Any],
@@ -743,7 +745,7 @@ def _check_units(
             raise SceneError(problem)
 
 
-def rest_lines_problem(scene: Scene, spec: Any, V: FloatArray, lines: Any) -> str | None:
+def rest_lines_problem(scene: Scene, spec: MuscleSpec, V: FloatArray, lines: Any) -> str | None:
     """Why a muscle's rest lines cannot belong to its mesh (`placement_problem`), or None."""
     problem = placement_problem(V, lines)
     if problem is None:
@@ -756,7 +758,7 @@ def rest_lines_problem(scene: Scene, spec: Any, V: FloatArray, lines: Any) -> st
 
 
 def attachment_area(
-    scene: Scene, drive: Drive, spec: Any, key: str, V: FloatArray, input_id: IntArray
+    scene: Scene, drive: Drive, spec: MuscleSpec, key: str, V: FloatArray, input_id: IntArray
 ) -> IntArray | None:
     """A muscle's ``fibre_origin``/``fibre_insertion`` as its vertex numbers (None: default)."""
     given = getattr(spec, f"fibre_{key}")

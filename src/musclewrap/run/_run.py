@@ -37,7 +37,7 @@ from ..output import (
     label_files,
     save_gif,
 )
-from ..scene import Scene
+from ..scene import Drive, Scene
 from ._dask import DaskExecutor
 from ._execute import (
     Executor,
@@ -55,7 +55,7 @@ from ._read import (
     default_cache_dir,
     read_inputs,
 )
-from ._records import ChunkResult, Comparison, MuscleOutcome
+from ._records import ChunkResult, Comparison, FrameSpan, MuscleJob, MuscleOutcome
 from ._work import Compare, DeformChunk, DeformGroup, FollowPath, Prepare, ProbeBone
 from ._write import GIF, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
 
@@ -222,7 +222,7 @@ _AHEAD = 3
 
 def picture_view(
     scene: Scene,
-    drive: Any,
+    drive: Drive,
     muscles: dict[str, tuple[np.ndarray, np.ndarray]],
     size: tuple[int, int] | None = None,
 ) -> View:
@@ -465,7 +465,7 @@ class _SceneRun:
             nodes += [self._compare_node(j, spans[j.name], keys) for j in jobs]
         return nodes
 
-    def _compare_node(self, job: Any, span: Any, after: list[Any]) -> Node:
+    def _compare_node(self, job: MuscleJob, span: FrameSpan, after: list[Any]) -> Node:
         """The paper's iteration beside the default for one muscle, once its frames are done."""
         node = Node(
             (self.tag, "compare", job.name),
@@ -495,7 +495,9 @@ class _SceneRun:
         return done
 
     @staticmethod
-    def _chunk_task(job: Any, span: Any, path_key: Any) -> Callable[[dict[Any, Any]], Any]:
+    def _chunk_task(
+        job: MuscleJob, span: FrameSpan, path_key: Any
+    ) -> Callable[[dict[Any, Any]], Any]:
         def make(results: dict[Any, Any]) -> DeformChunk:
             return DeformChunk(job, span, results[path_key])
 
@@ -510,7 +512,7 @@ class _SceneRun:
 
     @staticmethod
     def _compare_task(
-        job: Any, span: Any, chunk_keys: list[Any]
+        job: MuscleJob, span: FrameSpan, chunk_keys: list[Any]
     ) -> Callable[[dict[Any, Any]], Any]:
         def make(results: dict[Any, Any]) -> Compare:
             rows = [r for k in chunk_keys for r in _part(results[k], job.name).rows]

@@ -16,12 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from .._typing import FloatArray
+from .._typing import FloatArray, IntArray
 from ..conditions import LineError
 from ..constants import defaults
 from ..contact import Obstacle, Placed, SideReference, line_inside_depth
+from ..fibres import Fibres
 from ..mesh import apply_transform, invert_rigid, write_mesh
-from ..solver import DeformationResult, Muscle, facing_at_rest, meet
+from ..solver import DeformationResult, Deformer, Muscle, facing_at_rest, meet
 from ._fibres import fibres_of, frame_fibres, write_frame_fibres
 from ._records import (
     BoneMesh,
@@ -47,7 +48,7 @@ __all__ = [
 
 # ---------------------------------------------------------------------------- per process
 _tick_sink: Any = None
-_probes: dict[tuple[str, str | None], Any] = {}
+_probes: dict[tuple[str, str | None], Obstacle] = {}
 # per thread (a Dask worker may run several tasks at once): the muscle deformed last
 _kept = threading.local()
 
@@ -71,7 +72,7 @@ def _tick(n: int = 1) -> None:
         _tick_sink.put(n)
 
 
-def _prepare(job: MuscleJob) -> tuple[Any, bool, str | None]:
+def _prepare(job: MuscleJob) -> tuple[Muscle, bool, str | None]:
     """The prepared muscle: read from the cache, else built (and cached)."""
     path = job.prepare_path()
     note = None
@@ -100,7 +101,7 @@ def _prepare(job: MuscleJob) -> tuple[Any, bool, str | None]:
     return m, False, note
 
 
-def bone_probe(bone: BoneMesh, cache_dir: str | None) -> Any:
+def bone_probe(bone: BoneMesh, cache_dir: str | None) -> Obstacle:
     """The bone's signed-distance probe: kept per process, cached."""
     key = (bone.probe, cache_dir)
     if key not in _probes:
@@ -126,7 +127,7 @@ def _unbound_note(name: str, unbound: dict[str, tuple[float, float, float]]) -> 
     )
 
 
-def _deformer(job: MuscleJob, keep: int = 1) -> tuple[Any, Any, bool, str | None, float]:
+def _deformer(job: MuscleJob, keep: int = 1) -> tuple[Muscle, Deformer, bool, str | None, float]:
     """The muscle bound to its rest lines, kept per process (a muscle comes in chunks).
 
     The ``keep`` muscles used last are kept (a group of muscles in contact needs them all).
@@ -152,7 +153,7 @@ def _deformer(job: MuscleJob, keep: int = 1) -> tuple[Any, Any, bool, str | None
     return muscle, d, hit, note, seconds
 
 
-def _fibres(job: MuscleJob, muscle: Any) -> tuple[Any, str | None]:
+def _fibres(job: MuscleJob, muscle: Muscle) -> tuple[Fibres | None, str | None]:
     """The muscle's fibres (None without a ``[fibres]`` table), kept per process."""
     if job.fibres is None:
         return None, None
@@ -213,7 +214,7 @@ class FollowPath:
         cages = np.empty((K, len(muscle.cage.C), 3))
         T = {b: np.empty((K, 4, 4)) for _, b in probes}
         reasons = []
-        refs: dict[int, Any] = {-1: sides_at(muscle, job, probes, None, span.rest_T)}
+        refs: dict[int, SideReference] = {-1: sides_at(muscle, job, probes, None, span.rest_T)}
         for k in range(K):
             place = span.placement(k)
             for b in T:
@@ -233,8 +234,11 @@ class FollowPath:
 
 
 def placed_bones(
-    job: MuscleJob, probes: list[tuple[Any, str]], place: dict[str, FloatArray], allow: bool = False
-) -> list[Any]:
+    job: MuscleJob,
+    probes: list[tuple[Obstacle, str]],
+    place: dict[str, FloatArray],
+    allow: bool = False,
+) -> list[Placed]:
     """The muscle's bones in contact, placed (``place``: the muscle's frame into each bone's).
 
     ``allow``: with each bone's allowance (the obstacles of a solve), else without (the
@@ -250,14 +254,14 @@ def placed_bones(
 
 def waypoint_cage(
     job: MuscleJob,
-    d: Any,
-    probes: list[tuple[Any, str]],
+    d: Deformer,
+    probes: list[tuple[Obstacle, str]],
     lines: dict[str, FloatArray],
     reference: FloatArray | None,
     place: dict[str, FloatArray],
-    sides: Any,
+    sides: SideReference | None,
     fallback: FloatArray,
-) -> tuple[FloatArray, Any]:
+) -> tuple[FloatArray, DeformationResult]:
     """The muscle's cage at a waypoint, against its bones with the sides of the one before.
 
     ``fallback``: the cage kept where the solve gives no finite positions (the waypoint
@@ -278,12 +282,12 @@ def waypoint_cage(
 
 
 def sides_at(
-    muscle: Any,
+    muscle: Muscle,
     job: MuscleJob,
-    probes: list[tuple[Any, str]],
+    probes: list[tuple[Obstacle, str]],
     cage: FloatArray | None,
     place: dict[str, FloatArray],
-) -> Any:
+) -> SideReference:
     """Where the muscle is against its bones in contact: the sides a later pose takes.
 
     ``cage``: the muscle's cage at a waypoint (None: the muscle at rest); ``place`` the
@@ -297,8 +301,8 @@ def sides_at(
 
 
 def side_reference(
-    muscle: Any, job: MuscleJob, probes: list[tuple[Any, str]], path: PathStates, w: int
-) -> Any:
+    muscle: Muscle, job: MuscleJob, probes: list[tuple[Obstacle, str]], path: PathStates, w: int
+) -> SideReference:
     """The muscle at waypoint ``w`` of its path (-1: at rest) against its bones."""
     if w < 0:
         return sides_at(muscle, job, probes, None, path.rest_T)
@@ -400,9 +404,9 @@ class _MuscleFrames:
         self.in_contact = [
             (p, b) for p, b in self.probes if self.contact is not None and b in self.contact
         ]
-        self.refs: dict[int, Any] = {}
+        self.refs: dict[int, SideReference] = {}
 
-    def sides_of(self, k: int) -> Any:
+    def sides_of(self, k: int) -> SideReference | None:
         if self.contact is None or self.path is None:
             return None
         span = self.span
@@ -411,7 +415,9 @@ class _MuscleFrames:
             self.refs[w] = side_reference(self.muscle, self.job, self.in_contact, self.path, w)
         return self.refs[w]
 
-    def obstacles(self, T: FloatArray, bone_T: dict[str, FloatArray], bones: bool = True) -> Any:
+    def obstacles(
+        self, T: FloatArray, bone_T: dict[str, FloatArray], bones: bool = True
+    ) -> list[Placed]:
         """The scene's bones where contact is on (and ``bones``), else None."""
         contact = self.contact
         if contact is None or not bones:
@@ -431,8 +437,8 @@ class _MuscleFrames:
         bone_T: dict[str, FloatArray],
         finish: bool = True,
         bones: bool = True,
-        sides: Any = None,
-    ) -> Any:
+        sides: SideReference | None = None,
+    ) -> DeformationResult:
 
         obstacles = self.obstacles(T, bone_T, bones)
         try:
@@ -455,11 +461,11 @@ class _MuscleFrames:
                 f"invalid action lines in this frame: {exc}",
             )
 
-    def frame_obstacles(self, k: int) -> Any:
+    def frame_obstacles(self, k: int) -> list[Placed]:
         span = self.span
         return self.obstacles(span.to_output[k], {b: TB[k] for b, TB in span.bone_T.items()})
 
-    def solve_frame(self, k: int, finish: bool = True) -> Any:
+    def solve_frame(self, k: int, finish: bool = True) -> DeformationResult:
         span = self.span
         return self.solve(
             span.lines[k],
@@ -478,7 +484,9 @@ class _MuscleFrames:
             for probe, bname in self.probes
         }
 
-    def penetration(self, res: Any, here: dict[str, Any]) -> tuple[float, float, float]:
+    def penetration(
+        self, res: DeformationResult, here: dict[str, Any]
+    ) -> tuple[float, float, float]:
         """The muscle's vertices inside bones (count, deepest) and the bones' deepest in it.
 
         The bones in contact as the contact's finish counted them (exactly); the others
@@ -501,7 +509,7 @@ class _MuscleFrames:
                 depth = max(depth, dep)
         return n_in, depth, bone_depth
 
-    def emit(self, k: int, res: Any, overlap: float | None = None) -> None:
+    def emit(self, k: int, res: DeformationResult, overlap: float | None = None) -> None:
         """Frame ``k``'s result measured, its files written, its row added.
 
         ``overlap``: the deepest vertex of this muscle inside another (muscles in
@@ -645,16 +653,16 @@ class DeformGroup:
 def meet_frame(
     ms: dict[str, _MuscleFrames],
     k: int,
-    facing: Any,
+    facing: dict[tuple[str, str], IntArray],
     margin: float,
     pairs: tuple[tuple[str, str], ...] | None,
-) -> dict[str, Any]:
+) -> dict[str, DeformationResult]:
     """Frame ``k`` of muscles in contact, solved together.
 
     Each against its bones, then they meet (`musclewrap.solver.meet`); ``ms`` in the
     order of their names.
     """
-    return meet(  # type: ignore[no-any-return]
+    return meet(
         {n: m.d for n, m in ms.items()},
         {n: m.solve_frame(k, finish=False) for n, m in ms.items()},
         {n: m.span.lines[k] for n, m in ms.items()},

@@ -50,7 +50,7 @@ from ._contact import ContactSteps
 from ._paper import PaperSteps
 from ._prepared import PreparedMuscle
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
-from ._result import DeformationResult
+from ._result import DeformationResult, Solved
 
 __all__ = ["METHODS", "Deformer"]
 
@@ -538,7 +538,7 @@ class Deformer(ContactSteps, PaperSteps):
             ),
         )
 
-    def _solve_default(self, x_ls, d_L, s_cur, max_iterations: int):  # noqa: ANN001, ANN202
+    def _solve_default(self, x_ls, d_L, s_cur, max_iterations: int) -> Solved:  # noqa: ANN001
         """The default solve (``"sqp"``): every step of its fallback chain, in order.
 
         The proxy's fixed point, then damped Newton where that is slow, then the
@@ -549,13 +549,12 @@ class Deformer(ContactSteps, PaperSteps):
         """
         x, V, its, settled, reason = self._solve_proxy(x_ls, max_iterations)
         if settled is None or settled:
-            return x, V, its, bool(settled), reason, []
+            return Solved(x, V, its, bool(settled), reason, [])
         exact = self._solve_exact(x_ls, d_L, s_cur, max_iterations)
-        if not exact[3]:
-            return x, V, its + exact[2], False, reason, []
-        x, V, _, _, _, hist = exact
+        if not exact.converged:
+            return Solved(x, V, its + exact.iterations, False, reason, [])
         why = f"converged by the exact iteration ({reason} on the proxy)"
-        return x, V, its + exact[2], True, why, hist
+        return Solved(exact.x, exact.V, its + exact.iterations, True, why, exact.history)
 
     def _solve_proxy(self, x_ls: FloatArray, max_iterations: int):  # noqa: ANN202
         """The proxy's direction, then the fine volume along it.
@@ -600,7 +599,7 @@ class Deformer(ContactSteps, PaperSteps):
         )
         return x, V, its + 1, converged_dir, reason
 
-    def _solve_exact(self, x_ls, d_L, s_cur, max_iterations: int):  # noqa: ANN001, ANN202
+    def _solve_exact(self, x_ls, d_L, s_cur, max_iterations: int) -> Solved:  # noqa: ANN001
         """The reference iteration: the fine mesh's own volume gradient every step."""
         mu = self.muscle
         c = mean_rows(x_ls)
@@ -618,13 +617,8 @@ class Deformer(ContactSteps, PaperSteps):
             P_u = mu.W @ u
             lam_new = cubic_root_near(volume_cubic(P_ls, -P_u, mu.F), mu.volume_rest, lam)
             if not np.isfinite(lam_new):
-                return (
-                    x,
-                    np.full_like(mu.V, np.nan),
-                    its,
-                    False,
-                    "no finite volume correction",
-                    hist,
+                return Solved(
+                    x, np.full_like(mu.V, np.nan), its, False, "no finite volume correction", hist
                 )
             x_new = x_ls - lam_new * u
             step = float(np.abs(x_new - x).max())
@@ -646,7 +640,7 @@ class Deformer(ContactSteps, PaperSteps):
         reason = (
             "converged" if converged_dir else f"direction not stationary after {its} iterations"
         )
-        return x, P + c, its, converged_dir, reason, hist
+        return Solved(x, P + c, its, converged_dir, reason, hist)
 
     def _newton(self, x, x_ls, c, budget: int):  # noqa: ANN001, ANN202
         """Damped Newton on the proxy's KKT system ``H (x - x_ls) + lam g(x) = 0, v(x) = V0``.

@@ -6,6 +6,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..mesh import mean_rows, volume, volume_gradient
+from ._result import Solved
 
 __all__ = ["PaperSteps", "solve_paper"]
 
@@ -27,7 +28,7 @@ class PaperSteps:
         alpha: float | None = None,
         switch: float = 1e-3,
         eps: float = 1e-9,
-    ) -> tuple[FloatArray, FloatArray, int, bool, str, list[tuple[float, float]]]:
+    ) -> Solved:
         """Gauss-Newton with one Lagrange multiplier (eq. 11 of the paper).
 
         Starting from the rest cage, each step is
@@ -112,7 +113,7 @@ class PaperSteps:
             elif fine and step < eps and abs(err) <= 1e-9:
                 converged, reason = True, "converged"
                 break
-        return x, V, its, converged, reason, hist
+        return Solved(x, V, its, converged, reason, hist)
 
 
 #: the paper's iteration called on a deformer: ``solve_paper(deformer, x_ls, b, d_L, s_cur)``

@@ -3,12 +3,24 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["DeformationResult"]
+__all__ = ["DeformationResult", "Solved"]
+
+
+class Solved(NamedTuple):
+    """What one of a pose's solves gives back, before its result is measured."""
+
+    x: FloatArray  # the cage
+    V: FloatArray  # the fine vertices (NaN where no volume correction was found)
+    iterations: int
+    converged: bool
+    reason: str
+    history: list[tuple[float, float]]  # (energy, relative volume error) per iteration
 
 
 @dataclass(frozen=True)
