@@ -10,7 +10,7 @@ come within the best distance so far, looked for in rings of a uniform grid of t
 there on. Prints, for capsules of about 2,000, 8,000 and 40,000 triangles (a muscle's facing
 faces, an LHDL muscle, the VHF vastus lateralis) and 10 to 10,000 points within the capsule's
 wall, the median time of each and the largest difference of their distances (the threshold of
-200 points came from the loop over every triangle that came before the grid; `_GRID_POINTS`
+200 points came from the loop over every triangle that came before the grid; `defaults.closest_grid_points`
 says why it stays).
 
 ``--scene``: the calls a run makes instead (one process, warm: the overlap search's and the

@@ -8,7 +8,7 @@ folder ``--repeats`` times in this process after one warm-up (the meshes' cache 
 imports warm), and prints the medians. The 30 s target is for both together.
 
 ``--paths SCENE...``: the threshold of check's "lines far from their muscle"
-(`musclewrap.run._check.FAR_THICKNESSES`) on either side: per muscle of each scene, its
+(`defaults.check_far_thicknesses`) on either side: per muscle of each scene, its
 own paths' nearest quarter outside it, and the nearest of every other muscle's paths, in
 mean thicknesses (4 V / A).
 """

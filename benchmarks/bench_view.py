@@ -424,8 +424,8 @@ def contact_cells(live: Any, frames: range) -> None:
     """
     import numpy as np
 
+    from musclewrap.constants import defaults
     from musclewrap.contact import muscle_gaps
-    from musclewrap.run._live import CONTACT_REACH
 
     poses = [live.solve(frame=k) for k in frames]
     for part in (1.0, 0.5, 1 / 3):
@@ -433,7 +433,9 @@ def contact_cells(live: Any, frames: range) -> None:
         for r in poses:
             surfaces = {n: (V, r.solved[0][n].muscle.F) for n, V in r.muscles.items()}
             t = time.perf_counter()
-            muscle_gaps(surfaces, r.pairs, CONTACT_REACH, part * CONTACT_REACH)
+            muscle_gaps(
+                surfaces, r.pairs, defaults.view_contact_reach, part * defaults.view_contact_reach
+            )
             ts.append(time.perf_counter() - t)
         print(f"  contact colours, to the muscles alone, cells {part:.2f} of the reach: "
               f"{1e3 * np.median(ts):.1f} ms")  # fmt: skip

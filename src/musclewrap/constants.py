@@ -212,6 +212,33 @@ class Defaults:
     muscle_rest_rounds : int
         Most rounds in which segmented muscles that overlap at rest are taken apart,
         once per run (`musclewrap.contact.apart_at_rest`).
+    closest_grid_points : int
+        Up to this many points, the closest points on another muscle come from a grid of
+        its triangles' centroids; beyond it, libigl's tree. On the gait2392 walk every
+        10th frame the grid takes the calls of 201-5,000 points in 0.34 s against the
+        tree's 0.56 s, those of over 5,000 in 2.2 against 0.48 s (`python
+        benchmarks/bench_closest.py --scene examples/gait2392_walk.toml`): 200 kept, too
+        little to gain to change the results' last bits for.
+    fibre_inside_depth : float
+        How far inside the surface a fibre point found outside it is put, in grid cells
+        of the fibres' field.
+    check_far_thicknesses : float
+        `musclewrap.run.check_scene`: a muscle's rest lines whose nearest quarter lies
+        farther than this many mean thicknesses (4 V / A) outside it are not its lines
+        (BENCHMARKS.md, "check").
+    check_attached_m : float
+        `musclewrap.run.check_scene`: a bone's attachments are the path points within
+        this distance of it (m, model units).
+    view_contact_reach : float
+        The viewer's contact colours: vertices within this distance (mesh units) of a
+        bone, or of a muscle kept apart from theirs, are coloured as in contact.
+    init_alike_deg : float
+        `musclewrap.subject.init_scene`: two registrations whose rotations differ by less
+        than this (degrees) are the same placement.
+    name_similar : float
+        The least similarity (difflib's ratio) for a misspelt name to count as a match:
+        'illiacus' and 'semitendonosus' (the VHF files) score 0.93, 'gluteusminimus'
+        against 'gluteusmaximus' 0.79 and 'vastusmedialis' against 'vastuslateralis' 0.76.
     """
 
     cage_size: int = 300
@@ -251,6 +278,13 @@ class Defaults:
     muscle_fine_depth: float = 0.25
     muscle_facing_reach: float = 15.0
     muscle_rest_rounds: int = 30
+    closest_grid_points: int = 200
+    fibre_inside_depth: float = 0.1
+    check_far_thicknesses: float = 1.0
+    check_attached_m: float = 0.010
+    view_contact_reach: float = 5.0
+    init_alike_deg: float = 15.0
+    name_similar: float = 0.86
 
 
 tol = Tolerances()

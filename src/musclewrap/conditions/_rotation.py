@@ -88,7 +88,7 @@ def _tangents_kernel(S, line, T):  # pragma: no cover - compiled
         start = end + 1
 
 
-def _minimal_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
+def minimal_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
     """(k, 3, 3) rotations taking unit vectors ``a`` to ``b`` about ``a x b``."""
     out = np.empty((len(a), 3, 3))
     _minimal_rotations(np.ascontiguousarray(a), np.ascontiguousarray(b), out)
@@ -246,7 +246,7 @@ class SampleRotations:
             A0 = self.reference_rest[None, :] - self.rest
             A1 = reference_current[None, :] - current
         elif self.collinear:
-            return _minimal_rotation(self.T0, T1)
+            return minimal_rotation(self.T0, T1)
         else:
             R = _best_rotation(self._rest_centred, current - current.mean(axis=0))
             A0 = self._A0

@@ -81,14 +81,6 @@ class Overlap:
     point: FloatArray
 
 
-#: up to this many points the grid search (`_closest_kernel`), beyond it libigl's tree. On the
-#: gait2392 walk every 10th frame the grid takes the calls of 201-5,000 points in 0.34 s against
-#: the tree's 0.56 s, those of over 5,000 in 2.2 against 0.48 s (`python
-#: benchmarks/bench_closest.py --scene examples/gait2392_walk.toml`): 200 kept, too little to
-#: gain to change the results' last bits for
-_GRID_POINTS = 200
-
-
 def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, FloatArray, IntArray]:
     """Distances of the points ``P`` to the triangles ``F`` of ``V``, closest points, their rows of F.
 
@@ -102,7 +94,7 @@ def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, Flo
     P = np.ascontiguousarray(P, dtype=np.float64)
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
-    if len(P) <= _GRID_POINTS:
+    if len(P) <= defaults.closest_grid_points:
         dist, C = np.empty(len(P)), np.empty((len(P), 3))
         face = np.empty(len(P), dtype=np.int64)
         _closest_kernel(P, V, F, dist, C, face)

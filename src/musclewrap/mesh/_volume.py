@@ -9,8 +9,8 @@ from .._typing import FloatArray, IntArray
 from ._geometry import face_areas
 
 __all__ = [
-    "mean_rows",
     "combine_pair",
+    "mean_rows",
     "volume",
     "volume_cubic",
     "volume_cubic_pair",

@@ -16,6 +16,8 @@ import difflib
 import re
 from dataclasses import dataclass
 
+from ..constants import defaults
+
 __all__ = [
     "BONES",
     "LANDMARKS",
@@ -198,15 +200,9 @@ def _best(key: str, table: tuple[Anatomy, ...] | tuple[BoneName, ...]) -> NameMa
             r = difflib.SequenceMatcher(None, key, alias).ratio()
             if r > best[0]:
                 best = (r, entry.name, alias)
-    if best[0] >= _SIMILAR:
+    if best[0] >= defaults.name_similar:
         return NameMatch(best[1], round(best[0], 3), f"similar to '{best[2]}'")
     return None
-
-
-#: the least similarity (difflib's ratio) for a misspelt name to count as a match:
-#: 'illiacus' and 'semitendonosus' (the VHF files) score 0.93, 'gluteusminimus' against
-#: 'gluteusmaximus' 0.79 and 'vastusmedialis' against 'vastuslateralis' 0.76
-_SIMILAR = 0.86
 
 
 def match_muscle(stem: str) -> NameMatch | None:

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._typing import FloatArray
-from ..conditions._rotation import _minimal_rotation, kabsch
+from ..conditions import kabsch, minimal_rotation
 from ..errors import SceneError
 from ..mesh import face_areas
 
@@ -109,7 +109,7 @@ def similarity(P: FloatArray, Q: FloatArray, axes: FloatArray | None = None) -> 
         a, b = R0 @ (P[1] - P[0]), Q[1] - Q[0]
         s = float(np.linalg.norm(b) / np.linalg.norm(a))
         unit = np.array([a / np.linalg.norm(a), b / np.linalg.norm(b)])
-        R = _minimal_rotation(unit[:1], unit[1:])[0] @ R0
+        R = minimal_rotation(unit[:1], unit[1:])[0] @ R0
         t = Q[0] - s * R @ P[0]
     else:
         mp, mq = P.mean(axis=0), Q.mean(axis=0)

@@ -12,12 +12,11 @@ a finished run independently, and `LiveScene` solves one pose at a time for the 
 from ._check import CheckReport, Finding, check_scene
 from ._dask import DaskExecutor, connect
 from ._execute import Executor, LocalExecutor, Node, ProcessExecutor, Runner, run_task
-from ._live import CONTACT_REACH, CheckError, Coordinate, LiveScene, PoseResult, refusal
+from ._live import CheckError, Coordinate, LiveScene, PoseResult, refusal
 from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_batch, run_scene
 from ._verify import inside_depth, inside_depths, muscle_overlaps, verify_run
 
 __all__ = [
-    "CONTACT_REACH",
     "REPORT_FIELDS",
     "CheckError",
     "CheckReport",

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray, IntArray, PathLike
+from ..constants import defaults
 from ..errors import SceneError, suggest
 from ..mesh import MeshError, apply_transform, mean_thickness
 from ..model import (
@@ -42,12 +43,6 @@ from ._read import (
 from ._verify import inside_depths, muscle_overlaps
 
 __all__ = ["CheckReport", "Finding", "check_scene"]
-
-#: a muscle's rest lines whose nearest quarter lies farther than this many mean
-#: thicknesses (4 V / A) outside it are not its lines (see BENCHMARKS.md, "check")
-FAR_THICKNESSES = 1.0
-#: a bone's attachments: the path points within this distance (m, model units) of it
-ATTACHED_M = 0.010
 
 
 @dataclass(frozen=True)
@@ -317,7 +312,7 @@ def _check_lines(
         if problem is not None:  # what the run refuses, in its words
             rep.add("error", m.name, problem)
             refused.add(m.name)
-        if fit.near > FAR_THICKNESSES * thick or m.name in refused:
+        if fit.near > defaults.check_far_thicknesses * thick or m.name in refused:
             far.append(m.name)
         elif ratio < 0.5:
             rep.add(
@@ -405,7 +400,7 @@ def _check_bone_bodies(
         V, F = body_b[spec.name]
         # only the points within reach of the bone's box can lie on it (its trees cost more
         # than all the points' queries)
-        reach = ATTACHED_M * s
+        reach = defaults.check_attached_m * s
         box = np.flatnonzero(((P >= V.min(0) - reach) & (P <= V.max(0) + reach)).all(axis=1))
         on = owner_a[:0]
         if len(box):
@@ -417,7 +412,7 @@ def _check_bone_bodies(
             rep.add(
                 "error", spec.name,
                 f"carried by '{spec.body}', but {count[best]} path points of '{best}' lie on it "
-                f"(within {ATTACHED_M * s:.3g} {scene.mesh_unit}) and {mine} of '{spec.body}'",
+                f"(within {defaults.check_attached_m * s:.3g} {scene.mesh_unit}) and {mine} of '{spec.body}'",
                 f"set [bones.{spec.name}] body = '{best}'",
             )  # fmt: skip
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from .._cache import cached_arrays
 from .._typing import FloatArray
+from ..constants import defaults
 from ..fibres import Fibres, fibres_at_rest, keep_inside
 from ..mesh import apply_transform, write_mesh
 from ..output import plot_moment_arms, write_csv
@@ -45,8 +46,6 @@ FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS = "fibres.csv", "moment_arms.csv",
 # their meanings: `OUTPUT_COLUMNS` (the documentation lists them)
 FIBRE_FIELDS = list(OUTPUT_COLUMNS[FIBRES_CSV])
 MOMENT_ARM_FIELDS = list(OUTPUT_COLUMNS[MOMENT_ARMS_CSV])
-#: how far inside the surface a fibre point outside it is put, in grid cells of its field
-INSIDE_DEPTH = 0.1
 
 
 def fibres_of(muscle: Muscle, job: MuscleJob, path: Path | None) -> tuple[Fibres, str | None]:
@@ -143,7 +142,7 @@ def frame_fibres(
     # where the deformation folds the surface onto itself, or the contact's finish pushed
     # it past them, points are moved back inside (counted, and said in the run's notes)
     P, out["moved"], out["farthest"], out["left"] = keep_inside(
-        fb.at(res.cage).reshape(-1, 3), res.V, F, depth=INSIDE_DEPTH * fb.spacing
+        fb.at(res.cage).reshape(-1, 3), res.V, F, depth=defaults.fibre_inside_depth * fb.spacing
     )
     out["points"] = P.reshape(fb.points.shape)
     out["lengths"] = fb.lengths(out["points"])

@@ -26,6 +26,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from .._typing import FloatArray, IntArray
+from ..constants import defaults
 from ..contact import every_pair, muscle_gaps
 from ..errors import SceneError
 from ..mesh import apply_transform, invert_rigid, write_mesh
@@ -40,11 +41,8 @@ from ._run import picture_view
 from ._work import _MuscleFrames, meet_frame, sides_at, waypoint_cage
 from ._write import _bone_display
 
-__all__ = ["CONTACT_REACH", "CheckError", "Coordinate", "LiveScene", "PoseResult", "refusal"]
+__all__ = ["CheckError", "Coordinate", "LiveScene", "PoseResult", "refusal"]
 
-#: vertices within this distance of a bone or of a muscle kept apart from theirs (mesh
-#: units: mm) are coloured as in contact
-CONTACT_REACH = 5.0
 
 #: the waypoints whose sides of the bones are kept (each muscle's, a few MB each)
 _SIDES_KEPT = 8
@@ -473,8 +471,8 @@ class LiveScene:
     def contact(self, result: PoseResult) -> dict[str, FloatArray]:
         """Each vertex's signed distance to the nearest bone or muscle kept apart from it.
 
-        Exact (mesh units; negative inside), within `CONTACT_REACH` and capped at
-        +-`CONTACT_REACH`: to each bone's surface as the run places it (the bone's
+        Exact (mesh units; negative inside), within ``defaults.view_contact_reach`` and capped at
+        +-``defaults.view_contact_reach``: to each bone's surface as the run places it (the bone's
         `musclewrap.contact.Obstacle.query`: its grid skips the points beyond the reach,
         the side by pseudo-normals) and to the other muscles of the pose's ``pairs``
         (`musclewrap.contact.muscle_gaps`, the side by winding numbers). The grid's
@@ -488,7 +486,7 @@ class LiveScene:
             got = muscle_gaps(
                 {n: (V, ms[n].muscle.F) for n, V in result.muscles.items()},
                 result.pairs,
-                CONTACT_REACH,
+                defaults.view_contact_reach,
             )
             for n, m in ms.items():
                 V = results[n].V
@@ -496,9 +494,13 @@ class LiveScene:
                     continue
                 for pl in m.bones_here(0).values():
                     # exact within the reach (the bone's grid skips the points beyond it)
-                    idx, phi, _, _ = pl.obstacle.query(pl.to_obstacle(V), CONTACT_REACH)
+                    idx, phi, _, _ = pl.obstacle.query(
+                        pl.to_obstacle(V), defaults.view_contact_reach
+                    )
                     got[n][idx] = np.minimum(got[n][idx], phi)
-            result.contact = {n: np.maximum(g, -CONTACT_REACH) for n, g in got.items()}
+            result.contact = {
+                n: np.maximum(g, -defaults.view_contact_reach) for n, g in got.items()
+            }
         return result.contact
 
     def view(self, size: tuple[int, int] | None = None) -> Any:

@@ -16,8 +16,7 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..mesh._cubic import root_near
-from ..mesh._volume import _cubic_pair_ser, _gradient_kernel, _mean_rows_kernel
+from ..mesh.kernels import cubic_pair_ser, gradient_kernel, mean_rows_kernel, root_near
 
 __all__ = [
     "PLAIN_CONVERGED",
@@ -108,7 +107,7 @@ def _plain_iterations(P_ls, Wd, B, Fd, Vd0, plain, tol_dir, floor, rate):  # pra
         for k in range(3):
             XU[i, k] = P_ls[i, k]
     P = P_ls.copy()
-    g = _gradient_kernel(P, Fd, _mean_rows_kernel(P))
+    g = gradient_kernel(P, Fd, mean_rows_kernel(P))
     gT = np.empty((3, n), dtype=B.dtype)
     uT = np.empty((3, m), dtype=B.dtype)
     u = np.empty((m, 3), dtype=B.dtype)
@@ -129,7 +128,7 @@ def _plain_iterations(P_ls, Wd, B, Fd, Vd0, plain, tol_dir, floor, rate):  # pra
         for i in range(n):
             for k in range(3):
                 XU[i, 3 + k] = Pu[i, k]
-        c = _cubic_pair_ser(XU, Fd)
+        c = cubic_pair_ser(XU, Fd)
         lam_new = root_near(c[0] - Vd0, c[1], c[2], c[3], lam)
         if not np.isfinite(lam_new):
             status = PLAIN_NO_ROOT
@@ -162,7 +161,7 @@ def _plain_iterations(P_ls, Wd, B, Fd, Vd0, plain, tol_dir, floor, rate):  # pra
         if its >= _NEWTON_AFTER and rho > rate:
             break  # too slow or oscillating for plain iteration
         if its < plain:
-            g = _gradient_kernel(P, Fd, _mean_rows_kernel(P))
+            g = gradient_kernel(P, Fd, mean_rows_kernel(P))
     return lam, u_prev, its, status, best_lam, best_u
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..constants import defaults
 from ..errors import SceneError
 from ..mesh import apply_transform, atomic_path, check_mesh, read_mesh, tidy_mesh
 from ..model import (
@@ -320,7 +321,7 @@ def init_scene(
         f"their length and run {np.median([f.mean for f in best_fits.values()]):.3g} {mesh_unit} "
         "outside it on average"
         + (
-            f"; {alike} other turns of the axes end within {_ALIKE_DEG:g} deg of it after the "
+            f"; {alike} other turns of the axes end within {defaults.init_alike_deg:g} deg of it after the "
             f"landmarks' correction; this one needs the least ({best.correction:.1f} deg)"
             if alike
             else ""
@@ -402,10 +403,6 @@ class _Placement:
         return f"meshes in the model's ground frame at {self.why_rest}"
 
 
-#: two registrations whose rotations differ by less than this are the same placement
-_ALIKE_DEG = 15.0
-
-
 def _rotation(T: FloatArray) -> FloatArray:
     """The rotation of a similarity (its scale divided out)."""
     return T[:3, :3] / np.cbrt(np.linalg.det(T[:3, :3]))
@@ -420,7 +417,7 @@ def _choose(cands: list[_Placement], scores: list[float]) -> tuple[int, int, int
     """The placement to take, how many others are the same one, and the next best distinct one.
 
     Turns of the axes that the landmarks correct onto the same rotation (within
-    `_ALIKE_DEG`) are one placement: the fit picks the placement (two landmarks leave
+    ``defaults.init_alike_deg``) are one placement: the fit picks the placement (two landmarks leave
     the turn about the line through them open), and of its turns of the axes the one
     the landmarks turn least, the frame's own axes (the fit's differences among them,
     a few degrees apart, depend on which muscles the folder holds). The order of
@@ -435,7 +432,7 @@ def _choose(cands: list[_Placement], scores: list[float]) -> tuple[int, int, int
             return False
         if a.T is None or b.T is None:
             return a.T is None and b.T is None
-        return _turn(_rotation(a.T) @ _rotation(b.T).T) < _ALIKE_DEG
+        return _turn(_rotation(a.T) @ _rotation(b.T).T) < defaults.init_alike_deg
 
     group = [i for i in order if same(i, best)]
     pick = min(group, key=lambda i: (cands[i].correction, order.index(i)))

@@ -30,9 +30,10 @@ from typing import Any
 
 import numpy as np
 
+from ..constants import defaults
 from ..mesh import apply_transform
 from ..output import STRETCH_RANGE, stretch_colours, stretch_table
-from ..run import CONTACT_REACH, LiveScene, PoseResult
+from ..run import LiveScene, PoseResult
 from ._playback import Series, segments, triangles
 
 __all__ = ["Viewer", "free_port", "open_source"]
@@ -43,13 +44,17 @@ def _rgb(c: np.ndarray) -> str:
     return f"rgb({r}, {g}, {b})"
 
 
-#: the contact colouring: black (touching), red halfway, yellow at `CONTACT_REACH` and beyond
+#: the contact colouring: black (touching), red halfway, yellow at
+#: ``defaults.view_contact_reach`` and beyond
 _CONTACT_STOPS = np.array([[0.0, 0.0, 0.0], [0.9, 0.0, 0.0], [0.9, 0.9, 0.0]])
 
 
 def contact_colours(distance: np.ndarray) -> np.ndarray:
-    """Each distance's colour (mesh units, clipped to 0-`CONTACT_REACH`): (k, 3) uint8."""
-    u = np.clip(np.asarray(distance, dtype=np.float64), 0.0, CONTACT_REACH) / CONTACT_REACH
+    """Each distance's colour: (k, 3) uint8 (mesh units, clipped to ``defaults.view_contact_reach``)."""
+    u = (
+        np.clip(np.asarray(distance, dtype=np.float64), 0.0, defaults.view_contact_reach)
+        / defaults.view_contact_reach
+    )
     at = np.linspace(0.0, 1.0, len(_CONTACT_STOPS))
     rgb = np.column_stack([np.interp(u, at, _CONTACT_STOPS[:, k]) for k in range(3)])
     return np.rint(255.0 * rgb).astype(np.uint8)
@@ -71,9 +76,9 @@ COLOURS = {
         "(stretched), in equal ratios",
     ),
     "contact": (
-        f"contact (distance to {{what}}, 0-{CONTACT_REACH:g} mm)",
+        f"contact (distance to {{what}}, 0-{defaults.view_contact_reach:g} mm)",
         ", ".join(_rgb(c) for c in _CONTACT_STOPS),
-        f"black: touching {{what}}, yellow: {CONTACT_REACH:g} mm or more away",
+        f"black: touching {{what}}, yellow: {defaults.view_contact_reach:g} mm or more away",
     ),
 }
 
