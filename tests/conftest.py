@@ -43,3 +43,13 @@ def double_proxy():
     The same iteration in double precision: the reference for the float32 products.
     """
     return lambda d: d._proxy_matrices(np.float64)
+
+
+@pytest.fixture(scope="session")
+def small_muscle():
+    """A capsule muscle prepared once (200 cage vertices): shared, never modified."""
+    from musclewrap.solver import Muscle
+    from musclewrap.synthetic import capsule
+
+    V, F = capsule(n_around=32, cap_rings=8, segments=30)
+    return Muscle.from_mesh(V, F, cage_size=200)

@@ -15,7 +15,7 @@ import pytest
 import pyvista as pv
 
 from musclewrap.cli import main
-from test_scene import _gif_frames, _twin_scene
+from test_run import _gif_frames, _twin_scene
 
 distributed = pytest.importorskip("distributed") if not os.environ.get("CI") else None
 if distributed is None:

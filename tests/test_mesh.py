@@ -5,6 +5,7 @@ from musclewrap.mesh import (
     MeshError,
     check_mesh,
     clean_mesh,
+    cubic_root_near,
     read_mesh,
     volume,
     volume_cubic,
@@ -505,3 +506,53 @@ def test_lazy_winding_grid_bins_only_where_asked_and_counts_the_same(data_dir):
     small = WindingGrid(V, F, lazy=True)
     small.bin_around(V[:5] + 0.01)
     assert 0 < len(small._bins[1]) < 0.05 * len(whole._bins[1])
+
+
+def test_cubic_root():
+    assert cubic_root_near(np.array([1.0, -3.0, 0.0, 1.0]), 0.0, 0.3) == pytest.approx(
+        0.34729635533386, rel=1e-12
+    )
+    # Newton stalls at the guess (zero slope): all roots, two of them complex
+    t = cubic_root_near(np.array([3.0, -3.0, 0.0, 1.0]), 0.0, 1.0)
+    assert t**3 - 3 * t + 3 == pytest.approx(0.0, abs=1e-12) and t < -2
+    # a quadratic (both roots equally near the guess), and a line
+    assert abs(cubic_root_near(np.array([-4.0, 0.0, 1.0, 0.0]), 0.0, 0.0)) == pytest.approx(2.0)
+    assert cubic_root_near(np.array([-4.0, 2.0, 0.0, 0.0]), 0.0, 5.0) == pytest.approx(2.0)
+    assert np.isnan(cubic_root_near(np.array([1.0, 0.0, 0.0, 0.0]), 0.0, 0.0))
+    assert np.isnan(cubic_root_near(np.array([1.0, np.inf, 0.0, 0.0]), 0.0, 0.0))
+
+
+def test_real_roots_of_a_cubic_with_roots_orders_of_magnitude_apart():
+    # closed forms (and a companion matrix) lose the small roots of such a cubic; the
+    # bracketed search keeps all three to rounding
+    from musclewrap.mesh._cubic import _real_roots
+
+    roots = np.array([-2e-4, 1e-4, 1e6])
+    p = np.poly(roots)[::-1]  # increasing degree
+    assert np.sort(_real_roots(*p)) == pytest.approx(roots, rel=1e-10)
+    # a double root where the cubic vanishes exactly: (t - 1)^2 (t - 3)
+    assert np.sort(_real_roots(-3.0, 7.0, -5.0, 1.0)) == pytest.approx(
+        [1.0, 3.0, np.nan], nan_ok=True
+    )
+    # one real root and a complex pair: t^3 + t + 10 = (t + 2)(t^2 - 2t + 5)
+    r = _real_roots(10.0, 1.0, 0.0, 1.0)
+    assert r[0] == pytest.approx(-2.0, rel=1e-14) and np.isnan(r[1:]).all()
+
+
+def test_volume_hessian_reduced_matches_finite_differences():
+    from musclewrap.mesh import volume_gradient, volume_hessian_reduced
+
+    V, F = capsule(n_around=12, cap_rings=4, segments=5)
+    rng = np.random.default_rng(0)
+    W = rng.random((len(V), 7))
+    W /= W.sum(axis=1, keepdims=True)
+    x = np.linalg.lstsq(W, V, rcond=None)[0]
+    K = volume_hessian_reduced(W @ x, F, W)
+    assert np.array_equal(K, K.T)
+    w, e = rng.normal(size=x.shape), 1e-5
+    fd = (W.T @ volume_gradient(W @ (x + e * w), F) - W.T @ volume_gradient(W @ (x - e * w), F)) / (
+        2 * e
+    )
+    assert np.allclose(
+        (K @ w.ravel()).reshape(x.shape), fd, rtol=1e-7, atol=1e-9 * np.abs(fd).max()
+    )

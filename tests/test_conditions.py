@@ -1,0 +1,233 @@
+import numpy as np
+import pytest
+
+from musclewrap.conditions import LineError, check_lines, cotangent_laplacian, sample_lines
+from musclewrap.synthetic import capsule, capsule_scenario
+
+
+def test_laplacian_rows_and_planar_patch():
+    V, F = capsule(n_around=16, cap_rings=5, segments=8)
+    L = cotangent_laplacian(V, F)
+    assert np.allclose(L.sum(axis=1), 0) and np.allclose(np.diag(L), -1)
+    # interior vertices of a flat patch have zero Laplacian
+    g = np.array([[x, y, 0.0] for y in range(5) for x in range(5)])
+    Fp = []
+    for y in range(4):
+        for x in range(4):
+            a = 5 * y + x
+            Fp += [[a, a + 1, a + 6], [a, a + 6, a + 5]]
+    from musclewrap.conditions._laplacian import cotangent_laplacian as lap
+
+    Lp = lap(g, np.array(Fp))
+    inner = [6, 7, 8, 11, 12, 13, 16, 17, 18]
+    assert np.abs((Lp @ g)[inner]).max() < 1e-12
+
+
+def test_lines_validation():
+    with pytest.raises(LineError, match="two distinct points"):
+        check_lines({"a": [[0, 0, 0]]})
+    with pytest.raises(LineError, match="two distinct points"):
+        check_lines({"a": [[0, 0, 0], [0, 0, 0]]})
+    with pytest.raises(LineError, match="non-finite"):
+        check_lines({"a": [[0, 0, 0], [np.nan, 0, 1]]})
+    s = sample_lines(check_lines({"a": [[0, 0, 0], [0, 0, 10], [0, 0, 20]]}), spacing=1.0)
+    with pytest.raises(LineError, match="missing"):
+        s.evaluate({"b": np.array([[0.0, 0, 0], [1, 0, 0]])})
+    with pytest.raises(LineError, match="missing \\[\\], unexpected \\['b'\\]"):
+        s.evaluate(
+            {"a": np.array([[0.0, 0, 0], [1, 0, 0]]), "b": np.array([[0.0, 0, 0], [1, 0, 0]])}
+        )
+    # a current line with another point count matches by arc length
+    pts = s.evaluate({"a": np.array([[0.0, 0, 0], [0, 0, 40]])})
+    assert np.allclose(pts[:, 2], 2 * s.evaluate({"a": np.array([[0.0, 0, 0], [0, 0, 20]])})[:, 2])
+
+
+def test_rest_line_far_from_the_muscle_is_refused(small_muscle):
+    z = [[0, 0, 5], [0, 0, 195]]
+    with pytest.raises(LineError, match="line 'far' lies 4.98e\\+03 away from the muscle.*units"):
+        small_muscle.bind({"a": z, "far": [[5000, 0, 5], [5000, 0, 195]]})
+    # a line given in another frame (here 500 mm to the side)
+    with pytest.raises(LineError, match="line 'a' lies .* away from the muscle"):
+        small_muscle.bind({"a": [[0, 500, 5], [0, 500, 195]]})
+    # lines in metres, the mesh in millimetres: inside the box, but a thousand times too short
+    with pytest.raises(LineError, match="longest line measures 0.19 and the muscle 208.*units"):
+        small_muscle.bind({"a": [[0, 0, 0.005], [0, 0, 0.195]]})
+    # a line that leaves the muscle at its ends (tendons, attachments) is fine
+    small_muscle.bind({"a": [[0, 0, -60], [0, 0, 260]]})
+
+
+def test_a_tendon_beyond_the_muscle_turning_at_a_joint_leaves_the_muscle_alone(small_muscle):
+    # the capsule's belly lies along z from 0 to 200; its path runs on through a tendon to
+    # z = 320, turned 60 degrees at a "knee" 40 mm past the belly's end. Bound to its whole
+    # path, the extrapolated coordinates of the tendon's samples drag the belly 33 mm and
+    # crease it; bound up to one mean thickness (4 V / A, about 37 mm here) past its end,
+    # the belly stays where its own stretch of the path is: at rest.
+    V = small_muscle.V
+    rest = {"axis": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 240.0], [0.0, 0.0, 320.0]])}
+    a = np.radians(60.0)
+    knee = [80.0 * np.sin(a), 0.0, 240.0 + 80.0 * np.cos(a)]
+    cur = {"axis": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 240.0], knee])}
+    d = small_muscle.bind(rest)
+    from musclewrap.mesh import face_areas
+
+    thickness = 4 * small_muscle.volume_rest / face_areas(V, small_muscle.F).sum()
+    (start, end, far) = d.unbound["axis"]
+    assert start == 0.0 and far == pytest.approx(120.0, abs=0.5)
+    # cut past the last sample within one thickness of the pole (z = 200)
+    kept_end = (1 - end) * 320.0
+    assert 200.0 < kept_end <= 200.0 + 1.05 * thickness
+    assert d.sampling.count < small_muscle.bind(rest, line_reach=None).sampling.count
+    r = d.deform(cur)
+    assert r.converged and np.abs(r.V - V).max() <= 1e-6
+    whole = small_muscle.bind(rest, line_reach=None).deform(cur)
+    assert np.abs(whole.V - V).max() > 20.0
+    assert small_muscle.shape_change(whole.V).max() > 0.5
+    # a path that stays within the muscle's reach is bound whole
+    assert small_muscle.bind({"a": [[0, 0, -20], [0, 0, 220]]}).unbound == {}
+    with pytest.raises(ValueError, match="line_reach must be positive"):
+        small_muscle.bind(rest, line_reach=0.0)
+
+
+def test_within_reach_keeps_each_lines_stretch_near_the_muscle():
+    from musclewrap.conditions import LineSampling, within_reach
+
+    t = np.linspace(0.0, 1.0, 11)
+    s = LineSampling(names=("a", "b", "c"), params=(t, t, t))
+    far = np.r_[9, 5, 1, 0, 0, 3, 0, 1, 2, 4, 8.0]  # "a": tails both sides, a gap inside
+    away = np.full(11, 7.0)  # "b": nowhere within reach: kept whole
+    touch = np.r_[np.full(7, 9.0), 2.0, np.full(3, 9.0)]  # "c": one sample within reach
+    got, cut = within_reach(s, np.r_[far, away, touch], 2.0, keep=5)
+    assert np.array_equal(got.params[0], t[2:9])  # the gap at 3 stays bound
+    assert np.array_equal(got.params[1], t)
+    assert np.array_equal(got.params[2], t[5:10])  # 5 kept around the nearest
+    assert cut["a"] == pytest.approx((0.2, 0.2, 9.0))
+    assert "b" not in cut and cut["c"] == pytest.approx((0.5, 0.1, 9.0))
+    # the kept samples evaluate any current line at their old parameters
+    line = {n: np.array([[0.0, 0, 0], [0, 0, 10.0]]) for n in "abc"}
+    assert np.allclose(got.evaluate(line)[: len(got.params[0]), 2], 10 * t[2:9])
+
+
+def test_quaternion_roundtrip_and_sign():
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import matrix_to_quaternion, quaternion_to_matrix
+
+    R = Rotation.random(50, random_state=3).as_matrix()
+    q = matrix_to_quaternion(R)
+    assert np.allclose(np.linalg.norm(q, axis=1), 1.0)
+    assert np.allclose(quaternion_to_matrix(q), R, atol=1e-12)
+    assert np.allclose(quaternion_to_matrix(-3.0 * q), R, atol=1e-12)
+
+
+def test_line_sampling_matches_numpy_interpolation():
+    # the compiled arc-length sampling against np.interp on the normalized arc length
+    from musclewrap.conditions import polyline_at
+
+    rng = np.random.default_rng(3)
+    for k in (2, 3, 7):
+        P = np.cumsum(rng.normal(size=(k, 3)), axis=0)
+        P = np.vstack([P[:1], P[:1], P])  # a repeated point, dropped by the check
+        Q = check_lines({"a": P})["a"]
+        assert len(Q) == k
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
+        s /= s[-1]
+        t = np.concatenate([[-0.1, 0.0, 1.0, 1.2], rng.random(50), s])
+        ref = np.column_stack([np.interp(t, s, Q[:, j]) for j in range(3)])
+        got = polyline_at(Q, t)
+        assert np.abs(got - ref).max() <= 1e-13 * np.abs(Q).max()
+        assert np.array_equal(got[[1, 2]], Q[[0, -1]])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_sample_rotations_are_a_rigid_motions_rotation_whatever_the_reference(seed):
+    """Under a rigid motion every sample's rotation is the motion's: a straight skeleton
+    with a reference point beside it, and a bent one without a reference."""
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import sample_rotations
+
+    rng = np.random.default_rng(seed)
+    R = Rotation.random(random_state=seed).as_matrix()
+    t = rng.normal(size=3) * 10
+    bent = np.cumsum(rng.normal(size=(20, 3)), axis=0)
+    two = np.repeat([0, 1], 10)
+    straight = np.c_[np.zeros(20), np.zeros(20), np.linspace(0.0, 100.0, 20)]
+    cases = [
+        (straight, np.zeros(20, dtype=int), np.array([30.0, 5.0, 50.0])),
+        (bent, two, None),
+    ]
+    for S, line, ref in cases:
+        kw = {} if ref is None else {"reference_rest": ref, "reference_current": R @ ref + t}
+        got = sample_rotations(S, S @ R.T + t, line, **kw)
+        assert np.abs(got - R).max() < 1e-9
+
+
+def _angle(R):
+    return np.degrees(np.arccos(np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1, 1)))
+
+
+def test_path_rotations_follow_each_points_body_and_slerp_across_a_joint():
+    """Samples on a part of the path fixed in one body turn with it; on the segment that
+    crosses the joint they turn gradually (half way: half the angle, about the same axis);
+    the same rotation for every point gives that rotation everywhere."""
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import path_rotations
+
+    P = np.array([[0.0, 0, 0], [0, 0, 10], [0, 0, 20], [0, 0, 30], [0, 0, 40]])
+    R = Rotation.from_rotvec([0.0, np.radians(80.0), 0.0]).as_matrix()
+    I3 = np.eye(3)
+    rots = np.array([I3, I3, R, R, R])  # points 0-1 on one body, 2-4 on the other
+    t = np.linspace(0.0, 1.0, 41)
+    got = path_rotations({"a": P}, {"a": rots}, ("a",), (t,))
+    assert np.abs(got[t <= 0.25] - I3).max() < 1e-12
+    assert np.abs(got[t >= 0.5] - R).max() < 1e-12
+    half = got[np.argmin(np.abs(t - 0.375))]
+    assert abs(_angle(half) - 40.0) < 1e-9
+    assert np.allclose(Rotation.from_matrix(half).as_rotvec()[[0, 2]], 0.0)
+    # continuous along the path: neighbouring samples differ by a fraction of the turn
+    assert _angle(np.einsum("kab,kcb->kac", got[1:], got[:-1])).max() < 80.0 / 9
+    # a rigid motion: one rotation for all points, whatever the points
+    Q = Rotation.random(random_state=3).as_matrix()
+    bent = np.cumsum(np.random.default_rng(3).normal(size=(7, 3)), axis=0)
+    got = path_rotations({"b": bent}, {"b": np.repeat(Q[None], 7, 0)}, ("b",), (t,))
+    assert np.abs(got - Q).max() < 1e-12
+    # a repeated point is dropped with its rotation, as check_lines drops it
+    Pd = np.insert(P, 2, P[1], axis=0)
+    rd = np.insert(rots, 2, rots[1], axis=0)
+    again = path_rotations({"a": Pd}, {"a": rd}, ("a",), (t,))
+    assert np.abs(again - path_rotations({"a": P}, {"a": rots}, ("a",), (t,))).max() < 1e-15
+
+
+def test_path_rotations_name_a_line_without_one_rotation_per_point():
+    from musclewrap.conditions import path_rotations
+
+    P = np.array([[0.0, 0, 0], [0, 0, 10], [0, 0, 20]])
+    with pytest.raises(LineError, match="line 'a' needs one finite 3x3 rotation per point"):
+        path_rotations({"a": P}, {"a": np.repeat(np.eye(3)[None], 2, 0)}, ("a",), (np.r_[0.0, 1],))
+    with pytest.raises(LineError, match="line 'a'"):
+        path_rotations({"a": P}, {}, ("a",), (np.r_[0.0, 1.0],))
+
+
+def test_path_lines_turn_the_muscle_with_its_bodies(small_muscle):
+    """A muscle whose lines carry their points' rotations: a rigid motion of lines and
+    bodies moves it rigidly; PathLines survive pickling (workers) with their rotations."""
+    import pickle
+
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import PathLines
+
+    rest, _ = capsule_scenario("bend_short")
+    d = small_muscle.bind(rest)
+    R = Rotation.from_rotvec([0.3, -0.5, 0.2]).as_matrix()
+    t = np.array([4.0, -2.0, 7.0])
+    cur = PathLines(
+        {k: np.asarray(v) @ R.T + t for k, v in rest.items()},
+        {k: np.repeat(R[None], len(v), 0) for k, v in rest.items()},
+    )
+    cur = pickle.loads(pickle.dumps(cur))
+    assert set(cur.rotations) == set(rest)
+    r = d.deform(cur)
+    assert r.converged, r.reason
+    assert np.abs(r.V - (small_muscle.V @ R.T + t)).max() < 1e-6 * np.ptp(small_muscle.V)

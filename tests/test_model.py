@@ -1,0 +1,75 @@
+import numpy as np
+import pytest
+
+from musclewrap.scene import (
+    SceneError,
+    read_motion,
+)
+from musclewrap.synthetic import capsule
+
+
+# ------------------------------------------------------------------ motion files
+def _mot(tmp_path, header, labels, rows):
+    p = tmp_path / "m.mot"
+    text = header + "endheader\n" + "\t".join(labels) + "\n"
+    text += "\n".join("\t".join(str(v) for v in r) for r in rows) + "\n"
+    p.write_text(text)
+    return p
+
+
+def test_read_motion_degrees_and_columns(tmp_path):
+    p = _mot(
+        tmp_path, "x\ninDegrees=yes\n", ["time", "a", "b", "b"], [[0, 1, 2, 3], [0.5, 4, 5, 6]]
+    )
+    m = read_motion(p)
+    assert m.in_degrees and m.degrees_declared
+    np.testing.assert_array_equal(m.time, [0, 0.5])
+    np.testing.assert_array_equal(m.columns["a"], [1, 4])
+    assert "b" in m.repeated and "b" not in m.columns
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("time\ta\n0\t1\n", "endheader"),
+        ("endheader\na\tb\n0\t1\n", "no 'time' column"),
+        ("endheader\ntime\ta\n0\t1\t2\n", "row 1 has 3 values"),
+        ("endheader\ntime\ta\n0\tx\n", "non-numeric"),
+        ("endheader\ntime\ta\n0\tnan\n", "NaN"),
+        ("endheader\ntime\ta\n1\t1\n0\t1\n", "do not increase"),
+        ("endheader\ntime\ta\n", "no frames"),
+    ],
+)
+def test_read_motion_refuses_bad_files(tmp_path, text, match):
+    p = tmp_path / "bad.mot"
+    p.write_text(text)
+    with pytest.raises(SceneError, match=match):
+        read_motion(p)
+
+
+def test_registration_similarity_and_landmarks():
+    from musclewrap.model._register import (
+        axes_rotation,
+        fit_sphere,
+        similarity,
+        surface_centroid,
+    )
+
+    rng = np.random.default_rng(4)
+    # a sphere's fitted centre and radius, and the centroid of a closed surface
+    V, F = capsule(radius=7.0, length=0.0, n_around=48, cap_rings=24, segments=1)
+    c, r, rms = fit_sphere(V + [1.0, 2.0, 3.0])
+    assert np.allclose(c, V.mean(axis=0) + [1, 2, 3], atol=1e-6) and r == pytest.approx(7.0, 1e-3)
+    assert rms < 0.05
+    assert np.allclose(surface_centroid(V, F), V.mean(axis=0), atol=1e-9)
+    # a known similarity is recovered from three landmarks, and from two with the axes
+    R = axes_rotation(["y", "z", "x"])
+    assert np.allclose(R @ [0.0, 1, 0], [1, 0, 0]) and np.linalg.det(R) == pytest.approx(1)
+    P = rng.normal(size=(4, 3)) * 50
+    Q = 1.17 * P @ R.T + [10.0, -20.0, 5.0]
+    for k in (2, 3, 4):
+        T = similarity(P[:k], Q[:k], R if k == 2 else None)
+        assert np.allclose(P @ T[:3, :3].T + T[:3, 3], Q, atol=1e-9), k
+    # two landmarks and no axes: the line through them is matched, not the turn about it
+    T = similarity(P[:2], Q[:2], None)
+    assert np.allclose(P[:2] @ T[:3, :3].T + T[:3, 3], Q[:2], atol=1e-9)
