@@ -58,7 +58,7 @@ def mean_value_coordinates(
     >>> C = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
     >>> CF = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     >>> W = mean_value_coordinates([[0.1, 0.2, 0.3]], C, CF)
-    >>> np.allclose(W @ C, [[0.1, 0.2, 0.3]]), np.isclose(W.sum(), 1.0)
+    >>> bool(np.allclose(W @ C, [[0.1, 0.2, 0.3]])), bool(np.isclose(W.sum(), 1.0))
     (True, True)
     """
     P = as_points(P, "P")
