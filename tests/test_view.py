@@ -519,7 +519,7 @@ def test_the_colours_sent_are_the_runs_pictures():
     ratio and its inverse equally far either side), as the run's pictures colour it; the
     contact from black (touching or inside) through red to yellow at the reach."""
     from musclewrap.output._render import STRETCH_RANGE, stretch_colours, stretch_table
-    from musclewrap.view._app import contact_colours
+    from musclewrap.view._state import contact_colours
 
     lo, hi = STRETCH_RANGE
     table = np.rint(255 * stretch_table()).astype(np.uint8)

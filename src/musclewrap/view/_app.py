@@ -1,13 +1,15 @@
 """The viewer's web page (trame): sliders and a time slider, the muscles wrapping live.
 
-One page serves two sources:
+One page over one protocol (`._sources.Source`) with two sources behind it:
 
-- a scene (`musclewrap.scene.LiveScene`): every slider change is solved as a run
-  solves that pose, in one solver thread that always takes the latest request (a
-  drag is not queued behind itself), and the muscles, bones, lines and fibres are
-  sent to the browser, where vtk.js draws them;
-- a finished run's ``scene.pvd`` (`._playback.Series`): the time slider and
-  play/pause step through its files.
+- a scene (`._sources.LiveSource` over `musclewrap.run.LiveScene`): every slider change
+  is solved as a run solves that pose, in one solver thread that always takes the latest
+  request (a drag is not queued behind itself), and the muscles, bones, lines and fibres
+  are sent to the browser, where vtk.js draws them;
+- a finished run's ``scene.pvd`` (`._sources.Playback` over `._playback.Series`): the time
+  slider and play/pause step through its files.
+
+The page's own script and style are files beside this one (``page.js``, ``page.css``).
 
 The browser measures each update, from the slider's input event to the picture
 drawn (two animation frames after the new geometry arrived), and writes the status
@@ -18,46 +20,23 @@ line: ``update N ms (median M ms of the last 10; queued Q, solve S, transfer X, 
 from __future__ import annotations
 
 import asyncio
-import base64
 import contextlib
 import os
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..constants import defaults
-from ..mesh import apply_transform
-from ..output import STRETCH_RANGE, stretch_colours, stretch_table
-from ..run import LiveScene, PoseResult
-from ._playback import Series, segments, triangles
+from ..output import STRETCH_RANGE, stretch_table
+from ..run import LiveScene
+from ._playback import Series
+from ._sources import LiveSource, Playback, Source
+from ._state import CONTACT_STOPS, Request, css_rgb, time_text
 
 __all__ = ["Viewer", "free_port", "open_source"]
-
-
-def _rgb(c: np.ndarray) -> str:
-    r, g, b = np.rint(255.0 * np.asarray(c)).astype(int)
-    return f"rgb({r}, {g}, {b})"
-
-
-#: the contact colouring: black (touching), red halfway, yellow at
-#: ``defaults.view_contact_reach`` and beyond
-_CONTACT_STOPS = np.array([[0.0, 0.0, 0.0], [0.9, 0.0, 0.0], [0.9, 0.9, 0.0]])
-
-
-def contact_colours(distance: np.ndarray) -> np.ndarray:
-    """Each distance's colour: (k, 3) uint8 (mesh units, clipped to ``defaults.view_contact_reach``)."""
-    u = (
-        np.clip(np.asarray(distance, dtype=np.float64), 0.0, defaults.view_contact_reach)
-        / defaults.view_contact_reach
-    )
-    at = np.linspace(0.0, 1.0, len(_CONTACT_STOPS))
-    rgb = np.column_stack([np.interp(u, at, _CONTACT_STOPS[:, k]) for k in range(3)])
-    return np.rint(255.0 * rgb).astype(np.uint8)
 
 
 _STRETCH = stretch_table()
@@ -71,138 +50,20 @@ _STRETCH = stretch_table()
 COLOURS = {
     "stretch": (
         "stretch (surface area over rest)",
-        ", ".join(_rgb(_STRETCH[i]) for i in (0, len(_STRETCH) // 2, -1)),
+        ", ".join(css_rgb(_STRETCH[i]) for i in (0, len(_STRETCH) // 2, -1)),
         f"blue {STRETCH_RANGE[0]:.2f} (compressed), white 1, red {STRETCH_RANGE[1]:.2f} "
         "(stretched), in equal ratios",
     ),
     "contact": (
         f"contact (distance to {{what}}, 0-{defaults.view_contact_reach:g} mm)",
-        ", ".join(_rgb(c) for c in _CONTACT_STOPS),
+        ", ".join(css_rgb(c) for c in CONTACT_STOPS),
         f"black: touching {{what}}, yellow: {defaults.view_contact_reach:g} mm or more away",
     ),
 }
 
-_CSS = """
-body { margin: 0; font-family: system-ui, sans-serif; font-size: 14px; }
-.mw { display: flex; height: 100vh; }
-.mw-side { width: 330px; padding: 10px 14px; overflow-y: auto; border-right: 1px solid #ccc; }
-.mw-main { flex: 1; display: flex; flex-direction: column; min-width: 0; }
-.mw-view { flex: 1; position: relative; min-height: 200px; }
-.mw-row { margin: 6px 0 10px 0; }
-.mw-row label { display: block; font-weight: 600; }
-.mw-row input[type=range], .mw-row select { width: 100%; box-sizing: border-box; }
-.mw-value { color: #444; font-variant-numeric: tabular-nums; }
-.mw-status { padding: 6px 12px; border-top: 1px solid #ccc; background: #f6f6f6;
-  font-variant-numeric: tabular-nums; white-space: pre-wrap; }
-.mw-warn { padding: 6px 12px; background: #ffd54f; color: #000; font-weight: 600; }
-.mw-legend { height: 12px; margin: 4px 0; border: 1px solid #999; }
-button { margin: 4px 6px 4px 0; padding: 4px 10px; }
-h1 { font-size: 16px; margin: 4px 0 10px 0; }
-"""
-
-# The page's measuring: each slider input gets an id and a time; the server answers
-# with the id it drew; two animation frames after the geometry arrives, the picture
-# is on screen. One pose at a time is asked for: inputs that come while one is being
-# solved wait, the latest replacing the one before, and go when its geometry arrives
-# (its drawing then overlaps the next solve). So a drag sends one message a picture,
-# not one an input event: 60 a second would keep the server's event loop from the
-# solver's results.
-_JS = r"""
-(function () {
-  const mw = (window.mw = window.mw || { n: 0, t: {}, sent: {}, totals: [], log: [], last: null });
-  // A browser that draws in software (Chromium's SwiftShader, Mesa's llvmpipe) takes 2-3 times
-  // as long to draw the scene antialiased (BENCHMARKS.md, "The live viewer"): there the view's
-  // WebGL context is made without (before vtk.js makes it); ?antialias=1 or 0 in the address
-  // decides instead. A graphics processor antialiases at little cost: it keeps it.
-  if (mw.antialias === undefined) {
-    let name = "";
-    try {
-      const probe = document.createElement("canvas").getContext("webgl");
-      const info = probe && probe.getExtension("WEBGL_debug_renderer_info");
-      name = probe ? String(probe.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : probe.RENDERER)) : "";
-      const lose = probe && probe.getExtension("WEBGL_lose_context");
-      if (lose) lose.loseContext();
-    } catch (e) { /* no WebGL: vtk.js says so */ }
-    const asked = new URLSearchParams(window.location.search).get("antialias");
-    mw.renderer = name;
-    mw.software = /swiftshader|llvmpipe|softpipe|software/i.test(name);
-    mw.antialias = asked === null ? !mw.software : asked !== "0";
-    if (!mw.antialias) {
-      const make = HTMLCanvasElement.prototype.getContext;
-      HTMLCanvasElement.prototype.getContext = function (type, attrs) {
-        if (type === "webgl2" || type === "webgl") attrs = Object.assign({}, attrs, { antialias: false });
-        return make.call(this, type, attrs);
-      };
-    }
-  }
-  let inflight = null, pending = null;  // the input being solved (id, time sent), the next
-  function send(p) {
-    inflight = { id: p.id, at: performance.now() };
-    mw.sent[p.id] = inflight.at;
-    window.trame.trigger("mw_input", [p.source, p.value, p.id]);
-  }
-  document.addEventListener("input", (e) => {
-    const el = e.target;
-    if (!el || !el.dataset || !el.dataset.mw || !window.trame) return;
-    const id = ++mw.n;
-    mw.t[id] = performance.now();
-    const p = { source: el.dataset.mw, value: parseFloat(el.value), id };
-    // a pose asked for more than 3 s ago and not come back (a failed one): ask anyway
-    if (inflight && performance.now() - inflight.at < 3000) pending = p; else send(p);
-  }, true);
-  function median(a) { const s = [...a].sort((x, y) => x - y); return s[Math.floor(s.length / 2)]; }
-  function shown(s) {
-    if (!s || !s.serial) return;
-    const got = performance.now();
-    // the pose asked for is here (or another's, which replaced it: play): the next one goes
-    if (inflight && (!s.id || s.id >= inflight.id)) {
-      inflight = null;
-      if (pending) { const p = pending; pending = null; send(p); }
-    }
-    requestAnimationFrame(() => requestAnimationFrame(() => {
-      const drawn = performance.now();
-      const t0 = s.id && mw.t[s.id] !== undefined ? mw.t[s.id] : got;
-      const sent = s.id && mw.sent[s.id] !== undefined ? mw.sent[s.id] : t0;
-      for (const k of Object.keys(mw.t)) if (+k <= s.id) { delete mw.t[k]; delete mw.sent[k]; }
-      const total = drawn - t0, render = drawn - got, queued = sent - t0;
-      const transfer = Math.max(0, got - sent - s.server);
-      mw.totals.push(total); if (mw.totals.length > 10) mw.totals.shift();
-      mw.last = { serial: s.serial, id: s.id, total, render, transfer, queued, server: s.server,
-                  solve: s.solve, drawn, count: (mw.last ? mw.last.count : 0) + 1 };
-      mw.log.push(mw.last);  // the last pictures drawn, for a drag's rate
-      if (mw.log.length > 1000) mw.log.shift();
-      const el = document.getElementById("mw-update");
-      if (el) {
-        el.textContent = `update ${total.toFixed(0)} ms (median ${median(mw.totals).toFixed(0)} ms `
-          + `of the last ${mw.totals.length}; queued ${queued.toFixed(0)}, solve `
-          + `${s.solve.toFixed(0)}, transfer `
-          + `${transfer.toFixed(0)}, render ${render.toFixed(0)} ms)`
-          + (mw.software ? `; drawn in software, antialiasing ${mw.antialias ? "on" : "off"}` : "");
-        el.dataset.serial = String(s.serial);
-      }
-    }));
-  }
-  // the server moves a slider's thumb only where the pose comes from elsewhere (a frame:
-  // the coordinates' sliders, or play: the time slider); the slider the hand holds is the page's
-  function thumbs(t) {
-    if (!t || !t.values) return;
-    for (const [id, v] of Object.entries(t.values)) {
-      const el = document.getElementById(id);
-      if (el) el.value = String(v);
-    }
-  }
-  function hook() {
-    if (!window.trame || !window.trame.state) { setTimeout(hook, 50); return; }
-    window.trame.state.watch(["shown"], shown);
-    window.trame.state.watch(["thumbs"], thumbs);
-    // a pose there before this page came (a page loaded again, or after its first pose)
-    thumbs(window.trame.state.get("thumbs"));
-    shown(window.trame.state.get("shown"));
-    window.trame.trigger("mw_hello");
-  }
-  hook();
-})();
-"""
+#: the page's style and script, files of their own served with the page
+_CSS = Path(__file__).with_name("page.css").read_text(encoding="utf-8")
+_JS = Path(__file__).with_name("page.js").read_text(encoding="utf-8")
 
 
 @dataclass(frozen=True)
@@ -254,56 +115,6 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _enc(a: np.ndarray, dtype: Any) -> dict[str, Any] | list[Any]:
-    """An array in the form the page decodes (base64 of its bytes, with its type).
-
-    An empty one as an empty list (vtk.js cannot decode an empty base64 string).
-    """
-    b = np.ascontiguousarray(a, dtype=dtype).ravel()
-    if not b.size:
-        return []
-    return {
-        "bvals": base64.b64encode(b.tobytes()).decode("ascii"),
-        "dtype": str(b.dtype),
-        "shape": [b.size],
-    }
-
-
-def _cells(F: np.ndarray) -> dict[str, Any] | list[Any]:
-    """Cells (k, n) in VTK's legacy form: ``n, i0, ..., n, i0, ...``."""
-    F = np.asarray(F)
-    if not len(F):
-        return _enc(np.zeros(0), np.uint32)
-    return _enc(np.column_stack([np.full(len(F), F.shape[1]), F]), np.uint32)
-
-
-def _points(P: np.ndarray) -> dict[str, Any] | list[Any]:
-    P = np.where(np.isfinite(P), P, 0.0)
-    return _enc(P, np.float32)
-
-
-def _polylines(
-    lines: list[np.ndarray],
-) -> tuple[dict[str, Any] | list[Any], dict[str, Any] | list[Any]]:
-    """Poly-lines as one point array and one cell array."""
-    if not lines:
-        return _points(np.zeros((0, 3))), _enc(np.zeros(0), np.uint32)
-    P = np.vstack(lines)
-    cells, o = [], 0
-    for pts in lines:
-        cells += [len(pts), *range(o, o + len(pts))]
-        o += len(pts)
-    return _points(P), _enc(np.array(cells), np.uint32)
-
-
-@dataclass
-class _Request:
-    kind: str  # "values" or "frame"
-    values: dict[str, float] = field(default_factory=dict)
-    frame: int | None = None
-    id: int = 0
-
-
 def open_source(path: str | os.PathLike[str], **kw: Any) -> LiveScene | Series:
     """A scene file (.toml) as a `LiveScene`, or a run's folder (with scene.pvd) as a `Series`."""
     p = Path(path)
@@ -338,14 +149,14 @@ class Viewer:
         from trame.app import get_server
 
         self.source = source
-        self.live = isinstance(source, LiveScene)
+        self.src: Source = LiveSource(source) if isinstance(source, LiveScene) else Playback(source)
         self.output = Path(output) if output is not None else Path("musclewrap_poses")
         self.server = server or get_server(f"musclewrap-{id(self)}", client_type="vue3")
         self.state, self.ctrl = self.server.state, self.server.controller
-        self.n_frames = source.n_frames if self.live else len(source)
-        self.times = source.times
-        self.coords = source.coordinates if self.live else []
-        self._want: _Request | None = None
+        self.n_frames = self.src.n_frames
+        self.times = self.src.times
+        self.coords = self.src.coordinates
+        self._want: Request | None = None
         # the sliders as the user left them: a solved pose is not sent back to the slider the
         # user holds (a pose behind the hand would pull its thumb back)
         self._values: dict[str, float] = {}
@@ -355,13 +166,11 @@ class Viewer:
         self._wake = threading.Event()
         self._stop = False
         self._serial = 0
-        self._sent: dict[str, Any] = {}  # per bone: its transform (or file) last sent
-        self._last: PoseResult | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._playing_task: asyncio.Task[Any] | None = None
         self._drawn = threading.Event()
         self._camera: dict[str, Any] | None = None  # the run's pictures' camera, once known
-        self._names = self._part_names()
+        self._names = self.src.names
         self._init_state()
         self._build_ui()
         self.server.trigger("mw_input")(self._on_input)
@@ -374,21 +183,6 @@ class Viewer:
         self._thread = threading.Thread(target=self._work, name="musclewrap-solver", daemon=True)
 
     # ------------------------------------------------------------------ parts
-    def _part_names(self) -> dict[str, list[str]]:
-        if self.live:
-            src: LiveScene = self.source  # type: ignore[assignment]
-            return {
-                "muscle": [j.name for j in src.jobs],
-                "bone": list(src.bone_body),
-                "lines": [j.name for j in src.jobs],
-                "fibres": [j.name for j in src.jobs] if src.scene.fibres is not None else [],
-            }
-        s: Series = self.source  # type: ignore[assignment]
-        out: dict[str, list[str]] = {"muscle": [], "bone": [], "lines": [], "fibres": []}
-        for name, kind in s.parts.items():
-            out[kind].append(name)
-        return out
-
     def _init_state(self) -> None:
         st = self.state
         st.colour = "stretch"
@@ -399,11 +193,11 @@ class Viewer:
         st.background = [1, 1, 1]
         st.thumbs = {"serial": 0, "values": {}}
         st.playing = False
-        st.status = "solving the first pose ..." if self.live else "reading the first frame ..."
+        st.status = self.src.first_status
         st.warning = ""
         st.written = ""
         st.shown = {"serial": 0, "id": 0, "server": 0.0, "solve": 0.0}
-        st.time_text = self._time_text(0)
+        st.time_text = time_text(self.times, self.n_frames, 0)
         for i, c in enumerate(self.coords):
             self._values[c.name] = v = 0.5 * (c.low + c.high)
             st[f"q{i}_label"] = f"{v:.2f} {c.unit}"
@@ -411,35 +205,9 @@ class Viewer:
             for i, _ in enumerate(names):
                 # nothing yet (vtk.js leaves a null array alone)
                 st[f"{kind}{i}_p"] = st[f"{kind}{i}_c"] = st[f"{kind}{i}_f"] = None
-        # the triangles, once: only the points move (a scene's with its first pose: its
-        # muscles' solvers are built in the solver thread, while the page loads)
-        self._faces_due = self.live
-        if not self.live:
-            for kind, F in self._faces().items():
-                st[kind] = _cells(F)
-
-    def _faces(self) -> dict[str, np.ndarray]:
-        """Each muscle's and bone's triangles, by the name of their state."""
-        out = {}
-        if self.live:
-            src: LiveScene = self.source  # type: ignore[assignment]
-            self._bone_meshes = src.bone_meshes()
-            for i, n in enumerate(self._names["muscle"]):
-                out[f"muscle{i}_f"] = src.muscle_faces(n)
-            for i, b in enumerate(self._names["bone"]):
-                out[f"bone{i}_f"] = self._bone_meshes[b][1]
-            return out
-        s: Series = self.source  # type: ignore[assignment]
-        for kind in ("muscle", "bone"):
-            for i, n in enumerate(self._names[kind]):
-                first = next((k for k in range(len(s)) if n in s.files[k]), None)
-                if first is not None:
-                    out[f"{kind}{i}_f"] = triangles(s.part(first, n))  # type: ignore[arg-type]
-        return out
-
-    def _time_text(self, k: int) -> str:
-        t = float(self.times[k]) if len(self.times) else 0.0
-        return f"frame {k} of {self.n_frames - 1}, t = {t:.3f} s"
+        # the triangles, once: only the points move (a live scene's with its first pose)
+        for kind, F in self.src.faces().items():
+            st[kind] = F
 
     # ------------------------------------------------------------------ the page
     def _build_ui(self) -> None:
@@ -447,11 +215,7 @@ class Viewer:
         from trame.widgets import client, html
         from trame.widgets import vtk as vtkw
 
-        title = (
-            f"musclewrap view: {self.source.scene.name or self.source.scene.path.name}"
-            if self.live
-            else f"musclewrap view: {self.source.folder}"
-        )
+        title = self.src.title
         with DivLayout(self.server) as layout:
             self.ui = layout
             client.Style(_CSS)
@@ -473,12 +237,12 @@ class Viewer:
                         "{{ playing ? 'Pause' : 'Play' }}", click="trigger('mw_play')", id="play"
                     )
                     html.Button("Reset view", click="trigger('mw_camera')", id="reset-view")
-                    if self.live:
+                    if self.src.can_write:
                         html.Button("Write this pose", click="trigger('mw_write')", id="write")
                     with html.Div(classes="mw-row"):
                         html.Label("colour", for_="colour", __properties=[("for_", "for")])
-                        offered = list(COLOURS) if self.live else ["stretch"]
-                        what = self._kept_out_of()
+                        offered = self.src.colourings
+                        what = self.src.kept_out_of
                         with html.Select(v_model=("colour",), id="colour"):
                             for key in offered:
                                 html.Option(COLOURS[key][0].format(what=what), value=key)
@@ -502,12 +266,6 @@ class Viewer:
                     with html.Div(classes="mw-status", id="status"):
                         html.Div("update -", id="mw-update")
                         html.Div("{{ status }}", id="mw-figures")
-
-    def _kept_out_of(self) -> str:
-        """What the contact colouring measures to: the bones, and the muscles kept apart."""
-        if self.live and self.source.grouped:  # type: ignore[union-attr]
-            return "a bone or another muscle"
-        return "a bone"
 
     def _representations(self, vtkw: Any) -> None:
         for i, _ in enumerate(self._names["bone"]):
@@ -536,7 +294,7 @@ class Viewer:
         self._loop = asyncio.get_event_loop()
         if not self._thread.is_alive():
             self._thread.start()
-        self.request(_Request("frame", frame=0))
+        self.request(Request("frame", frame=0))
 
     def _on_hello(self) -> None:
         # a page (a new one, or one loaded again) has its script running: the camera,
@@ -547,10 +305,10 @@ class Viewer:
     def _on_input(self, name: str, value: float, ident: int = 0) -> None:
         if name == "__frame__":
             self._frame = int(round(value))
-            self.request(_Request("frame", frame=self._frame, id=int(ident)))
+            self.request(Request("frame", frame=self._frame, id=int(ident)))
             return
         self._values[name] = float(value)
-        self.request(_Request("values", values=dict(self._values), id=int(ident)))
+        self.request(Request("values", values=dict(self._values), id=int(ident)))
 
     def _on_write(self) -> None:
         self._writes += 1
@@ -562,7 +320,7 @@ class Viewer:
             self._playing_task = asyncio.ensure_future(self._play())
 
     def _on_colour(self, colour: str, **_: Any) -> None:
-        if colour not in COLOURS or self._last is None:
+        if colour not in self.src.colourings or self._serial == 0:
             return  # (the first pose comes in the colouring shown)
         # the colours in the solver thread (contact's distances take a few tens of ms)
         self._recolour = True
@@ -573,7 +331,7 @@ class Viewer:
             while self.state.playing:
                 k = self._frame = (self._frame + 1) % max(1, self.n_frames)
                 self._drawn.clear()
-                self.request(_Request("frame", frame=k))
+                self.request(Request("frame", frame=k))
                 # the next frame once this one is sent (at most 30 a second)
                 t = time.perf_counter()
                 while not self._drawn.is_set() and self.state.playing:
@@ -582,7 +340,7 @@ class Viewer:
         finally:
             self._playing_task = None
 
-    def request(self, r: _Request) -> None:
+    def request(self, r: Request) -> None:
         """Ask for a pose (the latest request wins)."""
         self._want = r
         self._wake.set()
@@ -597,7 +355,7 @@ class Viewer:
                 self._write()
             if self._recolour:
                 self._recolour = False
-                self._send(self._colours(self._last))
+                self._send(self.src.colours(self.state.colour))
             r, self._want = self._want, None
             if r is None:
                 continue
@@ -617,27 +375,16 @@ class Viewer:
         if self._camera is not None:
             self.view.set_camera(self._camera)
 
-    def _show(self, r: _Request) -> None:
+    def _show(self, r: Request) -> None:
         t0 = time.perf_counter()
         if self._camera is None:
             # framed for a square view: whole in any view wider than it is tall
-            v = self.source.view(size=(1, 1))
+            v = self.src.view(size=(1, 1))
             self._camera = {
                 "focalPoint": list(v.focal), "position": list(v.position), "viewUp": list(v.up),
                 "viewAngle": v.angle, "centerOfRotation": list(v.focal),
             }  # fmt: skip
-        if self.live:
-            src: LiveScene = self.source  # type: ignore[assignment]
-            res = src.solve(
-                r.values if r.kind == "values" else None,
-                frame=r.frame if r.kind == "frame" else None,
-            )
-            self._last = res
-            t_solve = time.perf_counter() - t0
-            update = self._live_state(res, r)
-        else:
-            update = self._series_state(int(r.frame or 0))
-            t_solve = time.perf_counter() - t0
+        update, t_solve = self.src.pose(r, self._values, self.state.colour)
         if r.kind == "frame":
             # the coordinates' sliders go to the frame's pose; the time slider too unless the
             # hand is on it
@@ -653,109 +400,24 @@ class Viewer:
             "solve": 1e3 * t_solve,
         }
         self._send(update)
-        if self.live and self._serial == 1:
-            # the contact colours' distances once, after the first picture: their kernels
-            # compiled (or read from Numba's cache) before the colour menu asks for them
-            self.source.contact(self._last)  # type: ignore[union-attr]
-
-    def _live_state(self, res: PoseResult, r: _Request) -> dict[str, Any]:
-        up: dict[str, Any] = {}
-        if self._faces_due:  # the triangles, with the first pose
-            up.update({kind: _cells(F) for kind, F in self._faces().items()})
-            self._faces_due = False
-        for i, b in enumerate(self._names["bone"]):
-            T = res.bones[b]
-            if not np.array_equal(self._sent.get(b), T):  # a bone moved in the output frame
-                V = self._bone_meshes[b][0]
-                up[f"bone{i}_p"] = _points(apply_transform(T, V))
-                self._sent[b] = T
-        for i, n in enumerate(self._names["muscle"]):
-            up[f"muscle{i}_p"] = _points(res.muscles[n])
-            up[f"lines{i}_p"], up[f"lines{i}_f"] = _polylines(res.lines[n])
-        for i, n in enumerate(self._names["fibres"]):
-            P = res.fibres.get(n)
-            up[f"fibres{i}_p"], up[f"fibres{i}_f"] = _polylines([] if P is None else list(P))
-        up.update(self._colours(res))
-        if r.frame is not None:
-            up["time_text"] = self._time_text(r.frame)
-        else:
-            up["time_text"] = "a pose of the sliders (not a frame)"
-        for i, c in enumerate(self.coords):
-            v = float(res.values[c.name])
-            up[f"q{i}_label"] = f"{v:.2f} {c.unit}"  # the pose shown
-            if r.kind == "frame":  # the sliders go to the frame's pose
-                self._values[c.name] = v
-        unit = self.source.scene.mesh_unit  # type: ignore[union-attr]
-        overlap = res.overlap
-        up["status"] = (
-            f"volume error {res.volume_error:.1e} (largest of {len(res.rows)} muscles) · deepest "
-            f"in a bone {res.penetration:.3g} {unit}"
-            + ("" if np.isnan(overlap) else f" · deepest in another muscle {overlap:.3g} {unit}")
-            + f" · iterations {max(row['iterations'] for row in res.rows.values())}"
-        )
-        bad = res.unconverged
-        up["warning"] = (
-            "NOT CONVERGED at this pose: "
-            + "; ".join(f"{n}: {why}" for n, why in bad.items())
-            + " (the muscles shown are the solver's last iterate)"
-            if bad
-            else ""
-        )
-        return up
-
-    def _colours(self, res: PoseResult) -> dict[str, Any]:
-        """The muscles' colours of a pose (RGB), in the colouring the menu shows."""
-        contact = self.state.colour == "contact"
-        up: dict[str, Any] = {}
-        for i, n in enumerate(self._names["muscle"]):
-            if contact:
-                rgb = contact_colours(self.source.contact(res)[n])  # type: ignore[union-attr]
-            else:
-                rgb = stretch_colours(res.stretch[n])
-            up[f"muscle{i}_c"] = _enc(rgb, np.uint8)
-        return up
-
-    def _series_state(self, k: int) -> dict[str, Any]:
-        s: Series = self.source  # type: ignore[assignment]
-        up: dict[str, Any] = {"time_text": self._time_text(k)}
-        for kind in ("muscle", "bone"):
-            for i, n in enumerate(self._names[kind]):
-                d = s.part(k, n)
-                if d is None:
-                    continue
-                if kind == "bone" and self._sent.get(n) == s.files[k][n]:
-                    continue  # the same file as shown: a bone that does not move
-                self._sent[n] = s.files[k][n]
-                up[f"{kind}{i}_p"] = _points(d["points"])
-                if kind == "muscle":
-                    c = d.get("point:area_stretch", np.ones(len(d["points"])))
-                    up[f"muscle{i}_c"] = _enc(stretch_colours(c), np.uint8)
-        for kind in ("lines", "fibres"):
-            for i, n in enumerate(self._names[kind]):
-                d = s.part(k, n)
-                if d is None:
-                    continue
-                up[f"{kind}{i}_p"] = _points(d["points"])
-                up[f"{kind}{i}_f"] = _cells(segments(d))
-        up["status"] = f"playing back {s.folder / 'scene.pvd'} ({len(s)} frames; no solve)"
-        return up
+        if self._serial == 1:
+            self.src.after_first()
 
     def _write(self) -> None:
-        src = self.source
-        res = self._last
-        if not self.live or res is None:
-            return
+        if not self.src.can_write or self._serial == 0:
+            return  # a run played back, or no pose shown yet
         self.output.mkdir(parents=True, exist_ok=True)
         k = 0
         while (self.output / f"pose_{k:03d}").exists():
             k += 1
         folder = self.output / f"pose_{k:03d}"
         try:
-            files = src.write(res, folder)  # type: ignore[union-attr]
+            files = self.src.write(folder)
         except OSError as exc:
             self._send({"written": f"could not write {folder}: {exc}"})
             return
-        self._send({"written": f"wrote {len(files)} files to {folder.resolve()}"})
+        if files is not None:
+            self._send({"written": f"wrote {len(files)} files to {folder.resolve()}"})
 
     def _send(self, update: dict[str, Any]) -> None:
         loop = self._loop

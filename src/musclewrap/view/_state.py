@@ -1,0 +1,109 @@
+"""The page's state: arrays as the page decodes them, colours, the pose asked for.
+
+What both of the viewer's sources (`._sources`) and its app (`._app`) put in the trame
+state: positions, triangles and poly-lines as typed arrays (base64 of their bytes),
+colours as RGB, the time line's words.
+"""
+
+from __future__ import annotations
+
+import base64
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..constants import defaults
+
+__all__ = [
+    "CONTACT_STOPS",
+    "Request",
+    "cells",
+    "contact_colours",
+    "css_rgb",
+    "encode",
+    "points",
+    "polylines",
+    "time_text",
+]
+
+
+@dataclass
+class Request:
+    """A pose the page asks for: the sliders' ``values``, or ``frame`` of the motion."""
+
+    kind: str  # "values" or "frame"
+    values: dict[str, float] = field(default_factory=dict)
+    frame: int | None = None
+    id: int = 0
+
+
+def time_text(times: FloatArray, n_frames: int, k: int) -> str:
+    """The time slider's words for frame ``k``."""
+    t = float(times[k]) if len(times) else 0.0
+    return f"frame {k} of {n_frames - 1}, t = {t:.3f} s"
+
+
+def css_rgb(c: np.ndarray) -> str:
+    """A colour (RGB in 0-1) as CSS writes it."""
+    r, g, b = np.rint(255.0 * np.asarray(c)).astype(int)
+    return f"rgb({r}, {g}, {b})"
+
+
+#: the contact colouring: black (touching), red halfway, yellow at
+#: ``defaults.view_contact_reach`` and beyond
+CONTACT_STOPS = np.array([[0.0, 0.0, 0.0], [0.9, 0.0, 0.0], [0.9, 0.9, 0.0]])
+
+
+def contact_colours(distance: np.ndarray) -> np.ndarray:
+    """Each distance's colour: (k, 3) uint8 (mesh units, clipped to ``defaults.view_contact_reach``)."""
+    u = (
+        np.clip(np.asarray(distance, dtype=np.float64), 0.0, defaults.view_contact_reach)
+        / defaults.view_contact_reach
+    )
+    at = np.linspace(0.0, 1.0, len(CONTACT_STOPS))
+    rgb = np.column_stack([np.interp(u, at, CONTACT_STOPS[:, k]) for k in range(3)])
+    return np.rint(255.0 * rgb).astype(np.uint8)
+
+
+def encode(a: np.ndarray, dtype: Any) -> dict[str, Any] | list[Any]:
+    """An array in the form the page decodes (base64 of its bytes, with its type).
+
+    An empty one as an empty list (vtk.js cannot decode an empty base64 string).
+    """
+    b = np.ascontiguousarray(a, dtype=dtype).ravel()
+    if not b.size:
+        return []
+    return {
+        "bvals": base64.b64encode(b.tobytes()).decode("ascii"),
+        "dtype": str(b.dtype),
+        "shape": [b.size],
+    }
+
+
+def cells(F: np.ndarray) -> dict[str, Any] | list[Any]:
+    """Cells (k, n) in VTK's legacy form: ``n, i0, ..., n, i0, ...``."""
+    F = np.asarray(F)
+    if not len(F):
+        return encode(np.zeros(0), np.uint32)
+    return encode(np.column_stack([np.full(len(F), F.shape[1]), F]), np.uint32)
+
+
+def points(P: np.ndarray) -> dict[str, Any] | list[Any]:
+    P = np.where(np.isfinite(P), P, 0.0)
+    return encode(P, np.float32)
+
+
+def polylines(
+    lines: list[np.ndarray],
+) -> tuple[dict[str, Any] | list[Any], dict[str, Any] | list[Any]]:
+    """Poly-lines as one point array and one cell array."""
+    if not lines:
+        return points(np.zeros((0, 3))), encode(np.zeros(0), np.uint32)
+    P = np.vstack(lines)
+    cells, o = [], 0
+    for pts in lines:
+        cells += [len(pts), *range(o, o + len(pts))]
+        o += len(pts)
+    return points(P), encode(np.array(cells), np.uint32)
