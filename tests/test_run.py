@@ -7,6 +7,7 @@ import pytest
 
 from musclewrap.cli import main
 from musclewrap.mesh import write_mesh
+from musclewrap.run import RunOptions
 from musclewrap.scene import (
     REPORT_FIELDS,
     SceneError,
@@ -145,6 +146,25 @@ def test_line_csv_scene_runs_and_writes_everything(tmp_path):
     assert s2.cache_hits == ["fusiform"]
     a = (out / "fusiform" / "fusiform_0006.vtp").read_bytes()
     assert a == (tmp_path / "out2" / "fusiform" / "fusiform_0006.vtp").read_bytes()
+
+
+def test_run_options_as_a_record_or_keywords_give_the_same_run(tmp_path):
+    _, toml = _write_demo(tmp_path, n_frames=3)
+    scene = load_scene(toml)
+    opts = RunOptions(frames="0:3:2", cache_dir=tmp_path / "cache", progress=None)
+    a = run_scene(scene, tmp_path / "a", opts)
+    # a keyword beside the record takes the place of the record's field
+    b = run_scene(scene, tmp_path / "b", opts, frames="0:3:1")
+    c = run_scene(
+        scene, tmp_path / "c", frames="0:3:2", cache_dir=tmp_path / "cache", progress=None
+    )
+    assert a.n_frames == c.n_frames == 2 and b.n_frames == 3
+    for k in (0, 2):
+        name = f"fusiform/fusiform_{k:04d}.vtp"
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "c" / name).read_bytes()
+    with pytest.raises(TypeError, match="unknown run option.*framez.*RunOptions has frames"):
+        run_scene(scene, tmp_path / "d", framez="0:3")
+    assert not (tmp_path / "d").exists()
 
 
 def test_corrupted_cache_is_rebuilt_not_used(tmp_path):

@@ -13,7 +13,7 @@ from ._check import CheckReport, Finding, check_scene
 from ._dask import DaskExecutor, connect
 from ._execute import Executor, LocalExecutor, Node, ProcessExecutor, Runner, run_task
 from ._live import CheckError, Coordinate, LiveScene, PoseResult, refusal
-from ._run import REPORT_FIELDS, RunSummary, default_cache_dir, run_batch, run_scene
+from ._run import REPORT_FIELDS, RunOptions, RunSummary, default_cache_dir, run_batch, run_scene
 from ._verify import inside_depth, inside_depths, muscle_overlaps, verify_run
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "Node",
     "PoseResult",
     "ProcessExecutor",
+    "RunOptions",
     "RunSummary",
     "Runner",
     "check_scene",

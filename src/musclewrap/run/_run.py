@@ -12,6 +12,7 @@ this process drives the motions, plans, and writes each finished scene.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import sys
 import tempfile
@@ -59,22 +60,61 @@ from ._records import ChunkResult, Comparison, FrameSpan, MuscleJob, MuscleOutco
 from ._work import Compare, DeformChunk, DeformGroup, FollowPath, Prepare, ProbeBone
 from ._write import GIF, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
 
-__all__ = ["REPORT_FIELDS", "RunSummary", "default_cache_dir", "run_batch", "run_scene"]
+__all__ = [
+    "REPORT_FIELDS",
+    "RunOptions",
+    "RunSummary",
+    "default_cache_dir",
+    "run_batch",
+    "run_scene",
+]
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How a run goes: the options `run_scene` and `run_batch` take, as one record.
+
+    Attributes
+    ----------
+    frames : str, optional
+        ``start:stop:step`` over the motion's rows.
+    workers : int
+        Processes over muscles and chunks of frames (1: in this process).
+    cache_dir : path, True or False
+        Where preparations are cached (True: the scene's ``cache_dir`` or
+        `default_cache_dir`; False: no cache).
+    progress : file-like or None
+        Where the progress bar goes.
+    render : bool, optional
+        Write ``scene.gif`` (default: the scene's ``[output] gif``).
+    log : callable, optional
+        Receives one-line messages (repairs, notes) as they happen.
+    resume : bool
+        Go on from an interrupted run into the same output folder: its finished
+        frame chunks (recorded in ``OUTDIR/.musclewrap-run``) are kept, the rest
+        run; refused if the scene, a file it names or the frames changed. The
+        outputs are the same as those of an uninterrupted run.
+    collisions : bool, optional
+        Keep the muscles out of the scene's bones (default: the scene's
+        ``[collisions] enabled``, on whenever it has bones).
+    executor : Executor or distributed.Client, optional
+        Where the tasks run (default: from ``workers``); a ``dask.distributed``
+        client sends them to its cluster (`musclewrap.run.DaskExecutor`).
+    """
+
+    frames: str | None = None
+    workers: int = 1
+    cache_dir: Path | None | bool = True
+    progress: Any = sys.stderr
+    render: bool | None = None
+    log: Callable[[str], None] | None = None
+    resume: bool = False
+    collisions: bool | None = None
+    executor: Executor | Any | None = None
 
 
 def run_scene(
-    scene: Scene,
-    outdir: Path,
-    *,
-    frames: str | None = None,
-    workers: int = 1,
-    cache_dir: Path | None | bool = True,
-    progress: Any = sys.stderr,
-    render: bool | None = None,
-    log: Callable[[str], None] | None = None,
-    resume: bool = False,
-    collisions: bool | None = None,
-    executor: Executor | Any | None = None,
+    scene: Scene, outdir: Path, options: RunOptions | None = None, **kw: Any
 ) -> RunSummary:
     """Deform every muscle of a scene for every selected frame and write all outputs.
 
@@ -84,72 +124,39 @@ def run_scene(
         From `load_scene`.
     outdir : pathlib.Path
         Output folder (created).
-    frames : str, optional
-        ``start:stop:step`` over the motion's rows.
-    workers : int, optional
-        Processes over muscles and chunks of frames (1: in this process).
-    cache_dir : path, True or False, optional
-        Where preparations are cached (True: the scene's ``cache_dir`` or
-        `default_cache_dir`; False: no cache).
-    progress : file-like or None, optional
-        Where the progress bar goes.
-    render : bool, optional
-        Write ``scene.gif`` (default: the scene's ``[output] gif``).
-    log : callable, optional
-        Receives one-line messages (repairs, notes) as they happen.
-    resume : bool, optional
-        Go on from an interrupted run into the same ``outdir``: its finished
-        frame chunks (recorded in ``outdir/.musclewrap-run``) are kept, the rest
-        run; refused if the scene, a file it names or the frames changed. The
-        outputs are the same as those of an uninterrupted run with the same
-        number of workers.
-    collisions : bool, optional
-        Keep the muscles out of the scene's bones (default: the scene's
-        ``[collisions] enabled``, on whenever it has bones).
-    executor : Executor or distributed.Client, optional
-        Where the tasks run (default: from ``workers``); a ``dask.distributed``
-        client sends them to its cluster (`musclewrap.scene.DaskExecutor`).
+    options : RunOptions, optional
+        How the run goes (default: `RunOptions`'s defaults).
+    **kw
+        Any of `RunOptions`'s fields, in place of those of ``options``
+        (``run_scene(scene, out, frames="0:211:10", workers=2)``).
 
     Returns
     -------
     RunSummary
     """
-    return run_batch(
-        [scene],
-        [outdir],
-        frames=frames,
-        workers=workers,
-        cache_dir=cache_dir,
-        progress=progress,
-        render=render,
-        log=log,
-        resume=resume,
-        collisions=collisions,
-        executor=executor,
-    )[0]
+    return run_batch([scene], [outdir], options, **kw)[0]
 
 
 def run_batch(
     scenes: Sequence[Scene],
     outdirs: Sequence[Path],
-    *,
-    frames: str | None = None,
-    workers: int = 1,
-    cache_dir: Path | None | bool = True,
-    progress: Any = sys.stderr,
-    render: bool | None = None,
-    log: Callable[[str], None] | None = None,
-    resume: bool = False,
-    collisions: bool | None = None,
-    executor: Executor | Any | None = None,
+    options: RunOptions | None = None,
+    **kw: Any,
 ) -> list[RunSummary]:
     """Run several scenes as one plan over one executor; one output folder each.
 
-    Parameters are those of `run_scene`, with a scene and an output folder per
-    run (``outdirs``, as many as ``scenes``, all different). Each muscle and bone
-    is prepared once for the whole batch (scenes that share a mesh share its
-    preparation). Returns a summary per scene, in order.
+    As `run_scene`, with a scene and an output folder per run (``outdirs``, as many
+    as ``scenes``, all different). Each muscle and bone is prepared once for the
+    whole batch (scenes that share a mesh share its preparation). Returns a summary
+    per scene, in order.
     """
+    unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(RunOptions)})
+    if unknown:
+        known = ", ".join(f.name for f in dataclasses.fields(RunOptions))
+        raise TypeError(f"unknown run option(s) {', '.join(unknown)}; RunOptions has {known}")
+    o = dataclasses.replace(options or RunOptions(), **kw)
+    frames, workers, cache_dir, progress = o.frames, o.workers, o.cache_dir, o.progress
+    render, log, resume, collisions, executor = o.render, o.log, o.resume, o.collisions, o.executor
     if len(scenes) != len(outdirs):
         raise ValueError(f"{len(scenes)} scene(s) but {len(outdirs)} output folder(s)")
     dirs = [Path(o).resolve() for o in outdirs]
