@@ -40,7 +40,7 @@ def test_vhf_scenarios_meet_targets(vhf_muscle, scenario, double_proxy):
     d = vhf_muscle.bind(rest)
     r = d.deform(cur)
     # the float32 proxy products only steer: the same iteration in double lands on the
-    # same mesh (at most 2.2e-9 of the size: python benchmarks/bench_accuracy.py)
+    # same mesh (at most 2.2e-9 of the size: python benchmarks/accuracy/bench_accuracy.py)
     r64 = double_proxy(d).deform(cur)
     size = np.linalg.norm(np.ptp(vhf_muscle.V, axis=0))
     assert np.abs(r.V - r64.V).max() <= 1e-8 * size

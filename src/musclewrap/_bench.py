@@ -1,12 +1,8 @@
-"""Benchmark helpers (shared by ``musclewrap bench capsule`` and ``benchmarks/``)."""
+"""The capsule benchmark of ``musclewrap bench capsule``, and its interleaved timing."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -14,19 +10,7 @@ from .coordinates import rows_dot
 from .solver import Muscle
 from .synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
 
-__all__ = ["capsule_benchmark", "interleaved_ms", "timed_run"]
-
-
-def timed_run(scene: str, out: Path, extra: list[str], checkout: Path | None = None) -> float:
-    """Wall seconds of ``musclewrap run SCENE -o OUT *extra`` in a new process (must succeed).
-
-    ``checkout``: another checkout's package runs it (its ``src`` first on ``PYTHONPATH``).
-    """
-    cmd = [sys.executable, "-m", "musclewrap.cli", "run", scene, "-o", str(out), *extra]
-    env = None if checkout is None else {**os.environ, "PYTHONPATH": str(checkout / "src")}
-    t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, capture_output=True, env=env)
-    return time.perf_counter() - t0
+__all__ = ["capsule_benchmark", "interleaved_ms"]
 
 
 def interleaved_ms(

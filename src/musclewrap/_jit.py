@@ -121,7 +121,7 @@ def compile_if_first_run(stream: TextIO | None = None) -> subprocess.Popen[bytes
     Numba's cache
     while this one reads, prepares and compiles what that needs; the first pose then
     finds them in the cache (6.0 s against 7.4 s for the preparation's own:
-    ``benchmarks/bench_first_run.py --kernels``; a pose that comes first compiles what
+    ``benchmarks/speed/bench_first_run.py --kernels``; a pose that comes first compiles what
     it lacks itself). None if
     the kernels were in the cache already, or this machine has one CPU.
     """

@@ -39,7 +39,7 @@ class Tolerances:
         rounding error grows as its inverse; on the VHF meshes the rest mesh is
         reproduced to at most 3.2e-11 of its size with 1e-7, against 1.4e-10
         (semitendinosus) with 1e-10 and 4.7e-10 with 1e-6
-        (``python benchmarks/bench_accuracy.py``).
+        (``python benchmarks/accuracy/bench_accuracy.py``).
     merge_vertices : float
         Distance, relative to the bounding-box diagonal, under which two mesh
         vertices are merged on load.
@@ -91,7 +91,7 @@ class Defaults:
         Weight of the anchors (fine vertices held at their rest positions, where
         a muscle starts on a bone of its own body) relative to the Laplacian,
         scaled as the skeleton's by ``sqrt(m / k)`` for ``k`` anchors. Swept on the
-        LHDL hip sweeps (``benchmarks/bench_anchor_weight.py``, BENCHMARKS.md): the
+        LHDL hip sweeps (``benchmarks/tuning/bench_anchor_weight.py``, BENCHMARKS.md): the
         iliacus's largest shape change in flexion is 0.49 / 0.48 / 0.48 / 0.51 /
         0.52 mean edges at 0.5 / 0.6 / 0.7 / 0.8 / 1, every other muscle and sweep
         <= 0.42 at all of them; 0.6 is the middle of the range that keeps 0.5.
@@ -117,7 +117,7 @@ class Defaults:
         a segmented mesh leaves out (gait2392's semitendinosus path runs 175 mm
         past the VHF mesh, to the tibia), and there the samples' mean value
         coordinates extrapolate the cage. Measured on either side
-        (``benchmarks/bench_thresholds.py --only reach``, BENCHMARKS.md): that
+        (``benchmarks/tuning/bench_thresholds.py --only reach``, BENCHMARKS.md): that
         semitendinosus's fibre moment arms are smooth from 0.5 to 4 (none off by
         3 mm) and up to 1,208 mm off with every sample bound; below 1 the lines that
         run beside their muscle lose much of their length (adductor longus 56 % at
@@ -137,7 +137,7 @@ class Defaults:
     memory_per_face : float
         Peak memory, in bytes per face of the fine mesh, of checking,
         preparing and deforming a muscle, as measured by
-        ``benchmarks/bench_large.py --scene`` (1.25M and 3.1M faces: 3.5 and
+        ``benchmarks/speed/bench_large.py --scene`` (1.25M and 3.1M faces: 3.5 and
         8.3 GiB, a slope of 2.6 KiB per face, with margin). A muscle that
         needs more than the memory available is refused before preparation.
     contact_rounds : int
@@ -217,7 +217,7 @@ class Defaults:
         its triangles' centroids; beyond it, libigl's tree. On the gait2392 walk every
         10th frame the grid takes the calls of 201-5,000 points in 0.34 s against the
         tree's 0.56 s, those of over 5,000 in 2.2 against 0.48 s (`python
-        benchmarks/bench_closest.py --scene examples/gait2392_walk.toml`): 200 kept, too
+        benchmarks/speed/bench_closest.py --scene examples/gait2392_walk.toml`): 200 kept, too
         little to gain to change the results' last bits for.
     fibre_inside_depth : float
         How far inside the surface a fibre point found outside it is put, in grid cells

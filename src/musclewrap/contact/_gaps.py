@@ -40,7 +40,7 @@ class FacesWithin:
         The grid's cells' width (default ``reach``; wider where the grid would have more
         than `_MAX_CELLS`). The distances do not depend on it, only their time: on the
         LHDL walk and the gait2392 scene cells as wide as the reach were the quickest
-        of 1, 1/2 and 1/3 of it (``benchmarks/bench_view.py SCENE --phases``).
+        of 1, 1/2 and 1/3 of it (``benchmarks/speed/bench_view.py SCENE --phases``).
     """
 
     def __init__(self, V: FloatArray, F: IntArray, reach: float, cell: float | None = None) -> None:

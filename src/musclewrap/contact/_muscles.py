@@ -12,7 +12,7 @@ muscles meet where they face each other at rest: the way out of muscle ``b`` for
 vertex of muscle ``a`` is the nearest point on the faces of ``b`` that lie within
 ``reach`` of ``a``'s surface at rest, or inside it (`facing_faces`): muscles slide
 along each other, they do not go round. Measured on the gait2392 walk's worst frames
-(`python benchmarks/bench_thresholds.py --only facing`): the faces within 5, 10 or 15 mm
+(`python benchmarks/tuning/bench_thresholds.py --only facing`): the faces within 5, 10 or 15 mm
 at rest leave no vertex more than 0.07 mm inside another; within 25 mm, or all faces
 (the nearest way out), 1.1-1.3 mm.
 
@@ -89,7 +89,7 @@ def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, Flo
     centroids round the point (one pass over the triangles to bin them, no tree); else
     libigl's AABB tree (about 0.4 us per triangle to build, per call: the surface moves
     every round). On capsules the grid is 5-23 times quicker than the tree up to 1,000
-    points (`python benchmarks/bench_closest.py`).
+    points (`python benchmarks/speed/bench_closest.py`).
     """
     P = np.ascontiguousarray(P, dtype=np.float64)
     V = np.ascontiguousarray(V, dtype=np.float64)

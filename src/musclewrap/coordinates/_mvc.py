@@ -195,7 +195,7 @@ def _face_edges(CF: IntArray) -> tuple[IntArray, IntArray]:
 def _rows_dot_kernel(W, XT, out):  # pragma: no cover - compiled
     # six columns at once: each entry of W is loaded once and feeds six independent
     # sums (1.5x faster than six separate dot products per row on the capsule:
-    # `python benchmarks/bench_kernels.py`)
+    # `python benchmarks/speed/bench_kernels.py`)
     n, m = W.shape
     for r in numba.prange(n):
         s0 = s1 = s2 = s3 = s4 = s5 = 0.0

@@ -34,7 +34,7 @@ def mean_rows(V: FloatArray) -> FloatArray:
     """Mean of the rows of an (n, 3) array, like ``V.mean(axis=0)`` but one compiled pass.
 
     numpy reduces an (n, 3) array along axis 0 through a slow strided loop:
-    103 us for 6,400 rows against 7 us here (`python benchmarks/bench_kernels.py`).
+    103 us for 6,400 rows against 7 us here (`python benchmarks/speed/bench_kernels.py`).
     """
     return _mean_rows_kernel(np.ascontiguousarray(V, dtype=np.float64))
 
@@ -182,7 +182,7 @@ def volume_cubic(A: FloatArray, B: FloatArray, F: IntArray) -> FloatArray:
 
 
 # The face loops may fuse multiplies and adds and reorder the additions of one face's
-# terms: the volume cubic is 1.2-2x faster (`python benchmarks/bench_kernels.py`, item 4),
+# terms: the volume cubic is 1.2-2x faster (`python benchmarks/speed/bench_kernels.py`, item 4),
 # and its coefficients move by about 5e-15 relative. Without the other fast-math flags, so
 # NaN and infinity still propagate and are caught.
 _FACE_MATH = {"contract", "reassoc"}
@@ -284,7 +284,7 @@ def _cubic_pair_py(XU, F):  # pragma: no cover - compiled
 
 
 # Each reduction is compiled twice: threads pay off from about 10K faces (1.2-2x faster
-# alone on the capsule's 30K faces in runs of `python benchmarks/bench_kernels.py`, item 4);
+# alone on the capsule's 30K faces in runs of `python benchmarks/speed/bench_kernels.py`, item 4);
 # below that the start of a parallel region costs more than it saves. Inside a whole pose of
 # 15-30K faces the two differ by 2 % at most (item 6). The chunks are the same either way,
 # and so is every bit of the sum.

@@ -2,7 +2,7 @@
 
 Run as a script (``python _picture_server.py``), not imported: it needs only VTK and
 NumPy, so it starts in about 0.4 s, where importing musclewrap (with Numba) and
-building PyVista's plotter took about 1.7 s (`benchmarks/bench_pictures.py`). VTK can crash the process at the first render where no
+building PyVista's plotter took about 1.7 s (`benchmarks/speed/bench_pictures.py`). VTK can crash the process at the first render where no
 OpenGL backend exists; the process that started this one reads that as a clear error
 (`._render.Renderer`).
 

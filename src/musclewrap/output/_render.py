@@ -448,7 +448,7 @@ def save_gif(
     Returns the files written (the GIF, and the PNG beside it when a task kept the
     still). Nothing is written if a task failed. ``optimize``: Pillow's palette
     optimisation (for the LHDL walk's 71 pictures 0.14 s more, for a GIF 14 % smaller:
-    `benchmarks/bench_pictures.py`).
+    `benchmarks/speed/bench_pictures.py`).
 
     Raises
     ------

@@ -479,7 +479,7 @@ class LiveScene:
         trilinear distance, used before, was up to 4.3 mm off on the LHDL walk (a vertex
         0.7 mm from the femur coloured as 5 mm away, where its cell left the grid's exact
         band). Computed when first asked for, then kept in ``result.contact``
-        (``benchmarks/bench_view.py SCENE --phases``, BENCHMARKS.md).
+        (``benchmarks/speed/bench_view.py SCENE --phases``, BENCHMARKS.md).
         """
         if result.contact is None:
             ms, results, _ = result.solved

@@ -228,7 +228,7 @@ class Deformer(ContactSteps, PaperSteps):
         float32 (the default): they only steer the direction, the fine volume is
         corrected in double precision along it, and half the bytes come through the
         caches each pose. float64 gives the same iteration in double precision, the
-        reference of the tests and of ``benchmarks/bench_accuracy.py``.
+        reference of the tests and of ``benchmarks/accuracy/bench_accuracy.py``.
         """
         mu, C = self.muscle, self.muscle.cage.C
         self._steer_Wd = np.ascontiguousarray(mu.proxy_W, dtype=dtype)

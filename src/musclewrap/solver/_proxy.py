@@ -7,7 +7,7 @@ fixed-point iteration on the proxy is therefore one compiled call, and its two p
 iteration run in single precision from float32 copies of the matrices (half the bytes through
 the caches). On one thread the compiled products are as fast as numpy's at this size, and
 a float32 matrix with double-precision sums, which numpy can only do by copying the matrix
-to float64, twice as fast (`python benchmarks/bench_kernels.py`, item 5).
+to float64, twice as fast (`python benchmarks/speed/bench_kernels.py`, item 5).
 """
 
 from __future__ import annotations
@@ -224,7 +224,7 @@ def plain_iterations(
     fine volume is then corrected exactly along it in double precision. Against the
     same iteration in double precision the mesh moves by at most 2.2e-9 of the
     muscle's size, with the same number of iterations, on the capsule and every VHF
-    muscle in the five scenarios (``python benchmarks/bench_accuracy.py``); the tests
+    muscle in the five scenarios (``python benchmarks/accuracy/bench_accuracy.py``); the tests
     assert 1e-8 (``tests/test_core.py``, ``tests/test_realdata.py``).
     """
     return _plain_iterations(

@@ -26,7 +26,7 @@ __all__ = ["KneeDemo", "knee_demo", "write_knee_scene"]
 CONDYLE_RADIUS = 24.0
 #: how far over the condyles the action lines wrap (mm): at 3 mm a muscle 9.5 mm deep about
 #: its line is pressed into the bone in flexion, and the contact keeps it out
-#: (`benchmarks/bench_demo.py` measures other margins)
+#: (`benchmarks/speed/bench_demo.py` measures other margins)
 WRAP_MARGIN = 3.0
 #: where the muscles' lines run at rest (x, z; mm): from the femur's shaft (origin) to a
 #: point above the condyles (fixed on the femur), one below them and the tibia's front

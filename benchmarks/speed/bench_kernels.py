@@ -1,6 +1,6 @@
 """The per-pose kernels on their own, and the thread-pool contention that skewed the old timing.
 
-    python benchmarks/bench_kernels.py [--repeats 30]
+    python benchmarks/speed/bench_kernels.py [--repeats 30]
 
 On the 15K capsule's coordinate matrix (15,074 x 300) and its 30,144 faces, median times of:
 

@@ -1,6 +1,6 @@
 """Contact on motions nobody recorded: extreme hip motions and seeded random smooth ones.
 
-    python benchmarks/bench_motions.py [SCENE] [--random 5] [--seconds 3] [--check-every 2]
+    python benchmarks/accuracy/bench_motions.py [SCENE] [--random 5] [--seconds 3] [--check-every 2]
 
 Drives SCENE's model (default: examples/lhdl_walk.toml) with
 
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _extreme(sign: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:

@@ -1,6 +1,6 @@
 """Contact with bones on a whole scene: time with and without, and the independent check.
 
-    python benchmarks/bench_contact.py [SCENE] [--frames 0:211:1] [--check-every 10] [--no-timing]
+    python benchmarks/speed/bench_contact.py [SCENE] [--frames 0:211:1] [--check-every 10] [--no-timing]
         [--motion MOT [--negate COORDINATE ...]]
 
 Runs the scene warm (preparations cached by a first run) with contact on and with
@@ -32,14 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _run(
     scene: str, out: Path, frames: str, extra: list[str], checkout: Path | None = None
 ) -> float:
     """Wall seconds of one run (``checkout``: another checkout's package)."""
-    from musclewrap._bench import timed_run
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the shared helpers
+    from _common import timed_run
 
     return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra], checkout)
 

@@ -1,6 +1,6 @@
 """Where the time of one pose goes (default solver, capsule ``bend``).
 
-Run: ``python benchmarks/breakdown_pose.py [--repeats N] [--mesh PATH]`` (with ``--mesh``, a
+Run: ``python benchmarks/profiling/breakdown_pose.py [--repeats N] [--mesh PATH]`` (with ``--mesh``, a
 real muscle in the ``bend`` scenario on its principal axis instead of the capsule).
 
 Wraps the solver's building blocks with timers, runs ``deform`` N times and prints the

@@ -1,8 +1,8 @@
 """Fibres' and action lines' moment arms on the LHDL hip sweeps: accuracy, step and cost.
 
-    python benchmarks/bench_moment_arms.py [SCENE] [--steps 0.5,1,2,4] [--repeats 3]
-    python benchmarks/bench_moment_arms.py SCENE --smoothness [--fibres-of SCENE2]
-    python benchmarks/bench_moment_arms.py SCENE --scan MUSCLE [--about START:STOP:STEP]
+    python benchmarks/accuracy/bench_moment_arms.py [SCENE] [--steps 0.5,1,2,4] [--repeats 3]
+    python benchmarks/accuracy/bench_moment_arms.py SCENE --smoothness [--fibres-of SCENE2]
+    python benchmarks/accuracy/bench_moment_arms.py SCENE --scan MUSCLE [--about START:STOP:STEP]
         [--span DEG] [--by DEG] [--line-reach X|none] [--fibres-of SCENE2]
 
 1. The action line's moment arm against OpenSim's ``computeMomentArm`` on every frame of
@@ -48,6 +48,7 @@ import argparse
 import csv
 import dataclasses
 import statistics
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -55,7 +56,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def line_against_opensim(scene) -> None:  # noqa: ANN001
@@ -326,7 +327,8 @@ def main() -> None:
     p.add_argument("--by", type=float, default=0.2, help="item 6: degrees between poses")
     p.add_argument("--line-reach", help="item 6: mean thicknesses, or none (default: the default)")
     a = p.parse_args()
-    from musclewrap._bench import timed_run
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the shared helpers
+    from _common import timed_run
     from musclewrap.scene import load_scene
 
     scene = load_scene(Path(a.scene))

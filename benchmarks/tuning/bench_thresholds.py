@@ -1,6 +1,6 @@
 """The contact's thresholds on either side of their defaults, on the deep squat.
 
-    python benchmarks/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine|points|reach]
+    python benchmarks/tuning/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine|points|reach]
 
 Drives `examples/lhdl_squat.toml` (the OpenCap deep squat, hip flexion to 106 deg) and, per
 setting, runs the muscles it matters for with the setting replaced, checks the written meshes
@@ -44,7 +44,7 @@ import dataclasses
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _run(scene, muscles, frames, check, cache, **setting):  # noqa: ANN001, ANN003, ANN202
@@ -183,8 +183,9 @@ def main() -> None:
 
 def _reach(cache: Path) -> None:
     """``line_reach`` on either side of its default (the module's docstring)."""
-    import musclewrap.solver._deformer as solver
     from bench_moment_arms import _spikes  # the same count as its --smoothness
+
+    import musclewrap.solver._deformer as solver
     from musclewrap.constants import defaults
     from musclewrap.scene import load_scene, run_scene
 

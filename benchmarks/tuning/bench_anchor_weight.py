@@ -5,7 +5,7 @@ prints, per motion and muscle, the largest shape change (mean edge lengths) and 
 largest mean skeleton fit. In one process (``workers=1``) so that the changed default
 reaches the solve: slower than a scene run.
 
-    python benchmarks/bench_anchor_weight.py [--weights 0.5,0.7,1] [SCENE]
+    python benchmarks/tuning/bench_anchor_weight.py [--weights 0.5,0.7,1] [SCENE]
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import dataclasses
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def main() -> None:

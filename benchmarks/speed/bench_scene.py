@@ -4,7 +4,7 @@ Everything a user waits for is inside the timing (process start, imports, OpenSi
 reading and repair, preparation or cache load, solving, penetration, writing every file,
 plots), except the GIF (``--no-gif``), as issue 3 specifies.
 
-    python benchmarks/bench_scene.py examples/lhdl_walk.toml --warm-repeats 3
+    python benchmarks/speed/bench_scene.py examples/lhdl_walk.toml --warm-repeats 3
 """
 
 from __future__ import annotations

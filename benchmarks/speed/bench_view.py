@@ -15,10 +15,10 @@ picture drawn, two animation frames after the geometry arrived):
   server solves the latest pose while the browser draws the last one. The updates per
   second are the pictures drawn over the drag's time; the update time the median of theirs.
 
-    python benchmarks/bench_view.py examples/lhdl_walk.toml --variants all bones
-    python benchmarks/bench_view.py examples/gait2392_walk.toml --coordinate hip_flexion_r
-    python benchmarks/bench_view.py examples/lhdl_walk.toml --phases
-    python benchmarks/bench_view.py examples/lhdl_walk.toml --colour contact
+    python benchmarks/speed/bench_view.py examples/lhdl_walk.toml --variants all bones
+    python benchmarks/speed/bench_view.py examples/gait2392_walk.toml --coordinate hip_flexion_r
+    python benchmarks/speed/bench_view.py examples/lhdl_walk.toml --phases
+    python benchmarks/speed/bench_view.py examples/lhdl_walk.toml --colour contact
 
 - a redraw alone: the page's scene drawn again with nothing changed (vtk.js's render,
   finished by reading back one pixel), 20 times, the median; again with the bones hidden;

@@ -1,6 +1,6 @@
 """A muscle of about a million faces: preparation and one pose, time and peak memory.
 
-    python benchmarks/bench_large.py [--faces 1000000] [--scene FRAMES]
+    python benchmarks/speed/bench_large.py [--faces 1000000] [--scene FRAMES]
 
 Peak memory is the process's maximum resident set size (``getrusage``), so it includes the
 Python interpreter and the libraries (about 0.3 GiB before any mesh).

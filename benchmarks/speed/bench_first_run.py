@@ -1,6 +1,6 @@
 """A new user's first `musclewrap demo` against the second, wall time.
 
-    python benchmarks/bench_first_run.py [--no-gif | --kernels]
+    python benchmarks/speed/bench_first_run.py [--no-gif | --kernels]
 
 Emulates a fresh install: Numba's cache (``NUMBA_CACHE_DIR``) and musclewrap's
 (``MUSCLEWRAP_CACHE``) point at empty folders, then

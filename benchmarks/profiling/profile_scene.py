@@ -1,6 +1,6 @@
 """Where a scene's time goes: cProfile of a warm run in one process, on one thread.
 
-    python benchmarks/profile_scene.py [SCENE] [--frames 0:211:1] [--muscle NAME]
+    python benchmarks/profiling/profile_scene.py [SCENE] [--frames 0:211:1] [--muscle NAME]
         [--no-muscles] [--top 40] [--phases]
 
 Runs the scene once to warm the caches (preparations, bone probes, compiled kernels), then
@@ -28,7 +28,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 #: (module, owner, name, label): what --phases times; a label's calls inside another's count

@@ -1,6 +1,6 @@
 """Capsule benchmark (the 2012 implementation's measurement case).
 
-Run: ``python benchmarks/bench_capsule.py`` (same as ``musclewrap bench capsule``).
+Run: ``python benchmarks/speed/bench_capsule.py`` (same as ``musclewrap bench capsule``).
 """
 
 import sys

@@ -1,6 +1,6 @@
 """The fibres' inside check: exact ray-count winding numbers against libigl's hierarchy.
 
-    python benchmarks/bench_winding.py [--points 1500] [--repeats 20]
+    python benchmarks/speed/bench_winding.py [--points 1500] [--repeats 20]
 
 Per LHDL muscle, 1,500 points uniform in its box (a frame's 100 fibres x 15 points):
 `musclewrap.mesh.winding_numbers` against libigl's ``FastWindingNumberBVH`` built and
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "lhdl" / "muscles"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "lhdl" / "muscles"
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """Fibres of a scene's muscles carried through a few frames, checked inside the muscle.
 
-    python benchmarks/bench_fibres.py [SCENE] [--frames 0:211:105] [--count 100]
+    python benchmarks/accuracy/bench_fibres.py [SCENE] [--frames 0:211:105] [--count 100]
 
 Runs the scene's frames in one process, keeps each muscle's prepared and bound
 deformer, builds its fibres at rest (`musclewrap.fibres.fibres_at_rest`, default
@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def main() -> None:

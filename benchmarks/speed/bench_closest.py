@@ -1,7 +1,7 @@
 """Closest points on another muscle's faces: the compiled search against libigl's tree.
 
-    python benchmarks/bench_closest.py [--repeats 7]
-    python benchmarks/bench_closest.py --scene SCENE [--frames 0:211:10]
+    python benchmarks/speed/bench_closest.py [--repeats 7]
+    python benchmarks/speed/bench_closest.py --scene SCENE [--frames 0:211:10]
 
 `musclewrap.contact._muscles._closest` takes, per point, the triangles whose bounding spheres
 come within the best distance so far, looked for in rings of a uniform grid of their centroids

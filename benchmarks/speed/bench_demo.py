@@ -1,6 +1,6 @@
 """The demo's scene at other wrap margins and flexions: what the contact does on either side.
 
-    python benchmarks/bench_demo.py [--margins 3 9.1] [--flexions 90 120] [--frames 61]
+    python benchmarks/speed/bench_demo.py [--margins 3 9.1] [--flexions 90 120] [--frames 61]
 
 For each margin of the wrap cylinder over the condyles (mm; the demo's is 3) and each
 largest flexion (deg; the demo's 90), writes the demo's scene
@@ -18,7 +18,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "src"))
 
 
 def main() -> None:

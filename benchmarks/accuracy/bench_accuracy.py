@@ -1,6 +1,6 @@
 """Accuracy figures quoted in README.md, BENCHMARKS.md and the code, on the real meshes.
 
-Run: ``python benchmarks/bench_accuracy.py [DATA_DIR]`` (default ``../shared/data``).
+Run: ``python benchmarks/accuracy/bench_accuracy.py [DATA_DIR]`` (default ``../shared/data``).
 
 1. Mean value coordinates: how well they reproduce each VHF mesh (muscles, bones,
    cartilage) from its cage, ``max |W C - V|`` over the mesh's bounding-box diagonal, for

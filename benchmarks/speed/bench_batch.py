@@ -3,7 +3,7 @@
 The local walk against an earlier commit, strong scaling of a 4-scene batch, the Dask
 cluster against local processes, and the cost of scheduling a task.
 
-    python benchmarks/bench_batch.py --baseline d10dc57 --repeats 5
+    python benchmarks/speed/bench_batch.py --baseline d10dc57 --repeats 5
 
 Every run is ``musclewrap run ... --no-gif`` in a fresh process with a warm cache (one
 cold run first), wall time; the cases of a comparison alternate, and medians are
@@ -35,7 +35,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 WALK = ROOT / "examples" / "lhdl_walk.toml"
 
 

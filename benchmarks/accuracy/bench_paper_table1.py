@@ -12,7 +12,7 @@ error of the fine mesh over the iterations, the energy of the soft conditions (`
 and the median time per pose; then ``method="exact"`` (the fine mesh's own constrained
 Gauss-Newton, the reference) and the default.
 
-    python benchmarks/bench_paper_table1.py [--muscle MESH] [--scenario bend_short] [--repeats 3]
+    python benchmarks/accuracy/bench_paper_table1.py [--muscle MESH] [--scenario bend_short] [--repeats 3]
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT.parent / "shared" / "data"
 
 #: Table 1 of the paper: alpha -> (iterations, volume preservation in %)

@@ -1,6 +1,6 @@
 """The GIF's pictures, piece by piece: renderer start, a picture, 256 colours, the GIF.
 
-    python benchmarks/bench_pictures.py [SCENE] [--repeats 5]
+    python benchmarks/speed/bench_pictures.py [SCENE] [--repeats 5]
 
 Writes the scene (default the LHDL walk) once with ``--no-gif``, then times on its series,
 in this process (medians of ``--repeats``):
@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def fresh(code: str) -> float:

@@ -1,6 +1,6 @@
 """What the GIF costs a scene run: the run with its default pictures against ``--no-gif``.
 
-    python benchmarks/bench_gif.py [SCENE] [--repeats 3]
+    python benchmarks/speed/bench_gif.py [SCENE] [--repeats 3]
 
 Runs the scene warm (preparations cached by a first run) with its default GIF and with
 ``--no-gif``, alternately, ``--repeats`` times each, and prints the medians and their ratio.
@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def main() -> None:
@@ -21,7 +22,8 @@ def main() -> None:
     p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
     p.add_argument("--repeats", type=int, default=3)
     a = p.parse_args()
-    from musclewrap._bench import timed_run
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the shared helpers
+    from _common import timed_run
 
     with tempfile.TemporaryDirectory() as tmp:
         gif, plain = Path(tmp) / "gif", Path(tmp) / "plain"

@@ -1,6 +1,6 @@
 """Real muscles: preparation time, skeleton fit, shape change and time per pose.
 
-Run: ``python benchmarks/bench_realdata.py [DATA_DIR]`` (default ``../shared/data``).
+Run: ``python benchmarks/speed/bench_realdata.py [DATA_DIR]`` (default ``../shared/data``).
 
 For every VHF muscle in ``DATA/vhf`` (and the LHDL gluteus maximus): preparation (clean, cage, coordinates,
 proxy) and bind (skeleton coordinates, factorisation) times, then the five capsule scenarios
@@ -54,5 +54,5 @@ def main(data: Path, repeats: int = 21) -> None:
 
 
 if __name__ == "__main__":
-    default = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    default = Path(__file__).resolve().parents[2].parent / "shared" / "data"
     main(Path(sys.argv[1]) if len(sys.argv) > 1 else default)

@@ -1,7 +1,7 @@
 """``musclewrap init`` + ``musclewrap check`` on a folder of meshes: time, warm (issue 26).
 
-    python benchmarks/bench_init.py [--repeats 3] [--folder ../shared/data/vhf]
-    python benchmarks/bench_init.py --paths examples/gait2392_hip_thigh.toml examples/lhdl_walk.toml
+    python benchmarks/tuning/bench_init.py [--repeats 3] [--folder ../shared/data/vhf]
+    python benchmarks/tuning/bench_init.py --paths examples/gait2392_hip_thigh.toml examples/lhdl_walk.toml
 
 Runs init (the gait2392 subject01 model, the walk) and check (with its picture) on the
 folder ``--repeats`` times in this process after one warm-up (the meshes' cache and the
@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
 
 def main() -> None:
