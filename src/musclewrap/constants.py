@@ -225,7 +225,7 @@ class Defaults:
     check_far_thicknesses : float
         `musclewrap.run.check_scene`: a muscle's rest lines whose nearest quarter lies
         farther than this many mean thicknesses (4 V / A) outside it are not its lines
-        (BENCHMARKS.md, "check").
+        (BENCHMARKS.md, "A user's own subject").
     check_attached_m : float
         `musclewrap.run.check_scene`: a bone's attachments are the path points within
         this distance of it (m, model units).

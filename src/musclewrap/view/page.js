@@ -10,7 +10,7 @@
 (function () {
   const mw = (window.mw = window.mw || { n: 0, t: {}, sent: {}, totals: [], log: [], last: null });
   // A browser that draws in software (Chromium's SwiftShader, Mesa's llvmpipe) takes 2-3 times
-  // as long to draw the scene antialiased (BENCHMARKS.md, "The live viewer"): there the view's
+  // as long to draw the scene antialiased (BENCHMARKS.md, "The viewer"): there the view's
   // WebGL context is made without (before vtk.js makes it); ?antialias=1 or 0 in the address
   // decides instead. A graphics processor antialiases at little cost: it keeps it.
   if (mw.antialias === undefined) {
