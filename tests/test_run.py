@@ -240,7 +240,7 @@ def test_gait2392_vhf_example_runs(data_dir, tmp_path):
         scene,
         tmp_path / "g",
         # frames where the semitendinosus needs more than the plain iterations (with the
-        # reference point's twist, 95 needed the exact iteration: test_core covers it)
+        # reference point's twist, 95 needed the exact iteration: test_solver covers it)
         frames="58:133:37",
         workers=2,
         cache_dir=tmp_path / "c",

@@ -26,6 +26,10 @@ def _point(text: str) -> list[float]:
     return vals
 
 
+#: the sub-commands of the parser (argparse's type for them)
+_Commands = argparse._SubParsersAction  # noqa: SLF001
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="musclewrap",
@@ -35,12 +39,27 @@ def _parser() -> argparse.ArgumentParser:
 
     p.add_argument("--version", action="version", version=f"musclewrap {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
+    _add_prepare(sub)
+    _add_deform(sub)
+    _add_run(sub)
+    _add_init(sub)
+    _add_check(sub)
+    _add_demo(sub)
+    _add_view(sub)
+    _add_bench(sub)
+    return p
 
+
+def _add_prepare(sub: _Commands) -> None:
+    """The ``prepare`` sub-command's arguments."""
     pr = sub.add_parser("prepare", help="build cage, coordinates and Laplacian once per muscle")
     pr.add_argument("mesh", help="closed muscle surface (.stl .obj .ply .off .vtk .vtp)")
     pr.add_argument("-o", "--output", required=True, help="prepared-muscle file (.npz)")
     pr.add_argument("--cage-size", type=int, default=None, help="target number of cage vertices")
 
+
+def _add_deform(sub: _Commands) -> None:
+    """The ``deform`` sub-command's arguments."""
     de = sub.add_parser("deform", help="deform a muscle from its rest to its current action lines")
     de.add_argument("mesh", help="rest-pose muscle surface")
     de.add_argument("--rest", required=True, help="rest action lines, CSV with header line,x,y,z")
@@ -80,6 +99,9 @@ def _parser() -> argparse.ArgumentParser:
         "without finite positions is never written)",
     )
 
+
+def _add_run(sub: _Commands) -> None:
+    """The ``run`` sub-command's arguments."""
     ru = sub.add_parser(
         "run",
         help="deform every muscle of a scene (OpenSim model + motion) for every frame",
@@ -144,6 +166,9 @@ def _parser() -> argparse.ArgumentParser:
         "would give a wrong result)",
     )
 
+
+def _add_init(sub: _Commands) -> None:
+    """The ``init`` sub-command's arguments."""
     it = sub.add_parser(
         "init",
         help="write a scene from an OpenSim model and a folder of meshes",
@@ -165,6 +190,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     it.add_argument("--force", action="store_true", help="write over an existing scene file")
 
+
+def _add_check(sub: _Commands) -> None:
+    """The ``check`` sub-command's arguments."""
     ck = sub.add_parser(
         "check",
         help="check a scene at its rest pose without deforming",
@@ -179,6 +207,9 @@ def _parser() -> argparse.ArgumentParser:
     ck.add_argument("scene", help="scene file (.toml)")
     ck.add_argument("-o", "--output", help="picture of the rest pose (.png)")
 
+
+def _add_demo(sub: _Commands) -> None:
+    """The ``demo`` sub-command's arguments."""
     dm = sub.add_parser(
         "demo",
         help="run the embedded synthetic example: two muscles wrapping over a knee (no data needed)",
@@ -190,6 +221,9 @@ def _parser() -> argparse.ArgumentParser:
         "--workers", type=int, help="worker processes (default: one per muscle, at most the CPUs)"
     )
 
+
+def _add_view(sub: _Commands) -> None:
+    """The ``view`` sub-command's arguments."""
     vw = sub.add_parser(
         "view",
         help="drag a joint in the browser and watch the muscles wrap (needs the [view] extra)",
@@ -214,6 +248,9 @@ def _parser() -> argparse.ArgumentParser:
     vw.add_argument("--no-collisions", action="store_true", help="as for run")
     vw.add_argument("--no-check", action="store_true", help="as for run")
 
+
+def _add_bench(sub: _Commands) -> None:
+    """The ``bench`` sub-command's arguments."""
     be = sub.add_parser("bench", help="run a benchmark")
     be.add_argument("name", choices=("capsule",), help="benchmark to run")
     be.add_argument("--repeats", type=int, default=41, help="timed repeats per case")
@@ -224,7 +261,6 @@ def _parser() -> argparse.ArgumentParser:
         help="cage construction (quadric: the earlier decimation, for comparison)",
     )
     be.add_argument("--json", help="write the results as JSON here")
-    return p
 
 
 def _spare_inputs(inputs: Sequence[str | None], outputs: Sequence[str | None]) -> None:

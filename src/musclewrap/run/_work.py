@@ -12,7 +12,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -515,92 +515,121 @@ class _MuscleFrames:
         ``overlap``: the deepest vertex of this muscle inside another (muscles in
         contact; NaN otherwise).
         """
-        job, span, muscle, d = self.job, self.span, self.muscle, self.d
-        contact, out, name, result = self.contact, self.out, job.name, self.result
-        fb = self.fb
-        frame = span.frames[k]
-        T = span.to_output[k]
         sides = self.sides_of(k)
+        measured = self._measure(k, res)
+        if np.isfinite(res.V).all():
+            self._write_surface(k, res)
+        self._write_lines(k)
+        if self.fb is not None:
+            self._fibres_at(k, res, sides)
+        self.result.rows.append(self._row(k, res, overlap, measured))
+        _tick()
+
+    def _measure(self, k: int, res: DeformationResult) -> FrameMeasures:
+        """Frame ``k``'s shape change, depths in and of the bones, and its lines' in them."""
         ok_values = np.isfinite(res.V).all()
-        shape = float(muscle.shape_change(res.V).max()) if ok_values else float("nan")
-        nan = float("nan")
+        shape = float(self.muscle.shape_change(res.V).max()) if ok_values else float("nan")
         here = self.bones_here(k)
         line_depth = line_inside_depth(
-            list(span.lines[k].values()), list(here.values()), 0.25 * d._fine_edge
+            list(self.span.lines[k].values()), list(here.values()), 0.25 * self.d._fine_edge
         )
         n_in, depth, bone_depth = self.penetration(res, here)
-        if ok_values:
-            Vo = apply_transform(T, res.V)
-            fname = f"{name}/{name}_{frame:04d}.vtp"
-            write_mesh(
-                out / fname,
-                Vo,
-                muscle.F,
-                point_data={
-                    "input_id": muscle.input_id,
-                    "area_stretch": muscle.area_stretch(res.V),
-                },
-            )
-            result.entries.append((span.start + k, fname))
-        lname = f"{name}/{name}_lines_{frame:04d}.vtp"
+        return FrameMeasures(shape, n_in, depth, bone_depth, line_depth)
+
+    def _write_surface(self, k: int, res: DeformationResult) -> None:
+        """The deformed surface of frame ``k`` in the output frame, with its point arrays."""
+        muscle, name, frame = self.muscle, self.job.name, self.span.frames[k]
+        fname = f"{name}/{name}_{frame:04d}.vtp"
+        write_mesh(
+            self.out / fname,
+            apply_transform(self.span.to_output[k], res.V),
+            muscle.F,
+            point_data={
+                "input_id": muscle.input_id,
+                "area_stretch": muscle.area_stretch(res.V),
+            },
+        )
+        self.result.entries.append((self.span.start + k, fname))
+
+    def _write_lines(self, k: int) -> None:
+        """Frame ``k``'s action lines in the output frame, as poly-lines."""
+        span, name = self.span, self.job.name
+        lname = f"{name}/{name}_lines_{span.frames[k]:04d}.vtp"
         P, segs, o = [], [], 0
         for pts in span.lines[k].values():
-            Pp = apply_transform(T, np.asarray(pts, dtype=np.float64))
+            Pp = apply_transform(span.to_output[k], np.asarray(pts, dtype=np.float64))
             P.append(Pp)
             segs += [[o + i, o + i + 1] for i in range(len(Pp) - 1)]
             o += len(Pp)
-        write_mesh(out / lname, np.vstack(P), np.zeros((0, 3), int), lines=np.array(segs))
-        result.entries.append((span.start + k, lname))
-        if fb is not None:
-            got = frame_fibres(
-                fb,
-                muscle.F,
-                res,
-                k,
-                job.moment_arms,
-                span.side,
-                lambda *a, sides=sides, **kw: self.solve(*a, sides=sides, **kw),
-            )
-            if got["points"] is not None:
-                fname = f"{name}/{name}_fibres_{frame:04d}.vtp"
-                write_frame_fibres(out / fname, fb, got["points"], T)
-                result.entries.append((span.start + k, fname))
-            result.fibres.append(
-                FibreFrame(
-                    frame=int(frame),
-                    time=float(span.times[k]),
-                    lengths=got["lengths"].tolist(),
-                    moment_arms=got["moment_arms"].tolist(),
-                    unconverged=got["unconverged"],
-                    moved=got["moved"],
-                    farthest=got["farthest"],
-                    left=got["left"],
-                )
-            )
-        result.rows.append(
-            {
-                "frame": int(frame),
-                "time": float(span.times[k]),
-                "muscle": name,
-                "iterations": res.iterations,
-                "converged": res.converged,
-                "relative_volume_error": res.relative_volume_error,
-                "skeleton_fit_mean": res.skeleton_fit_mean,
-                "seconds": res.seconds,
-                "shape_change_max": shape,
-                "penetration_share": n_in / len(muscle.V),
-                "penetration_depth_max": depth,
-                "bone_inside_depth_max": bone_depth,
-                "muscle_overlap_max": nan if overlap is None else overlap,
-                "contact_vertices": res.contact_vertices,
-                "penetration_depth_before": (
-                    res.penetration_depth_before if contact is not None else depth
-                ),
-                "line_inside_depth_max": line_depth,
-                "reason": res.reason,
-            }
+        write_mesh(self.out / lname, np.vstack(P), np.zeros((0, 3), int), lines=np.array(segs))
+        self.result.entries.append((span.start + k, lname))
+
+    def _fibres_at(self, k: int, res: DeformationResult, sides: SideReference | None) -> None:
+        """Frame ``k``'s fibres carried, measured (lengths, moment arms) and written."""
+        fb, span, name = self.fb, self.span, self.job.name
+        assert fb is not None
+        frame = span.frames[k]
+        got = frame_fibres(
+            fb,
+            self.muscle.F,
+            res,
+            k,
+            self.job.moment_arms,
+            span.side,
+            lambda *a, sides=sides, **kw: self.solve(*a, sides=sides, **kw),
         )
-        _tick()
+        if got["points"] is not None:
+            fname = f"{name}/{name}_fibres_{frame:04d}.vtp"
+            write_frame_fibres(self.out / fname, fb, got["points"], span.to_output[k])
+            self.result.entries.append((span.start + k, fname))
+        self.result.fibres.append(
+            FibreFrame(
+                frame=int(frame),
+                time=float(span.times[k]),
+                lengths=got["lengths"].tolist(),
+                moment_arms=got["moment_arms"].tolist(),
+                unconverged=got["unconverged"],
+                moved=got["moved"],
+                farthest=got["farthest"],
+                left=got["left"],
+            )
+        )
+
+    def _row(
+        self, k: int, res: DeformationResult, overlap: float | None, m: FrameMeasures
+    ) -> dict[str, Any]:
+        """Frame ``k``'s row of report.csv."""
+        return {
+            "frame": int(self.span.frames[k]),
+            "time": float(self.span.times[k]),
+            "muscle": self.job.name,
+            "iterations": res.iterations,
+            "converged": res.converged,
+            "relative_volume_error": res.relative_volume_error,
+            "skeleton_fit_mean": res.skeleton_fit_mean,
+            "seconds": res.seconds,
+            "shape_change_max": m.shape,
+            "penetration_share": m.inside / len(self.muscle.V),
+            "penetration_depth_max": m.depth,
+            "bone_inside_depth_max": m.bone_depth,
+            "muscle_overlap_max": float("nan") if overlap is None else overlap,
+            "contact_vertices": res.contact_vertices,
+            "penetration_depth_before": (
+                res.penetration_depth_before if self.contact is not None else m.depth
+            ),
+            "line_inside_depth_max": m.line_depth,
+            "reason": res.reason,
+        }
+
+
+class FrameMeasures(NamedTuple):
+    """A frame's measures for its row: shape change, penetration, the lines in the bones."""
+
+    shape: float
+    inside: int  # vertices inside a bone
+    depth: float  # the deepest of them (mesh units)
+    bone_depth: float  # the deepest bone vertex inside the muscle
+    line_depth: float  # the deepest point of the muscle's lines inside a bone
 
 
 @dataclass(frozen=True)

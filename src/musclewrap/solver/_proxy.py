@@ -225,7 +225,7 @@ def plain_iterations(
     same iteration in double precision the mesh moves by at most 2.2e-9 of the
     muscle's size, with the same number of iterations, on the capsule and every VHF
     muscle in the five scenarios (``python benchmarks/accuracy/bench_accuracy.py``); the tests
-    assert 1e-8 (``tests/test_core.py``, ``tests/test_realdata.py``).
+    assert 1e-8 (``tests/test_solver.py``, ``tests/test_realdata.py``).
     """
     return _plain_iterations(
         np.ascontiguousarray(P_ls, dtype=np.float64),
