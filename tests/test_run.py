@@ -775,6 +775,7 @@ def test_moment_arm_picture_is_drawn_against_the_swept_angle(tmp_path, monkeypat
     """A motion that sweeps one coordinate: moment_arms.png against it in degrees; another
     motion (two coordinates change): against time."""
     import musclewrap.output as output
+    import musclewrap.run._fibres as fibres_writer  # where the run looks the plot up
 
     seen = []
     real = output.plot_moment_arms
@@ -783,7 +784,7 @@ def test_moment_arm_picture_is_drawn_against_the_swept_angle(tmp_path, monkeypat
         seen.append(kw)
         return real(path, rows, coordinates, per_q, **kw)
 
-    monkeypatch.setattr(output, "plot_moment_arms", spy)
+    monkeypatch.setattr(fibres_writer, "plot_moment_arms", spy)
     toml, q = _via_capsule_scene(tmp_path)
     assert main(["run", str(toml), "-o", str(tmp_path / "out"), "--frames", "0:6"]) == 0
     kw = seen[-1]

@@ -216,28 +216,93 @@ def load_scene(path: PathLike) -> Scene:
         or an inconsistent combination (e.g. neither a model nor a line CSV).
     """
     src = Path(path)
+    raw = _read_toml(src)
+    base = src.resolve().parent
+    _keys(raw, _TOP, "the scene's top level", src)
+    mesh_unit, model_unit = _units(raw, src)
+    model = _table(raw.get("model", {}), "model", src)
+    _keys(model, _MODEL, "[model]", src)
+    lines = _table(raw.get("lines", {}), "lines", src)
+    _keys(lines, _LINES, "[lines]", src)
+    drive = _model_fields(model, lines, base, src)
+    osim = drive["osim"]
+    mesh_frame = model.get("mesh_frame", "body")  # checked by _model_fields
+    registration = _registration(raw, base, src, osim) if "registration" in raw else None
+    if mesh_frame == "registration" and registration is None:
+        raise SceneError(f"{src}: [model] mesh_frame = 'registration' needs a [registration] table")
+    drive.update(_lines_fields(lines, base, src))
+    output = _output_fields(raw, src)
+    reading = _Reading(src, base, osim, "csv" in lines, drive["bodies_csv"], mesh_frame)
+    bones = _bones(raw, reading)
+    bone_names = {b.name for b in bones}
+    coll = _table(raw.get("collisions", {}), "collisions", src)
+    _keys(coll, _COLLISIONS, "[collisions]", src)
+    collisions, margin, against, rest_overlap = _collision_settings(coll, src)
+    muscles = _muscles(raw, reading, bone_names)
+    clash = bone_names & {m.name for m in muscles}
+    if clash:
+        raise SceneError(f"{src}: the names {sorted(clash)} are used for both a muscle and a bone")
+    cache = raw.get("cache_dir")
+    cache_dir = None if cache is None else (base / Path(cache).expanduser())
+    return Scene(
+        path=src,
+        name=str(raw.get("name", src.stem)),
+        mesh_unit=mesh_unit,
+        model_unit=model_unit,
+        **drive,
+        **output,
+        muscles=tuple(muscles),
+        bones=tuple(bones),
+        cache_dir=cache_dir,
+        registration=registration,
+        collisions=collisions and bool(bones),
+        margin=margin,
+        rest_overlap=rest_overlap,
+        fibres=_fibres(raw, src, osim),
+        muscle_collisions=collisions and against and len(muscles) > 1,
+        muscle_pairs=_pairs(coll, [m.name for m in muscles], src),
+    )
+
+
+@dataclass(frozen=True)
+class _Reading:
+    """What the bones' and muscles' tables are read against: the file, its model and frames."""
+
+    src: Path
+    base: Path
+    osim: Path | None
+    line_csv: bool  # the lines come from a CSV ([lines] csv)
+    bodies_csv: Path | None
+    mesh_frame: str
+
+
+def _read_toml(src: Path) -> dict[str, Any]:
+    """The scene file parsed, or an error that names the file and the problem."""
     if not src.is_file():
         raise SceneError(f"{src}: no such scene file")
     try:
-        raw = tomllib.loads(src.read_text(encoding="utf-8"))
+        return tomllib.loads(src.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{src}: not valid TOML: {exc}") from None
     except UnicodeDecodeError:
         raise SceneError(f"{src}: not a text file (TOML must be UTF-8)") from None
-    base = src.resolve().parent
-    _keys(raw, _TOP, "the scene's top level", src)
 
+
+def _units(raw: Mapping[str, Any], src: Path) -> tuple[str, str]:
+    """``[units]``: the meshes' and the model's length units."""
     units = _table(raw.get("units", {}), "units", src)
     _keys(units, _UNITS, "[units]", src)
     mesh_unit, model_unit = units.get("mesh", "mm"), units.get("model", "m")
     for k, u in (("mesh", mesh_unit), ("model", model_unit)):
         if u not in UNITS:
             raise SceneError(f"{src}: units.{k} = {u!r}; use one of {', '.join(UNITS)}")
+    return mesh_unit, model_unit
 
-    model = _table(raw.get("model", {}), "model", src)
-    _keys(model, _MODEL, "[model]", src)
-    lines = _table(raw.get("lines", {}), "lines", src)
-    _keys(lines, _LINES, "[lines]", src)
+
+def _model_fields(
+    model: Mapping[str, Any], lines: Mapping[str, Any], base: Path, src: Path
+) -> dict[str, Any]:
+    """``[model]`` (with ``[lines]``'s choice against it): the `Scene` fields it sets."""
     if "csv" in lines and "motion" in model:
         raise SceneError(f"{src}: give either [model] motion or [lines] csv, not both")
     if "csv" not in lines and not ("osim" in model and "motion" in model):
@@ -275,17 +340,28 @@ def load_scene(path: PathLike) -> Scene:
         raise SceneError(f"{src}: [model] output_frame must be a body name or 'ground'")
     if osim is None and output_frame != "ground":
         raise SceneError(f"{src}: [model] output_frame needs an OpenSim model ([model] osim)")
+    return {
+        "osim": osim,
+        "motions": motions,
+        "rest_pose": rest_pose,
+        "angle_unit": angle_unit,
+        "coordinates": coords,
+        "output_frame": output_frame,
+    }
 
-    registration = _registration(raw, base, src, osim) if "registration" in raw else None
-    if mesh_frame == "registration" and registration is None:
-        raise SceneError(f"{src}: [model] mesh_frame = 'registration' needs a [registration] table")
 
+def _lines_fields(lines: Mapping[str, Any], base: Path, src: Path) -> dict[str, Any]:
+    """``[lines]``: the action lines' and the bodies' CSV files, the rest frame."""
     lines_csv = _file(base, lines["csv"], "[lines] csv", src) if "csv" in lines else None
     rest_frame = _get(lines, "rest_frame", int, "[lines]", src) if "rest_frame" in lines else 0
     bodies_csv = _file(base, lines["bodies"], "[lines] bodies", src) if "bodies" in lines else None
     if bodies_csv is not None and lines_csv is None:
         raise SceneError(f"{src}: [lines] bodies needs [lines] csv (the action lines per frame)")
+    return {"lines_csv": lines_csv, "rest_frame": rest_frame, "bodies_csv": bodies_csv}
 
+
+def _output_fields(raw: Mapping[str, Any], src: Path) -> dict[str, Any]:
+    """``[output]``: the pictures and plots of a run."""
     out = _table(raw.get("output", {}), "output", src)
     _keys(out, _OUTPUT, "[output]", src)
     bone_faces = (
@@ -323,7 +399,20 @@ def load_scene(path: PathLike) -> Scene:
         raise SceneError(
             f"{src}: [output] paper_frames, bone_display_faces must be >= 0 and gif_every >= 1"
         )
+    return {
+        "colour": colour,
+        "view": (float(view[0]), float(view[1])),
+        "bone_display_faces": bone_faces,
+        "paper_frames": paper_frames,
+        "gif": gif,
+        "gif_every": gif_every,
+        "image_size": (size[0], size[1]),
+    }
 
+
+def _bones(raw: Mapping[str, Any], r: _Reading) -> list[BoneSpec]:
+    """``[bones.NAME]``: each bone's mesh, body and frame."""
+    src, base, osim, bodies_csv, mesh_frame = r.src, r.base, r.osim, r.bodies_csv, r.mesh_frame
     bones = []
     for bname, b in _table(raw.get("bones", {}), "bones", src).items():
         b = _table(b, f"bones.{bname}", src)
@@ -347,10 +436,11 @@ def load_scene(path: PathLike) -> Scene:
                 body if frame == "body" else frame,
             )
         )
-    bone_names = {b.name for b in bones}
+    return bones
 
-    coll = _table(raw.get("collisions", {}), "collisions", src)
-    _keys(coll, _COLLISIONS, "[collisions]", src)
+
+def _collision_settings(coll: Mapping[str, Any], src: Path) -> tuple[bool, float, bool, str]:
+    """``[collisions]``: on, the margin, the muscles against each other, the rest overlap."""
     collisions = _get(coll, "enabled", bool, "[collisions]", src) if "enabled" in coll else True
     margin = _get(coll, "margin", float, "[collisions]", src) if "margin" in coll else 0.0
     if not (np.isfinite(margin) and margin >= 0):
@@ -362,7 +452,12 @@ def load_scene(path: PathLike) -> Scene:
             f"{src}: [collisions] rest_overlap = {rest_overlap!r}; use 'resolve' (push the "
             "muscles out of the bones once, at preparation) or 'keep' (prevent new penetration only)"
         )
+    return collisions, margin, against, rest_overlap
 
+
+def _muscles(raw: Mapping[str, Any], r: _Reading, bone_names: set[str]) -> list[MuscleSpec]:
+    """``[muscles.NAME]``: each muscle's mesh, paths, body, cage and solver settings."""
+    src, base, osim, mesh_frame = r.src, r.base, r.osim, r.mesh_frame
     muscles = []
     table = _table(raw.get("muscles", {}), "muscles", src)
     if not table:
@@ -374,7 +469,7 @@ def load_scene(path: PathLike) -> Scene:
         if "mesh" not in m:
             raise SceneError(f"{src}: {where} needs 'mesh'")
         paths = m.get("paths", [])
-        if osim is not None and "csv" not in lines:
+        if osim is not None and not r.line_csv:
             if (
                 not isinstance(paths, list)
                 or not paths
@@ -433,43 +528,7 @@ def load_scene(path: PathLike) -> Scene:
                 **areas,
             )
         )
-    clash = bone_names & {m.name for m in muscles}
-    if clash:
-        raise SceneError(f"{src}: the names {sorted(clash)} are used for both a muscle and a bone")
-    cache = raw.get("cache_dir")
-    cache_dir = None if cache is None else (base / Path(cache).expanduser())
-    return Scene(
-        path=src,
-        name=str(raw.get("name", src.stem)),
-        mesh_unit=mesh_unit,
-        model_unit=model_unit,
-        osim=osim,
-        motions=motions,
-        rest_pose=rest_pose,
-        angle_unit=angle_unit,
-        coordinates=coords,
-        output_frame=output_frame,
-        lines_csv=lines_csv,
-        rest_frame=rest_frame,
-        bodies_csv=bodies_csv,
-        colour=colour,
-        view=(float(view[0]), float(view[1])),
-        muscles=tuple(muscles),
-        bones=tuple(bones),
-        bone_display_faces=bone_faces,
-        paper_frames=paper_frames,
-        gif=gif,
-        gif_every=gif_every,
-        image_size=(size[0], size[1]),
-        cache_dir=cache_dir,
-        registration=registration,
-        collisions=collisions and bool(bones),
-        margin=margin,
-        rest_overlap=rest_overlap,
-        fibres=_fibres(raw, src, osim),
-        muscle_collisions=collisions and against and len(muscles) > 1,
-        muscle_pairs=_pairs(coll, [m.name for m in muscles], src),
-    )
+    return muscles
 
 
 def _pairs(
