@@ -6,16 +6,10 @@ coordinates, Laplacian and skeleton conditions and a hard volume constraint
 on the fine mesh.
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
+from ._version import __version__
 from .conditions import PathLines, read_lines_csv
 from .mesh import read_mesh, write_mesh
 from .solver import DeformationResult, Deformer, Muscle, deform
-
-try:
-    __version__ = version("musclewrap")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree
-    __version__ = "0.0.0"
 
 __all__ = [
     "DeformationResult",

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._hashing import digest, digest_arrays
+from ._version import __version__
 from .mesh import atomic_path
 
 __all__ = ["cached_arrays", "cached_measure", "digest"]
@@ -65,8 +66,6 @@ def cached_measure(
     the package's version is part of the key too. The file is
     ``cache_dir/measure-<kind>-<key>.npz``; ``cache_dir`` None: no cache.
     """
-    from . import __version__
-
     path = None
     if cache_dir is not None:
         key = digest(*(np.ascontiguousarray(a) for a in parts), kind, __version__)

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ._paths import overwrite_clash
+from ._version import __version__
 
 __all__ = ["main"]
 
@@ -35,8 +36,6 @@ def _parser() -> argparse.ArgumentParser:
         prog="musclewrap",
         description="Deform muscle surface meshes to follow their action lines, keeping volume exactly.",
     )
-    from . import __version__
-
     p.add_argument("--version", action="version", version=f"musclewrap {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     _add_prepare(sub)

@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
 from .._cache import cached_arrays, digest
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
+from .._version import __version__
 from ..conditions import placement_problem
 from ..constants import defaults
 from ..contact import (

@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
 from .._cache import digest
 from .._typing import FloatArray, IntArray
+from .._version import __version__
 from ..mesh import invert_rigid
 from ..scene import CENTRAL, Stencil
 from ..solver import PREPARATION_FORMAT
