@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
@@ -503,26 +504,9 @@ def push_out(
     rounds = 0
     while rounds < budget:
         rounds += 1
-        # harmonic spread of the push over the rings around the contact (zero beyond)
-        Dall, level, radius = _spread(A, hit, target - P[hit], edge, held)
-        if rounds <= relax_until:
-            # Relax the pushed vertices too: neighbours projected onto different sheets of a
-            # concave bone (or along converging normals) would cross; what the relaxation
-            # leaves inside is pushed again in the next round.
-            moving = np.flatnonzero(level <= radius)
-            _smooth(A.indptr, A.indices, Dall, moving, defaults.contact_relax, 0.5)
-            P += Dall
-        else:
-            P += Dall
-            P[hit] = target
+        radius = _push(P, A, hit, target, edge, held, relax=rounds <= relax_until)
         held[hit] = True
-        # exact volume along the correction direction, away from the held vertices
-        ramp = min(radius + 2, 12)
-        level = rings(A, np.flatnonzero(held), ramp)
-        mask = np.clip(level / (ramp + 1.0), 0.0, 1.0)
-        Zm = Z * mask[:, None]
-        c = mean_rows(P)
-        t = cubic_root_near(volume_cubic(P - c, Zm, F), volume_target, 0.0)
+        t, Zm = _volume_away_from(P, F, A, Z, held, radius, volume_target)
         if not np.isfinite(t):
             ok = False
             break
@@ -548,32 +532,8 @@ def push_out(
     reason = ""
     if len(hit):
         ok = False
-        names = {}
-        # the deepest remaining violation per obstacle, for the reason
-        for pl, d in zip(placed, depths, strict=True):
-            if d > 0:
-                names[pl.name] = d
-        if not names and bones_left is not None:
-            for pl, f in zip(placed, bones_left, strict=True):
-                if f.deepest > 0:
-                    names[pl.name] = -f.deepest
-        reason = (
-            f"contact not met after {rounds} rounds: {len(hit)} vertices within the margin, "
-            + ", ".join(
-                f"{k} {v:.3g} deep" if v > 0 else f"{k} {-v:.3g} deep inside the muscle"
-                for k, v in names.items()
-            )
-        ).rstrip(", ")
-    rel = abs(volume(P, F) - volume_target) / abs(volume_target)
-    if rel > tol.volume:
-        # no volume left to take where nothing is held: the volume is restored over the
-        # whole surface (the contact stays unmet, and is reported)
-        Z = vertex_normals(P, F)
-        c = mean_rows(P)
-        t = cubic_root_near(volume_cubic(P - c, Z, F), volume_target, 0.0)
-        if np.isfinite(t):
-            P = P + t * Z
-        rel = abs(volume(P, F) - volume_target) / abs(volume_target)
+        reason = _unmet(rounds, len(hit), placed, depths, bones_left)
+    P, rel = _volume_restored(P, F, volume_target)
     if rel > tol.volume:
         ok = False
         reason = (reason + "; " if reason else "") + f"volume error {rel:.3g} after contact"
@@ -590,6 +550,99 @@ def push_out(
         **({} if bone_vertices != "near" else _bone_fields(found or bones_inside(P))),
     )
     return P, report
+
+
+def _push(
+    P: FloatArray,
+    A: sp.csr_matrix,
+    hit: IntArray,
+    target: FloatArray,
+    edge: float,
+    held: npt.NDArray[np.bool_],
+    *,
+    relax: bool,
+) -> int:
+    """One round's push of the vertices ``hit`` to ``target``, spread over their rings.
+
+    In place on ``P``; returns the spread's radius in rings. The harmonic spread is zero
+    beyond it. ``relax``: the pushed vertices are relaxed with their neighbours too
+    (neighbours projected onto different sheets of a concave bone, or along converging
+    normals, would cross; what the relaxation leaves inside is pushed again in the next
+    round); else they land on their targets exactly.
+    """
+    Dall, level, radius = _spread(A, hit, target - P[hit], edge, held)
+    if relax:
+        moving = np.flatnonzero(level <= radius)
+        _smooth(A.indptr, A.indices, Dall, moving, defaults.contact_relax, 0.5)
+        P += Dall
+    else:
+        P += Dall
+        P[hit] = target
+    return int(radius)
+
+
+def _volume_away_from(
+    P: FloatArray,
+    F: IntArray,
+    A: sp.csr_matrix,
+    Z: FloatArray,
+    held: npt.NDArray[np.bool_],
+    radius: int,
+    volume_target: float,
+) -> tuple[float, FloatArray]:
+    """The exact volume's step along the normals ``Z``, ramped to zero at the held vertices.
+
+    Returns ``t`` (NaN where the cubic has no finite root) and the ramped direction:
+    ``P + t * Zm`` has the target volume.
+    """
+    ramp = min(radius + 2, 12)
+    level = rings(A, np.flatnonzero(held), ramp)
+    mask = np.clip(level / (ramp + 1.0), 0.0, 1.0)
+    Zm = Z * mask[:, None]
+    c = mean_rows(P)
+    return cubic_root_near(volume_cubic(P - c, Zm, F), volume_target, 0.0), Zm
+
+
+def _unmet(
+    rounds: int,
+    within: int,
+    placed: Sequence[Placed],
+    depths: list[float],
+    bones_left: list[Inside] | None,
+) -> str:
+    """Why the contact is not met: the deepest remaining violation per obstacle."""
+    names = {}
+    for pl, d in zip(placed, depths, strict=True):
+        if d > 0:
+            names[pl.name] = d
+    if not names and bones_left is not None:
+        for pl, f in zip(placed, bones_left, strict=True):
+            if f.deepest > 0:
+                names[pl.name] = -f.deepest
+    return (
+        f"contact not met after {rounds} rounds: {within} vertices within the margin, "
+        + ", ".join(
+            f"{k} {v:.3g} deep" if v > 0 else f"{k} {-v:.3g} deep inside the muscle"
+            for k, v in names.items()
+        )
+    ).rstrip(", ")
+
+
+def _volume_restored(P: FloatArray, F: IntArray, volume_target: float) -> tuple[FloatArray, float]:
+    """``P`` with its volume restored over the whole surface where it is off; its error.
+
+    Where the rounds left no volume to take away from the held vertices, the volume
+    is restored along every vertex's normal (the contact stays unmet, and is reported).
+    """
+    rel = abs(volume(P, F) - volume_target) / abs(volume_target)
+    if rel > tol.volume:
+        Z = vertex_normals(P, F)
+        c = mean_rows(P)
+        t = cubic_root_near(volume_cubic(P - c, Z, F), volume_target, 0.0)
+        if np.isfinite(t):
+            P = P + t * Z
+        rel = abs(volume(P, F) - volume_target) / abs(volume_target)
+    return P, rel
 
 
 def nudge(

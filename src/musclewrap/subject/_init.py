@@ -19,6 +19,7 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -203,15 +204,63 @@ def init_scene(
     out = Path(out)
     model = OpenSimModel(osim)
     meshes = survey(Path(mesh_dir))
-    by_anatomy = _paths_by_anatomy(model)
-    unplaced: list[str] = []
-    for mi in meshes:
-        if mi.kind is None:
-            unplaced.append(f"{mi.path.name}: {mi.why}")
+    unplaced = [f"{mi.path.name}: {mi.why}" for mi in meshes if mi.kind is None]
     sides = [mi.side for mi in meshes if mi.kind == "muscle" and mi.side]
     main_side = max(set(sides), key=sides.count) if sides else "r"
+    muscles = _muscles_to_paths(model, meshes, main_side, unplaced, mesh_dir)
+    bones = _bones_to_bodies(model, meshes, main_side, unplaced)
+    mesh_unit, s, units_note = _mesh_unit(model, muscles, say)
+    driven = _driven(model, muscles, bones, motion)
+    best, place_note = _placement(model, meshes, muscles, driven, s, main_side, mesh_unit, say)
+    coords = driven.coords
+    written = None
+    if motion is None:
+        written = out.with_name(out.stem + "_sweep.mot")
+        _write_sweep(model, coords, best.rest, written)
+        motion = written
+        say(f"no motion given: a sweep of {', '.join(coords)} written to {written}")
 
-    # ---------------------------------------------------------------- muscles to paths
+    text = _scene_text(
+        out,
+        model,
+        muscles,
+        bones,
+        coords,
+        driven.locked,
+        driven.lacking,
+        best,
+        mesh_unit,
+        motion,
+        driven.output_frame,
+        unplaced,
+        [units_note, place_note],
+        written is not None,
+    )
+    with atomic_path(out) as part:
+        part.write_text(text, encoding="utf-8")
+    return InitResult(
+        out,
+        text,
+        {m.name: tuple(m.paths) for m in muscles},
+        {n: b for _, n, b in bones},
+        unplaced,
+        [units_note, place_note],
+        written,
+    )
+
+
+def _muscles_to_paths(
+    model: OpenSimModel,
+    meshes: list[MeshInfo],
+    main_side: str,
+    unplaced: list[str],
+    mesh_dir: Path,
+) -> list[_Muscle]:
+    """Each muscle mesh matched to the model's paths of its anatomy (both sides if unsaid).
+
+    What cannot be placed goes to ``unplaced``; none placed at all is an error.
+    """
+    by_anatomy = _paths_by_anatomy(model)
     muscles: list[_Muscle] = []
     for mi in meshes:
         if mi.kind != "muscle":
@@ -242,8 +291,13 @@ def init_scene(
     for m in muscles:
         if m.info.side and m.info.side != main_side:
             m.name = f"{m.name}_{'left' if m.side == 'l' else 'right'}"
+    return muscles
 
-    # ---------------------------------------------------------------- bones to bodies
+
+def _bones_to_bodies(
+    model: OpenSimModel, meshes: list[MeshInfo], main_side: str, unplaced: list[str]
+) -> list[tuple[MeshInfo, str, str]]:
+    """Each bone or landmark mesh with its scene name and the model's body it is on."""
     bones: list[tuple[MeshInfo, str, str]] = []
     for mi in meshes:
         if mi.kind not in ("bone", "landmark"):
@@ -265,8 +319,16 @@ def init_scene(
     for i, (mi, n, b) in enumerate(bones):
         if names.count(n) > 1:  # two files for the same bone: keep both, by file name
             bones[i] = (mi, mi.stem.lower().replace("-", "_").replace(" ", "_"), b)
+    return bones
 
-    # ---------------------------------------------------------------- units
+
+def _mesh_unit(
+    model: OpenSimModel, muscles: list[_Muscle], say: Callable[[str], None]
+) -> tuple[str, float, str]:
+    """The meshes' unit from how far the muscles span against their paths.
+
+    Returns the unit, the scale from model (m) to mesh units, and the scene's note.
+    """
     model.set_pose(model.default_pose())
     path_pts = np.vstack([model.path_points(p, "ground") for m in muscles for p in m.paths])
     mesh_pts = np.vstack([m.info.V for m in muscles])
@@ -281,8 +343,26 @@ def init_scene(
         f"corner), their paths {np.linalg.norm(np.ptp(path_pts, axis=0)):.4g} m at the default pose: "
         f"ratio {ratio:.4g}, nearest {s:g} ({mesh_unit})"
     )
+    return mesh_unit, s, units_note
 
-    # ---------------------------------------------------------------- coordinates
+
+class _Driven(NamedTuple):
+    """What moves the scene: its coordinates (those the motion has), the locked ones."""
+
+    output_frame: str
+    used: set[str]  # the bodies the muscles, bones and paths are on
+    coords: list[str]
+    locked: list[str]
+    lacking: list[str]  # coordinates that move the scene but the motion lacks
+
+
+def _driven(
+    model: OpenSimModel,
+    muscles: list[_Muscle],
+    bones: list[tuple[MeshInfo, str, str]],
+    motion: Path | None,
+) -> _Driven:
+    """The coordinates between the scene's bodies and its output frame."""
     output_frame = "pelvis" if "pelvis" in model.body_names else "ground"
     used = {m.body for m in muscles} | {b for _, _, b in bones}
     used |= model.path_bodies([p for m in muscles for p in m.paths])
@@ -297,8 +377,25 @@ def init_scene(
                 f"{motion}: the motion has none of the coordinates that move the scene "
                 f"({', '.join(lacking)})"
             )
+    return _Driven(output_frame, used, coords, locked, lacking)
 
-    # ---------------------------------------------------------------- placement
+
+def _placement(
+    model: OpenSimModel,
+    meshes: list[MeshInfo],
+    muscles: list[_Muscle],
+    driven: _Driven,
+    s: float,
+    main_side: str,
+    mesh_unit: str,
+    say: Callable[[str], None],
+) -> tuple[_Placement, str]:
+    """Where the meshes are: the candidate placement whose muscles sit best on their paths.
+
+    Also settles the side of each muscle its name did not say (the side whose paths fit)
+    and keeps each muscle's fit. Returns the placement and the scene's note on it.
+    """
+    coords, used, output_frame = driven.coords, driven.used, driven.output_frame
     default = model.default_pose()
     coincident = _coincident_pose(model, sorted(used - {"ground"}), output_frame, coords)
     candidates = _candidates(model, meshes, muscles, coords, default, coincident, s, main_side)
@@ -346,42 +443,7 @@ def init_scene(
             m.body = _first_body(model, _REGION_BODY[_ANATOMY[m.name].region], sd) or m.body
             fit = per[sd][0]
         m.fit = fit
-
-    # ---------------------------------------------------------------- motion
-    written = None
-    if motion is None:
-        written = out.with_name(out.stem + "_sweep.mot")
-        _write_sweep(model, coords, best.rest, written)
-        motion = written
-        say(f"no motion given: a sweep of {', '.join(coords)} written to {written}")
-
-    text = _scene_text(
-        out,
-        model,
-        muscles,
-        bones,
-        coords,
-        locked,
-        lacking,
-        best,
-        mesh_unit,
-        motion,
-        output_frame,
-        unplaced,
-        [units_note, place_note],
-        written is not None,
-    )
-    with atomic_path(out) as part:
-        part.write_text(text, encoding="utf-8")
-    return InitResult(
-        out,
-        text,
-        {m.name: tuple(m.paths) for m in muscles},
-        {n: b for _, n, b in bones},
-        unplaced,
-        [units_note, place_note],
-        written,
-    )
+    return best, place_note
 
 
 # ------------------------------------------------------------------------ placements
