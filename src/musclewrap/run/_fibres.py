@@ -28,21 +28,18 @@ from ..mesh import apply_transform, write_mesh
 from ..output import plot_moment_arms, write_csv
 from ..scene import OUTPUT_COLUMNS, Drive
 from ..solver import DeformationResult, Muscle
+from ._files import FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS
 from ._records import MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
 
 __all__ = [
-    "FIBRES_CSV",
     "FIBRE_FIELDS",
-    "MOMENT_ARMS_CSV",
     "MOMENT_ARM_FIELDS",
-    "PLOT_MOMENT_ARMS",
     "fibres_of",
     "frame_fibres",
     "write_fibre_outputs",
     "write_frame_fibres",
 ]
 
-FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS = "fibres.csv", "moment_arms.csv", "moment_arms.png"
 # their meanings: `OUTPUT_COLUMNS` (the documentation lists them)
 FIBRE_FIELDS = list(OUTPUT_COLUMNS[FIBRES_CSV])
 MOMENT_ARM_FIELDS = list(OUTPUT_COLUMNS[MOMENT_ARMS_CSV])

@@ -9,11 +9,11 @@ from typing import Any
 
 from ..errors import SceneError
 from ..mesh import atomic_path
+from ._files import JOURNAL
 
 __all__ = ["Journal"]
 
 #: folder inside the output folder; removed when the run completes
-JOURNAL = ".musclewrap-run"
 
 
 class Journal:

@@ -48,9 +48,9 @@ from ..mesh import (
 )
 from ..scene import BoneSpec, Drive, MuscleSpec, Scene, drive_scene
 from ._execute import Node, Runner
+from ._files import TOP_FILES
 from ._records import BoneMesh
 from ._work import ProbeBone, bone_probe
-from ._write import TOP_FILES
 
 __all__ = ["Inputs", "default_cache_dir", "read_inputs"]
 

@@ -48,6 +48,7 @@ from ._execute import (
     Runner,
     import_plotting_meanwhile,
 )
+from ._files import GIF
 from ._journal import Journal
 from ._plan import chunks, frame_span, muscle_jobs, path_span
 from ._read import (
@@ -58,7 +59,7 @@ from ._read import (
 )
 from ._records import ChunkResult, Comparison, FrameSpan, MuscleJob, MuscleOutcome
 from ._work import Compare, DeformChunk, DeformGroup, FollowPath, Prepare, ProbeBone
-from ._write import GIF, REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
+from ._write import REPORT_FIELDS, Progress, RunSummary, write_bones, write_outputs
 
 __all__ = [
     "REPORT_FIELDS",

@@ -19,35 +19,21 @@ from .._typing import FloatArray, IntArray
 from ..mesh import apply_transform, write_mesh
 from ..output import plot_convergence, plot_penetration, plot_volume_error, write_csv, write_pvd
 from ..scene import OUTPUT_COLUMNS, Drive, Scene
-from ._fibres import FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS, write_fibre_outputs
-from ._journal import JOURNAL
+from ._fibres import write_fibre_outputs
+from ._files import (
+    PLOT_CONVERGENCE,
+    PLOT_PENETRATION,
+    PLOT_VOLUME,
+    PVD,
+    REPORT,
+)
 from ._records import BoneMesh, MuscleOutcome
 
-__all__ = ["REPORT_FIELDS", "TOP_FILES", "Progress", "RunSummary", "write_bones", "write_outputs"]
+__all__ = ["REPORT_FIELDS", "Progress", "RunSummary", "write_bones", "write_outputs"]
 
 #: columns of ``report.csv`` (the first eight are the documented contract; their meanings:
 #: `OUTPUT_COLUMNS`, which the documentation lists)
 REPORT_FIELDS = list(OUTPUT_COLUMNS["report.csv"])
-
-
-# the files a run writes at the top of its output folder (besides one folder per muscle and bone)
-PVD, REPORT, GIF = "scene.pvd", "report.csv", "scene.gif"
-PLOT_VOLUME, PLOT_CONVERGENCE = "volume_error.png", "convergence.png"
-PLOT_PENETRATION = "penetration.png"
-# (render_series also writes the GIF's middle picture beside it, as .png)
-TOP_FILES = (
-    PVD,
-    REPORT,
-    GIF,
-    Path(GIF).with_suffix(".png").name,
-    PLOT_VOLUME,
-    PLOT_CONVERGENCE,
-    PLOT_PENETRATION,
-    FIBRES_CSV,
-    MOMENT_ARMS_CSV,
-    PLOT_MOMENT_ARMS,
-    JOURNAL,
-)
 
 
 @dataclass
