@@ -28,7 +28,7 @@ def _point(text: str) -> list[float]:
 
 
 #: the sub-commands of the parser (argparse's type for them)
-_Commands = argparse._SubParsersAction  # noqa: SLF001
+_Commands = argparse._SubParsersAction
 
 
 def _parser() -> argparse.ArgumentParser:

@@ -516,8 +516,9 @@ class _MuscleFrames:
         contact; NaN otherwise).
         """
         sides = self.sides_of(k)
-        measured = self._measure(k, res)
-        if np.isfinite(res.V).all():
+        finite = bool(np.isfinite(res.V).all())  # else no surface to measure or write
+        measured = self._measure(k, res, finite)
+        if finite:
             self._write_surface(k, res)
         self._write_lines(k)
         if self.fb is not None:
@@ -525,10 +526,9 @@ class _MuscleFrames:
         self.result.rows.append(self._row(k, res, overlap, measured))
         _tick()
 
-    def _measure(self, k: int, res: DeformationResult) -> FrameMeasures:
+    def _measure(self, k: int, res: DeformationResult, finite: bool) -> FrameMeasures:
         """Frame ``k``'s shape change, depths in and of the bones, and its lines' in them."""
-        ok_values = np.isfinite(res.V).all()
-        shape = float(self.muscle.shape_change(res.V).max()) if ok_values else float("nan")
+        shape = float(self.muscle.shape_change(res.V).max()) if finite else float("nan")
         here = self.bones_here(k)
         line_depth = line_inside_depth(
             list(self.span.lines[k].values()), list(here.values()), 0.25 * self.d._fine_edge
