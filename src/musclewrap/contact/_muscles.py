@@ -316,16 +316,25 @@ def _inside_other(
 
 
 def overlap_depths(
-    surfaces: Mapping[str, tuple[FloatArray, IntArray]], pairs: Sequence[tuple[str, str]]
+    surfaces: Mapping[str, tuple[FloatArray, IntArray]],
+    pairs: Sequence[tuple[str, str]],
+    memo: Mapping[Any, Any] | None = None,
 ) -> dict[str, tuple[int, float]]:
     """Per muscle, how many of its vertices lie inside another muscle and the deepest one's depth.
 
     Exact: winding numbers of the whole surfaces and the distance to the whole
     surface of the one it is in (not only the faces that face it). Muscles in no
-    pair: (0, 0).
+    pair: (0, 0). ``memo``: an `overlaps` memo of these rounds: what it holds for
+    surfaces that have not moved since (the same arrays) is taken again, the boxes,
+    the grids and the pairs with no vertex inside the other (the same, whichever
+    faces the way out takes); a pair with vertices inside is looked at anew.
     """
+    seed: dict[Any, Any] = {}
+    if memo is not None:
+        seed = {k: v for k, v in memo.items() if not isinstance(k, tuple) or v[2] is None}
+        seed = {k: dict(v) if isinstance(v, dict) else v for k, v in seed.items()}
     out = {n: (0, 0.0) for n in surfaces}
-    for n, found in overlaps(surfaces, pairs, {}).items():
+    for n, found in overlaps(surfaces, pairs, {}, seed).items():
         if found:
             out[n] = (
                 sum(len(o.rows) for o in found),

@@ -117,15 +117,23 @@ class ContactSteps:
         report; the solve's iterations, history and reason kept).
         """
         t0 = time.perf_counter()
+        pose = result.pose
         with np.errstate(all="ignore"):
-            cur, s_cur, d_L = self._targets(current_lines, reference_point)
+            if pose is None:
+                cur, s_cur, d_L = self._targets(current_lines, reference_point)
+            else:
+                cur, s_cur, d_L = pose.targets
             ok, reason, contact = result.converged, result.reason, None
             if obstacles and np.isfinite(V).all():
                 placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
-                near = Near(V, placed, margin)
+                # the pose's bounds (they hold wherever the vertices have moved since), and
+                # the bones inside the muscle where it has not moved since they were found
+                near = Near(V, placed, margin) if pose is None else pose.near
+                inside = None if pose is None or pose.at is not V else pose.inside
                 V, contact, ok, reason = self._finish(
-                    V, placed, margin, near, sides, result.penetration_depth_before, ok, reason
-                )
+                    V, placed, margin, near, sides, result.penetration_depth_before, ok, reason,
+                    inside,
+                )  # fmt: skip
             res = self._result(
                 x, V, result.iterations, ok, reason, list(result.history), cur, d_L, s_cur,
                 result.method, t0, contact,

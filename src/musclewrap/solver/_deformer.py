@@ -50,7 +50,7 @@ from ._contact import ContactSteps
 from ._paper import PaperSteps
 from ._prepared import PreparedMuscle
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
-from ._result import DeformationResult, Solved
+from ._result import DeformationResult, PoseContact, Solved
 
 __all__ = ["METHODS", "Deformer"]
 
@@ -483,8 +483,10 @@ class Deformer(ContactSteps, PaperSteps):
                 )
             res = self._result(x, V, its, ok, reason, hist, cur, d_L, s_cur, method, t0, contact)
             if obstacles and contact is None and np.isfinite(V).all():
-                # the finish is the caller's (`settle`): what the solve alone gave, kept
-                res = dataclasses.replace(res, penetration_depth_before=before)
+                # the finish is the caller's (`settle`): what the solve alone gave, and what
+                # the contact found, kept for it
+                pose = PoseContact((cur, s_cur, d_L), near, inside, None if inside is None else V)
+                res = dataclasses.replace(res, penetration_depth_before=before, pose=pose)
             return res
 
     def _result(

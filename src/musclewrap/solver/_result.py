@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-from typing import NamedTuple
+from dataclasses import dataclass, field, fields
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["DeformationResult", "Solved"]
+__all__ = ["DeformationResult", "PoseContact", "Solved"]
 
 
 class Solved(NamedTuple):
@@ -21,6 +21,21 @@ class Solved(NamedTuple):
     converged: bool
     reason: str
     history: list[tuple[float, float]]  # (energy, relative volume error) per iteration
+
+
+class PoseContact(NamedTuple):
+    """What a pose's contact with its bones found, kept for its finish (`Deformer.settle`).
+
+    The finish takes them again instead of computing them anew: the targets of the
+    pose's lines, the bones' `musclewrap.contact.Near` (its bounds hold wherever the
+    vertices have moved since), and the bones' vertices found inside the muscle at the
+    positions ``at`` (None where they were not looked for there).
+    """
+
+    targets: tuple[Any, FloatArray, FloatArray]  # current lines, samples s', rotated deltas
+    near: Any  # musclewrap.contact.Near
+    inside: list[Any] | None  # musclewrap.contact.Inside per bone, at ``at``
+    at: FloatArray | None
 
 
 @dataclass(frozen=True)
@@ -81,6 +96,10 @@ class DeformationResult:
         were solved together (`deform_together`); NaN otherwise.
     muscle_rounds : int
         The rounds they took (`deform_together`).
+    pose : PoseContact or None
+        With ``finish=False`` and obstacles: what the pose's contact found, for the
+        finish of this result (`Deformer.settle`) to take again; None otherwise.
+        Not compared, not in `summary`.
     """
 
     V: FloatArray
@@ -106,6 +125,7 @@ class DeformationResult:
     bone_inside_vertices: int = 0
     muscle_overlap: float = float("nan")
     muscle_rounds: int = 0
+    pose: PoseContact | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def failed(
@@ -138,7 +158,7 @@ class DeformationResult:
 
     def summary(self) -> dict[str, object]:
         """Scalars of the result as a JSON-ready dict (no arrays)."""
-        d = asdict(self)
-        for k in ("V", "cage", "history"):
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
+        for k in ("V", "cage", "history", "pose"):
             d.pop(k)
         return {k: (float(v) if isinstance(v, np.floating) else v) for k, v in d.items()}

@@ -134,7 +134,10 @@ def meet(
                 points = (d.surface_rows(m.at, m.faces, surf[n][0]), m.give, m.back)
             obs = obstacles.get(n)
             if obs and n not in nears:
-                nears[n] = Near(state[n][1], obs, margin)
+                # the pose's bounds where its solve kept them (they hold wherever the
+                # vertices have moved since)
+                pose = results[n].pose
+                nears[n] = Near(state[n][1], obs, margin) if pose is None else pose.near
             new[n] = d.contact_round(
                 *state[n], m.rows, m.need, m.out, obstacles=obs, margin=margin,
                 sides=sides.get(n), near=nears.get(n), points=points,
@@ -156,10 +159,17 @@ def meet(
         for n in names
     }
     ok = [n for n in names if np.isfinite(final[n].V).all()]
+    # the exact check; a surface the finish did not move is the rounds' own (and what the
+    # rounds found about it is taken again)
     depth = overlap_depths(
-        {n: (_apply(frames.get(n), final[n].V), deformers[n].muscle.F) for n in ok},
+        {
+            n: surf[n] if n in surf and final[n].V is state[n][1]
+            else (_apply(frames.get(n), final[n].V), deformers[n].muscle.F)
+            for n in ok
+        },
         every_pair(ok),
-    )
+        memo,
+    )  # fmt: skip
     return {
         n: dataclasses.replace(
             final[n],
