@@ -32,9 +32,10 @@ def kernels_cached() -> bool:
 
 
 #: the kernels of a pose, of a preparation and of the contact, each with the signature it is
-#: called with. On a first run a second process compiles the pose's and the contact's while
-#: the run prepares its muscles (compiling the preparation's as it goes). Kernels that only these call are compiled
-#: with them. A test checks that the demo compiles nothing else.
+#: called with. On a first run a second process compiles the pose's and some of the
+#: contact's while the run's own compiles the preparation's and the contact's others
+#: (`HERE`), before its workers start. Kernels that only these call are compiled with them.
+#: A test checks that the demo compiles nothing else.
 _A2, _A1, _I2, _I1 = "float64[:, ::1]", "float64[::1]", "int64[:, ::1]", "int64[::1]"
 _A3, _F2 = "float64[:, :, ::1]", "float32[:, ::1]"
 KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
@@ -93,8 +94,17 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
 }  # fmt: skip
 
 
-def compile_kernels(group: str | None = None) -> None:
-    """Compile (into Numba's cache) the kernels of ``group`` of `KERNELS`, or all."""
+#: on a first run, the contact's kernels that the run's own process compiles (after the
+#: preparation's) while the helper compiles the pose's and the contact's others: each side
+#: about 12 s of the 23 s that all take in one process (`bench_first_run.py --kernels`)
+HERE = ("_closest_kernel", "_region_kernel", "_query_kernel")
+
+
+def compile_kernels(group: str | None = None, *, here: bool | None = None) -> None:
+    """Compile (into Numba's cache) the kernels of ``group`` of `KERNELS`, or all.
+
+    ``here``: of the contact's, only those of `HERE` (True) or only the others (False).
+    """
     import importlib
 
     from numba.core.sigutils import normalize_signature
@@ -103,6 +113,8 @@ def compile_kernels(group: str | None = None) -> None:
         if group not in (None, g):
             continue
         for module, name, signature in kernels:
+            if g == "contact" and here is not None and (name in HERE) != here:
+                continue
             kernel = getattr(importlib.import_module(f"musclewrap.{module}"), name)
             if hasattr(kernel, "compile"):  # not with NUMBA_DISABLE_JIT
                 # the argument types as a call passes them: Numba's cache is keyed by the
@@ -112,20 +124,31 @@ def compile_kernels(group: str | None = None) -> None:
 
 _COMPILE_HELPER = (
     "from musclewrap._jit import compile_kernels; compile_kernels('pose'); "
-    "compile_kernels('contact')"
+    "compile_kernels('contact', here=False)"
 )
 
 
-def compile_if_first_run(stream: TextIO | None = None) -> subprocess.Popen[bytes] | None:
-    """On a first run, say so once and start compiling the kernels of a pose meanwhile.
+def compile_here() -> None:
+    """The first run's own share of the kernels: the preparation's and the contact's `HERE`.
 
-    Returns the process that compiles them (`KERNELS` ``"pose"``, then ``"contact"``) into
-    Numba's cache
-    while this one reads, prepares and compiles what that needs; the first pose then
-    finds them in the cache (6.0 s against 7.4 s for the preparation's own:
-    ``benchmarks/speed/bench_first_run.py --kernels``; a pose that comes first compiles what
-    it lacks itself). None if
-    the kernels were in the cache already, or this machine has one CPU.
+    Compiled before the run starts its workers, while the helper of
+    `compile_if_first_run` compiles the rest: the workers then find every kernel in
+    the cache instead of each compiling the preparation's (and the contact's the
+    helper has not reached) at once on two cores.
+    """
+    compile_kernels("preparation")
+    compile_kernels("contact", here=True)
+
+
+def compile_if_first_run(stream: TextIO | None = None) -> subprocess.Popen[bytes] | None:
+    """On a first run, say so once and start compiling half of the kernels meanwhile.
+
+    Returns the process that compiles them into Numba's cache (`KERNELS` ``"pose"``,
+    then the contact's not in `HERE`) while this one compiles the others
+    (`compile_here`, the CLI's ``run``, ``demo`` and ``view``) or reads, prepares and
+    compiles what it needs as it goes (a kernel that the helper has not reached when a
+    pose needs it is compiled there too). None if the kernels were in the cache
+    already, or this machine has one CPU.
     """
     if kernels_cached():
         return None

@@ -663,6 +663,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         from ._jit import compile_if_first_run
 
         helper = compile_if_first_run()  # a first run: a pose's kernels compile meanwhile
+        if helper is not None and args.command in ("run", "demo", "view"):
+            from ._jit import compile_here
+
+            compile_here()  # this process's share, before the run's workers start
+            helper.wait()  # and the helper's: no worker compiles a kernel of its own
     handlers = {
         "prepare": _cmd_prepare,
         "deform": _cmd_deform,
