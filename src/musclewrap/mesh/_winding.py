@@ -171,18 +171,38 @@ def _region_kernel(P, g, y0, z0, hy, hz):  # noqa: ANN001, ANN202 # pragma: no c
 
 @numba.njit(cache=True)
 def _bin_kernel(F, cy, cz, i0, i1, j0, j1):  # noqa: ANN001, ANN202 # pragma: no cover
-    # the faces binned by their cell ranges in the cells [i0, i1] x [j0, j1] (`bin_boxes`:
-    # cell (i, j) at (i - i0) * (j1 - j0 + 1) + j - j0, each in face order); a face
-    # outside them gets an empty range
+    # the faces binned by their cell ranges in the cells [i0, i1] x [j0, j1] (as
+    # `bin_boxes` bins them: cell (i, j) at (i - i0) * (j1 - j0 + 1) + j - j0, each in face
+    # order); a face outside them in none. Each face's range is taken again in the second
+    # pass rather than kept (a pass over F, not over a table six times its size)
     m = F.shape[0]
-    boxes = np.zeros((m, 6), dtype=np.int64)
+    nj = j1 - j0 + 1
+    start = np.zeros((i1 - i0 + 1) * nj + 1, dtype=np.int64)
     for t in range(m):
         a, b, c = F[t, 0], F[t, 1], F[t, 2]
-        boxes[t, 0] = max(min(cy[a], cy[b], cy[c]), i0) - i0
-        boxes[t, 1] = min(max(cy[a], cy[b], cy[c]), i1) - i0
-        boxes[t, 2] = max(min(cz[a], cz[b], cz[c]), j0) - j0
-        boxes[t, 3] = min(max(cz[a], cz[b], cz[c]), j1) - j0
-    return bin_boxes(boxes, i1 - i0 + 1, j1 - j0 + 1, 1)
+        lo_i = max(min(cy[a], cy[b], cy[c]), i0) - i0
+        hi_i = min(max(cy[a], cy[b], cy[c]), i1) - i0
+        lo_j = max(min(cz[a], cz[b], cz[c]), j0) - j0
+        hi_j = min(max(cz[a], cz[b], cz[c]), j1) - j0
+        for i in range(lo_i, hi_i + 1):
+            for j in range(lo_j, hi_j + 1):
+                start[i * nj + j + 1] += 1
+    for k in range(len(start) - 1):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    items = np.empty(start[-1], dtype=np.int64)
+    for t in range(m):
+        a, b, c = F[t, 0], F[t, 1], F[t, 2]
+        lo_i = max(min(cy[a], cy[b], cy[c]), i0) - i0
+        hi_i = min(max(cy[a], cy[b], cy[c]), i1) - i0
+        lo_j = max(min(cz[a], cz[b], cz[c]), j0) - j0
+        hi_j = min(max(cz[a], cz[b], cz[c]), j1) - j0
+        for i in range(lo_i, hi_i + 1):
+            for j in range(lo_j, hi_j + 1):
+                k = i * nj + j
+                items[fill[k]] = t
+                fill[k] += 1
+    return start, items
 
 
 @numba.njit(cache=True)
