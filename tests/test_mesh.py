@@ -556,3 +556,12 @@ def test_volume_hessian_reduced_matches_finite_differences():
     assert np.allclose(
         (K @ w.ravel()).reshape(x.shape), fd, rtol=1e-7, atol=1e-9 * np.abs(fd).max()
     )
+
+
+def test_bounding_box_is_numpys_min_and_max():
+    from musclewrap.mesh import bounding_box
+
+    rng = np.random.default_rng(3)
+    for P in (rng.normal(size=(1, 3)), rng.normal(size=(500, 3)) * [1.0, 1e3, 1e-3]):
+        lo, hi = bounding_box(P)
+        assert np.array_equal(lo, P.min(0)) and np.array_equal(hi, P.max(0))

@@ -33,7 +33,15 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..mesh import WindingGrid, bin_boxes, in_box, mean_edge_length, vertex_adjacency, volume
+from ..mesh import (
+    WindingGrid,
+    bin_boxes,
+    bounding_box,
+    in_box,
+    mean_edge_length,
+    vertex_adjacency,
+    volume,
+)
 from ._finish import longest_pushes, nudge, triangle_pushes
 from ._inside import _closest_on_triangle
 
@@ -250,7 +258,7 @@ def overlaps(
     for n, (V, _) in surfaces.items():
         kept = kept_boxes.get(n)
         if kept is None or kept[0] is not V:
-            kept = kept_boxes[n] = (V, V.min(0), V.max(0))
+            kept = kept_boxes[n] = (V, *bounding_box(V))
         boxes[n] = kept[1:]
     out: dict[str, list[Overlap]] = {n: [] for n in surfaces}
     todo = []  # (me, other, its points in the other's box) of the pairs looked at anew

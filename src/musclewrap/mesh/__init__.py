@@ -18,6 +18,7 @@ from ._cubic import cubic_root_near
 from ._geometry import (
     apply_transform,
     barycentric,
+    bounding_box,
     face_areas,
     half_edges,
     in_box,
@@ -51,6 +52,7 @@ __all__ = [
     "available_memory",
     "barycentric",
     "bin_boxes",
+    "bounding_box",
     "check_memory",
     "check_mesh",
     "clean_mesh",

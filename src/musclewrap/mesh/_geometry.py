@@ -11,6 +11,7 @@ from .._typing import FloatArray, IntArray
 __all__ = [
     "apply_transform",
     "barycentric",
+    "bounding_box",
     "face_areas",
     "half_edges",
     "in_box",
@@ -109,6 +110,25 @@ def barycentric(C: FloatArray, tri: FloatArray) -> FloatArray:
     b1 = (d11 * d20 - d01 * d21) / den
     b2 = (d00 * d21 - d01 * d20) / den
     return np.stack([1 - b1 - b2, b1, b2], axis=1)
+
+
+def bounding_box(P: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The least and greatest coordinates of the finite points ``P`` (k >= 1, 3), in one pass."""
+    return _box_kernel(np.ascontiguousarray(P, dtype=np.float64))
+
+
+@numba.njit(cache=True)
+def _box_kernel(P):  # noqa: ANN001, ANN202 # pragma: no cover
+    lo = P[0].copy()
+    hi = P[0].copy()
+    for i in range(1, P.shape[0]):
+        for k in range(3):
+            x = P[i, k]
+            if x < lo[k]:
+                lo[k] = x
+            elif x > hi[k]:
+                hi[k] = x
+    return lo, hi
 
 
 def in_box(P: FloatArray, lo: FloatArray, hi: FloatArray) -> IntArray:
