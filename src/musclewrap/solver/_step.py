@@ -93,41 +93,23 @@ def cage_push(
         Wr = np.vstack([Wr, Wp])
         r = np.concatenate([r, slack - gp])
         Nn = np.vstack([Nn, Np])
-    k_all = len(r)
-    # W_i H^-1 (k, m), row by row as the rows join an active set: most candidates never do
-    # (a median of 14 of 85 on the LHDL walk), and they enter the step through W_i dx alone
-    Y = np.empty((k_all, m))
-    have = np.zeros(k_all, dtype=bool)
-
-    def rows_of_y(a: IntArray) -> FloatArray:
-        new = a[~have[a]]
-        if len(new):
-            Y[new] = Wr[new] @ Hinv
-            have[new] = True
-        return Y[a]
-
-    active = r > 0
+    Y = Wr @ Hinv  # (k, m): W_i H^-1
+    G = (Y @ Wr.T) * (Nn @ Nn.T)
+    c = np.einsum("ij,ij->i", Nn, Wr @ Hg)
     # soft conditions: a cage of a few hundred vertices cannot meet many close ones exactly,
     # and the exact least-energy step of nearly dependent ones is huge; the fine finish
-    # takes what the cage leaves. Their scale: the mean diagonal of G over the conditions
-    # active at the start (W_i H^-1 W_i^T n_i.n_i), fixed for the step
-    a0 = np.flatnonzero(active)
-    soft = 0.0  # (nothing active: no step)
-    if len(a0):
-        diag = np.einsum("ij,ij->i", rows_of_y(a0), Wr[a0])
-        diag *= np.einsum("ij,ij->i", Nn[a0], Nn[a0])
-        soft = defaults.contact_softness * float(np.mean(diag))
-    c = np.einsum("ij,ij->i", Nn, Wr @ Hg)
+    # takes what the cage leaves
+    soft = defaults.contact_softness * float(np.mean(np.diag(G)))
     gg = float(np.sum(g * Hg))  # g . H^-1 g
+    active = r > 0
     dx = np.zeros((m, 3))
     for _ in range(max_sets):
         a = np.flatnonzero(active)
         if not len(a):
             break
         k = len(a)
-        Ya = rows_of_y(a)
         M = np.empty((k + 1, k + 1))
-        M[:k, :k] = (Ya @ Wr[a].T) * (Nn[a] @ Nn[a].T)
+        M[:k, :k] = G[np.ix_(a, a)]
         M[:k, k] = M[k, :k] = c[a]
         M[k, k] = gg
         M[np.arange(k), np.arange(k)] += soft
@@ -137,7 +119,7 @@ def cage_push(
         except np.linalg.LinAlgError:
             sol = np.linalg.lstsq(M, rhs, rcond=1e-12)[0]
         mu, mu_v = sol[:k], sol[k]
-        dx = Ya.T @ (mu[:, None] * Nn[a]) + mu_v * Hg
+        dx = Y[a].T @ (mu[:, None] * Nn[a]) + mu_v * Hg
         lin = np.einsum("ij,ij->i", Nn, Wr @ dx)
         join = ~active & (lin < r - slack)
         leave = np.zeros_like(active)
