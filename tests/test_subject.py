@@ -133,6 +133,77 @@ def test_mesh_names_of_the_data_are_classified(data_dir):
     assert match_muscle("scan_0042") is None
 
 
+#: abbreviations a scan's labels use for the VHF folder's muscles
+_ABBREVIATED = {
+    "AdductorBrevis": "AB", "AdductorLongus": "AL", "AdductorMagnus": "AM",
+    "BicepsFemorisShortHead": "BFsh", "BicepsFemorisLong": "BFlh", "GluteusMaximus": "GMax",
+    "GluteusMedius": "GMed", "GluteusMinimus": "GMin", "Gracilis": "GR", "Illiacus": "IL",
+    "Pectineus": "PEC", "PsoasMajor": "PS", "RectusFemoris": "RF", "Sartorius": "SR",
+    "Semimembranosus": "SM", "Semitendonosus": "ST", "TensorFasciaeLatae": "TFL",
+    "VastusIntermedius": "VI", "VastusLateralis": "VL", "VastusMedialis": "VM",
+}  # fmt: skip
+
+
+def _snake(camel: str) -> str:
+    return re.sub(r"(?<!^)(?=[A-Z])", "_", camel).lower()
+
+
+#: the VHF folder's names (``VHF_<Side>_<Kind>_<Name>_smooth``) as other folders write them:
+#: (side "Right"/"Left", kind "Muscle"/"Bone"/"Cartilage", CamelName) -> stem
+RENAMED = {
+    "another subject's prefix": lambda s, k, n: f"Subj07_{s}_{k}_{n}_smooth",
+    "subject and side letter first": lambda s, k, n: f"S07_{s[0]}_{_snake(n)}",
+    "side spelt out last": lambda s, k, n: f"{n}_{s.lower()}",
+    "snake case, side letter last": lambda s, k, n: f"{_snake(n)}_{s[0].lower()}",
+    "BIDS-like labels": lambda s, k, n: f"sub-03_hemi-{s[0]}_label-{n.lower()}",
+    "upper case": lambda s, k, n: f"{s.upper()}_{_snake(n).upper()}",
+    "spaces and a number": lambda s, k, n: f"{k} {len(n)} - {_snake(n).replace('_', ' ').title()} ({s[0]})",
+    "side letter glued on": lambda s, k, n: f"{s[0]}{n}",
+    "hyphens": lambda s, k, n: f"{_snake(n).replace('_', '-')}-{s[0]}",
+    "abbreviations": lambda s, k, n: f"Subject12_{s}_{_ABBREVIATED.get(n, n)}",
+}  # fmt: skip
+
+
+def _vhf_names(data_dir: Path) -> list[tuple[Path, tuple[str, str, str]]]:
+    out = []
+    for f in sorted((data_dir / "vhf").glob("*.stl")):
+        _, side, kind, name, _ = f.stem.split("_")
+        out.append((f, (side, kind, name)))
+    return out
+
+
+def _classified(stem: str) -> tuple[str, str, str | None]:
+    m, b = match_muscle(stem), match_bone(stem)
+    side = mesh_name_tokens(stem)[1]
+    if m is not None and (b is None or len(m.run) > len(b[0].run)):
+        return "muscle", m.name, side
+    assert b is not None, stem
+    return ("landmark" if b[1] else "bone"), b[0].name, side
+
+
+@pytest.mark.parametrize("style", sorted(RENAMED))
+def test_a_renamed_folder_names_the_same_muscles_bones_and_sides(data_dir, style):
+    """Issue 47: the VHF folder's files renamed as other folders name them are taken for
+    the same muscle, bone or cartilage, on the same side, with nothing ambiguous."""
+    for f, parts in _vhf_names(data_dir):
+        renamed = RENAMED[style](*parts)
+        assert _classified(renamed) == _classified(f.stem), (style, renamed)
+        m = match_muscle(renamed)
+        assert m is None or not m.others, (renamed, m)
+
+
+def test_names_ties_are_said_and_words_must_be_whole():
+    # one letter from two muscles: both said
+    m = match_muscle("GluteusMiximus")  # maximus or minimus?
+    assert m is not None and m.others, m
+    # an abbreviation counts only as a whole word; a full name beats one
+    assert match_muscle("Revolved") is None
+    assert match_muscle("AB12_Gracilis").name == "gracilis"  # type: ignore[union-attr]
+    # typos only on long runs, by a letter or two
+    assert match_muscle("Solus").name == "soleus"  # type: ignore[union-attr]
+    assert match_muscle("Grcls") is None
+
+
 # ---------------------------------------------------------------------------- init
 def _folder_of(scene, where: Path) -> Path:
     """A folder holding (links to) just the meshes a scene names."""
@@ -232,6 +303,22 @@ def test_init_on_the_vhf_folder_finds_every_gait2392_muscle(data_dir, tmp_path):
     assert "knee_angle_l" in sc.coordinates  # the left muscle's joints are driven too
     rep = check_scene(sc)
     assert rep.ok, [str(f) for f in rep.errors]
+
+
+@pytest.mark.parametrize("style", ["another subject's prefix", "abbreviations", "BIDS-like labels"])
+def test_init_on_a_renamed_folder_writes_the_same_scene(data_dir, tmp_path, style):
+    """Issue 47: the VHF folder renamed maps every muscle to the same paths, every bone to
+    the same body, and finds the same registration, each file within its tests."""
+    folder = tmp_path / "renamed"
+    folder.mkdir()
+    for f, parts in _vhf_names(data_dir):
+        (folder / f"{RENAMED[style](*parts)}.stl").symlink_to(f)
+    model = data_dir / "opensim/models/subject01_simbody.osim"
+    motion = data_dir / "opensim/motions/subject01_walk1_ik.mot"
+    a = init_scene(model, data_dir / "vhf", tmp_path / "a.toml", motion=motion)
+    b = init_scene(model, folder, tmp_path / "b.toml", motion=motion)
+    assert not b.unplaced, b.unplaced
+    assert _mapping(load_scene(b.scene)) == _mapping(load_scene(a.scene))
 
 
 def test_init_lists_what_it_cannot_place(data_dir, tmp_path):

@@ -235,10 +235,6 @@ class Defaults:
     init_alike_deg : float
         `musclewrap.subject.init_scene`: two registrations whose rotations differ by less
         than this (degrees) are the same placement.
-    name_similar : float
-        The least similarity (difflib's ratio) for a misspelt name to count as a match:
-        'illiacus' and 'semitendonosus' (the VHF files) score 0.93, 'gluteusminimus'
-        against 'gluteusmaximus' 0.79 and 'vastusmedialis' against 'vastuslateralis' 0.76.
     """
 
     cage_size: int = 300
@@ -284,7 +280,6 @@ class Defaults:
     check_attached_m: float = 0.010
     view_contact_reach: float = 5.0
     init_alike_deg: float = 15.0
-    name_similar: float = 0.86
 
 
 tol = Tolerances()

@@ -97,17 +97,30 @@ def survey(folder: Path) -> list[MeshInfo]:
         m, b = match_muscle(stem), match_bone(stem)
         kind, match, why = None, None, ""
         said_muscle, said_bone = "muscle" in words or "muscles" in words, "bone" in words
-        if m is not None and (b is None or m.score > b[0].score or said_muscle):
+        if m is not None and (b is None or said_muscle or _rank(m) > _rank(b[0])):
             kind, match = "muscle", m
         elif b is not None:
             match = b[0]
             kind = "landmark" if b[1] else "bone"
-        elif said_muscle:
-            why = "its name says muscle but names no muscle the table knows (musclewrap.subject.MUSCLES)"
-        elif said_bone:
-            why = "its name says bone but names no bone the table knows"
-        else:
-            why = "its name names no muscle, bone or cartilage the table knows"
+        if match is not None and match.others:
+            # a tie (or a misspelling one letter from another entry): said, not chosen
+            alike = " or the ".join(o.replace("_", " ") for o in match.others)
+            kind, match, why = (
+                None,
+                None,
+                (
+                    f"its name ('{match.run}') fits the {match.name.replace('_', ' ')} "
+                    f"or the {alike} alike: rename it"
+                ),
+            )
+        elif kind is None:
+            why = (
+                "its name says muscle but names no muscle the table knows (musclewrap.subject.MUSCLES)"
+                if said_muscle
+                else "its name says bone but names no bone the table knows"
+                if said_bone
+                else "its name names no muscle, bone or cartilage the table knows"
+            )
         if kind == "muscle" and not closed:
             kind, why = (
                 None,
@@ -115,6 +128,11 @@ def survey(folder: Path) -> list[MeshInfo]:
             )
         out.append(MeshInfo(p, kind, match, side, V, F, closed, why))
     return out
+
+
+def _rank(match: NameMatch) -> tuple[bool, int]:
+    """How strongly a name names it: a full spelling before an abbreviation, then its length."""
+    return not match.how.startswith("abbreviation"), len(match.run)
 
 
 @dataclass
