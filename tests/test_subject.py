@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from musclewrap.cli import main
+from musclewrap.errors import SceneError
 from musclewrap.model._names import (
     match_bone,
     match_muscle,
@@ -319,6 +320,26 @@ def test_init_on_a_renamed_folder_writes_the_same_scene(data_dir, tmp_path, styl
     b = init_scene(model, folder, tmp_path / "b.toml", motion=motion)
     assert not b.unplaced, b.unplaced
     assert _mapping(load_scene(b.scene)) == _mapping(load_scene(a.scene))
+
+
+def test_init_stops_where_no_placement_puts_the_muscles_on_their_paths(data_dir, tmp_path):
+    """Issue 47: another subject's meshes whose cartilages' names say nothing cannot be
+    registered; init says what it found and needs, and writes no scene a metre off."""
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    for i, f in enumerate(sorted((data_dir / "vhf").glob("*.stl"))):
+        name = f"scan_{i:02d}.stl" if "Cartilage" in f.name else f.name
+        (folder / name).symlink_to(f)
+    out = tmp_path / "s.toml"
+    with pytest.raises(SceneError, match="no placement puts the muscles on their paths") as e:
+        init_scene(
+            data_dir / "opensim/models/subject01_simbody.osim", folder, out,
+            motion=data_dir / "opensim/motions/subject01_walk1_ik.mot",
+        )  # fmt: skip
+    said = str(e.value)
+    assert "No landmark surface found" in said and "femoral head's cartilage" in said
+    assert "scan_" in said  # the files it could not name
+    assert not out.exists() and not list(tmp_path.glob("*.mot"))
 
 
 def test_init_lists_what_it_cannot_place(data_dir, tmp_path):

@@ -235,6 +235,13 @@ class Defaults:
     init_alike_deg : float
         `musclewrap.subject.init_scene`: two registrations whose rotations differ by less
         than this (degrees) are the same placement.
+    init_far : float
+        `musclewrap.subject.init_scene` writes no scene where the best placement leaves
+        the median muscle's paths further than this many of its extents from it (the
+        distance a quarter of their length is within): the meshes are not where the
+        model's paths run, and a scene would place them there. The VHF folder on
+        gait2392 (registered) and on Rajagopal 2016, and the LHDL meshes on their model,
+        give at most 0.0006; the VHF folder whose cartilages' names say nothing, 3.4.
     """
 
     cage_size: int = 300
@@ -280,6 +287,7 @@ class Defaults:
     check_attached_m: float = 0.010
     view_contact_reach: float = 5.0
     init_alike_deg: float = 15.0
+    init_far: float = 0.25
 
 
 tol = Tolerances()

@@ -430,6 +430,7 @@ def _placement(
     k, alike, other = _choose(candidates, scores)
     best, best_fits = candidates[k], fits_by[k]
     say(f"placement: {best.describe()} (score {scores[k]:.3g} {mesh_unit})")
+    _refuse_far(meshes, candidates, fits_by, k, mesh_unit)
     place_note = (
         f"placement: {best.describe()}: the median muscle's paths come within "
         f"{np.median([f.near for f in best_fits.values()]):.3g} {mesh_unit} of it for a quarter of "
@@ -462,6 +463,53 @@ def _placement(
             fit = per[sd][0]
         m.fit = fit
     return best, place_note
+
+
+def _refuse_far(
+    meshes: list[MeshInfo],
+    candidates: list[_Placement],
+    fits_by: list[dict[str, LineFit]],
+    k: int,
+    mesh_unit: str,
+) -> None:
+    """Stop where no placement puts the muscles on their paths (``defaults.init_far``).
+
+    A scene would put them a body's length off: the error says what was found and what
+    a registration needs.
+    """
+    fits = fits_by[k]
+    near = float(np.median([f.near for f in fits.values()]))
+    extent = float(np.median([f.extent for f in fits.values()]))
+    if not near > defaults.init_far * extent:
+        return
+    marks = sorted(
+        f"{mi.path.name} ({mi.match.name.replace('_', ' ')})"
+        for mi in meshes
+        if mi.kind == "landmark" and mi.match is not None
+    )
+    unknown = sorted(mi.path.name for mi in meshes if mi.kind is None)
+    tried = "; ".join(
+        f"{c.describe()}: {float(np.median([f.near for f in fb.values()])):.3g} {mesh_unit}"
+        for c, fb in zip(candidates, fits_by, strict=True)
+        if c.kind != "registration"
+    )
+    raise SceneError(
+        "init: no placement puts the muscles on their paths, so no scene was written. The "
+        f"best, {candidates[k].describe()}, leaves the median muscle's paths {near:.3g} "
+        f"{mesh_unit} from it ({near / extent:.2g} of its length; "
+        f"{defaults.init_far:g} is the most taken). Tried: {tried}. "
+        + (
+            f"Landmark surfaces found: {', '.join(marks)}. "
+            if marks
+            else "No landmark surface found. "
+        )
+        + "The meshes look like another subject's, in its own frame: a registration needs "
+        "the femoral head's cartilage (or the acetabulum's) for the hip centre and the distal "
+        "femur's cartilage for the knee, named so (e.g. R_FemoralHead_Cartilage.stl, "
+        "R_FemurDistal_Cartilage.stl)"
+        + (f"; not recognised by name: {', '.join(unknown)}" if unknown else "")
+        + "."
+    )
 
 
 # ------------------------------------------------------------------------ placements
