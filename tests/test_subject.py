@@ -342,6 +342,34 @@ def test_init_stops_where_no_placement_puts_the_muscles_on_their_paths(data_dir,
     assert not out.exists() and not list(tmp_path.glob("*.mot"))
 
 
+def test_init_says_a_muscle_in_two_meshes_and_two_muscles_in_one(data_dir, tmp_path):
+    """Issue 47: a muscle segmented in two meshes is two scene muscles on its paths, several
+    muscles in one mesh (the iliopsoas) follow all of their paths, and the scene says so."""
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    lhdl = data_dir / "lhdl/muscles"
+    for name, f in [
+        ("LHDL_R_Psoas.vtk", "LHDL_R_Psoas.vtk"),
+        ("LHDL_R_GluteusMaximus.vtk", "LHDL_R_GluteusMaximus.vtk"),
+        ("LHDL_R_GluteusMaximus_deep.vtk", "LHDL_R_GluteusMaximus.vtk"),
+        ("R_Iliopsoas.vtk", "LHDL_R_Iliacus.vtk"),
+    ]:
+        (folder / name).symlink_to(lhdl / f)
+    r = init_scene(data_dir / "lhdl/model/LHDL_hip_r.osim", folder, tmp_path / "s.toml")
+    assert r.muscles == {
+        "gluteus_maximus": ("glut_max1_r", "glut_max2_r", "glut_max3_r"),
+        "gluteus_maximus_2": ("glut_max1_r", "glut_max2_r", "glut_max3_r"),
+        "iliopsoas": ("iliacus_r", "psoas_r"),
+        "psoas": ("psoas_r",),
+    }
+    said = " ".join(r.notes)
+    assert "several muscles in one mesh, the iliopsoas (iliacus, psoas)" in said
+    assert "the gluteus maximus is in 2 meshes" in said
+    assert "several muscles in one mesh" in r.text
+    sc = load_scene(r.scene)
+    assert sorted(m.name for m in sc.muscles) == sorted(r.muscles)
+
+
 def test_init_lists_what_it_cannot_place(data_dir, tmp_path):
     folder = tmp_path / "meshes"
     folder.mkdir()

@@ -10,11 +10,14 @@ from ._fit import LineFit, line_fit, line_fits, outside_distance, resample_polyl
 from ._motion import Motion, random_motion, read_motion, write_motion
 from ._names import (
     BONES,
+    GROUPS,
     LANDMARKS,
     MUSCLES,
     Anatomy,
+    MuscleGroup,
     NameMatch,
     match_bone,
+    match_group,
     match_muscle,
     mesh_name_tokens,
     path_anatomy,
@@ -32,11 +35,13 @@ from ._register import (
 
 __all__ = [
     "BONES",
+    "GROUPS",
     "LANDMARKS",
     "MUSCLES",
     "Anatomy",
     "LineFit",
     "Motion",
+    "MuscleGroup",
     "NameMatch",
     "OpenSimModel",
     "axes_rotation",
@@ -47,6 +52,7 @@ __all__ = [
     "line_fit",
     "line_fits",
     "match_bone",
+    "match_group",
     "match_muscle",
     "mesh_name_tokens",
     "outside_distance",

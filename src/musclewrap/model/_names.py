@@ -17,11 +17,14 @@ from dataclasses import dataclass
 
 __all__ = [
     "BONES",
+    "GROUPS",
     "LANDMARKS",
     "MUSCLES",
     "Anatomy",
+    "MuscleGroup",
     "NameMatch",
     "match_bone",
+    "match_group",
     "match_muscle",
     "mesh_name_tokens",
     "path_anatomy",
@@ -106,6 +109,40 @@ MUSCLES: tuple[Anatomy, ...] = (
     _m("erector_spinae", "trunk", "erectorspinae ercspn es", "ercspn"),
     _m("internal_oblique", "trunk", "internalobliques intobl io", "intobl"),
     _m("external_oblique", "trunk", "externalobliques extobl eo", "extobl"),
+)
+
+
+@dataclass(frozen=True)
+class MuscleGroup:
+    """Several muscles segmented as one mesh: its name, spellings and the muscles it holds."""
+
+    name: str
+    aliases: tuple[str, ...]
+    #: the muscles of `MUSCLES` it holds, by name (the first one's region carries it)
+    parts: tuple[str, ...]
+
+
+def _g(name: str, aliases: str, parts: str) -> MuscleGroup:
+    return MuscleGroup(name, (name.replace("_", ""), *aliases.split()), tuple(parts.split()))
+
+
+#: muscles a segmentation often leaves in one mesh
+GROUPS: tuple[MuscleGroup, ...] = (
+    _g("iliopsoas", "iliopsoasmuscle", "iliacus psoas"),
+    _g("gastrocnemius", "gastroc gastrocs", "gastrocnemius_medial gastrocnemius_lateral"),
+    _g("triceps_surae", "calfmuscles", "gastrocnemius_medial gastrocnemius_lateral soleus"),
+    _g(
+        "hamstrings",
+        "hamstring hamstringmuscles",
+        "semitendinosus semimembranosus biceps_femoris_long biceps_femoris_short",
+    ),
+    _g(
+        "quadriceps",
+        "quadricepsfemoris quads quad",
+        "rectus_femoris vastus_lateralis vastus_medialis vastus_intermedius",
+    ),
+    _g("vasti", "vastii", "vastus_lateralis vastus_medialis vastus_intermedius"),
+    _g("adductors", "adductor adductorgroup", "adductor_longus adductor_brevis adductor_magnus"),
 )
 
 
@@ -255,7 +292,9 @@ def _runs(words: list[str]) -> list[tuple[str, bool]]:
     return out
 
 
-def _best(words: list[str], table: tuple[Anatomy, ...] | tuple[BoneName, ...]) -> NameMatch | None:
+def _best(
+    words: list[str], table: tuple[Anatomy, ...] | tuple[BoneName, ...] | tuple[MuscleGroup, ...]
+) -> NameMatch | None:
     """The entry of ``table`` that the longest run of ``words`` spells.
 
     A run spells an entry exactly (a whole word, for a spelling of at most `_SHORT`
@@ -319,6 +358,15 @@ def match_muscle(stem: str) -> NameMatch | None:
     "abbreviation 'vl'"
     """
     return _best(mesh_name_tokens(stem)[0], MUSCLES)
+
+
+def match_group(stem: str) -> NameMatch | None:
+    """The group of muscles (`GROUPS`) a mesh file's name names, or None.
+
+    >>> match_group("R_Iliopsoas").name, match_group("Gastrocnemius_L").name
+    ('iliopsoas', 'gastrocnemius')
+    """
+    return _best(mesh_name_tokens(stem)[0], GROUPS)
 
 
 def match_bone(stem: str) -> tuple[NameMatch, bool] | None:

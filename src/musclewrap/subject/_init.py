@@ -29,6 +29,7 @@ from ..errors import SceneError
 from ..mesh import apply_transform, atomic_path, check_mesh, read_mesh, tidy_mesh
 from ..model import (
     BONES,
+    GROUPS,
     LANDMARKS,
     MUSCLES,
     LineFit,
@@ -38,6 +39,7 @@ from ..model import (
     landmark_point,
     line_fits,
     match_bone,
+    match_group,
     match_muscle,
     mesh_name_tokens,
     path_anatomy,
@@ -59,6 +61,8 @@ _REGION_BODY = {
     "trunk": ("torso", "pelvis"),
 }
 _ANATOMY = {a.name: a for a in MUSCLES}
+#: a group's parts; a muscle is a group of one
+_PARTS = {**{a.name: (a.name,) for a in MUSCLES}, **{g.name: g.parts for g in GROUPS}}
 _BONE_BODIES = {b.name: b.bodies for b in (*BONES, *LANDMARKS)}
 
 
@@ -94,7 +98,9 @@ def survey(folder: Path) -> list[MeshInfo]:
         closed = chk.boundary_edges == 0
         stem = p.name.rsplit(".", 1)[0]
         words, side = mesh_name_tokens(stem)
-        m, b = match_muscle(stem), match_bone(stem)
+        m, b, g = match_muscle(stem), match_bone(stem), match_group(stem)
+        if g is not None and (m is None or _rank(g) > _rank(m)):
+            m = g  # several muscles in one mesh (the iliopsoas)
         kind, match, why = None, None, ""
         said_muscle, said_bone = "muscle" in words or "muscles" in words, "bone" in words
         if m is not None and (b is None or said_muscle or _rank(m) > _rank(b[0])):
@@ -225,7 +231,8 @@ def init_scene(
     unplaced = [f"{mi.path.name}: {mi.why}" for mi in meshes if mi.kind is None]
     sides = [mi.side for mi in meshes if mi.kind == "muscle" and mi.side]
     main_side = max(set(sides), key=sides.count) if sides else "r"
-    muscles = _muscles_to_paths(model, meshes, main_side, unplaced, mesh_dir)
+    found_notes: list[str] = []
+    muscles = _muscles_to_paths(model, meshes, main_side, unplaced, mesh_dir, found_notes)
     bones = _bones_to_bodies(model, meshes, main_side, unplaced)
     mesh_unit, s, units_note = _mesh_unit(model, muscles, say)
     driven = _driven(model, muscles, bones, motion)
@@ -251,7 +258,7 @@ def init_scene(
         motion,
         driven.output_frame,
         unplaced,
-        [units_note, place_note],
+        [units_note, place_note, *found_notes],
         written is not None,
     )
     with atomic_path(out) as part:
@@ -262,7 +269,7 @@ def init_scene(
         {m.name: tuple(m.paths) for m in muscles},
         {n: b for _, n, b in bones},
         unplaced,
-        [units_note, place_note],
+        [units_note, place_note, *found_notes],
         written,
     )
 
@@ -273,10 +280,12 @@ def _muscles_to_paths(
     main_side: str,
     unplaced: list[str],
     mesh_dir: Path,
+    notes: list[str],
 ) -> list[_Muscle]:
     """Each muscle mesh matched to the model's paths of its anatomy (both sides if unsaid).
 
-    What cannot be placed goes to ``unplaced``; none placed at all is an error.
+    What cannot be placed goes to ``unplaced``, what the scene should say (a group of
+    muscles in one mesh, a muscle in several) to ``notes``; none placed at all is an error.
     """
     by_anatomy = _paths_by_anatomy(model)
     muscles: list[_Muscle] = []
@@ -284,22 +293,31 @@ def _muscles_to_paths(
         if mi.kind != "muscle":
             continue
         assert mi.match is not None
-        a = _ANATOMY[mi.match.name]
+        parts = _PARTS[mi.match.name]
+        a = _ANATOMY[parts[0]]  # a group is carried where its first muscle is
         options = [mi.side] if mi.side else [main_side, "l" if main_side == "r" else "r"]
-        found = [(s, by_anatomy.get((a.name, s), [])) for s in options]
+        # a group follows every path of its muscles
+        found = [(s, [p for n in parts for p in by_anatomy.get((n, s), [])]) for s in options]
         found = [(s, p) for s, p in found if p]
+        what = mi.match.name.replace("_", " ")
         if not found:
             unplaced.append(
-                f"{mi.path.name}: taken for the {a.name.replace('_', ' ')} ({mi.match.how}), "
+                f"{mi.path.name}: taken for the {what} ({mi.match.how}), "
                 f"but {model.path.name} has no path for it"
                 + (f" on the {'right' if mi.side == 'r' else 'left'} side" if mi.side else "")
             )
             continue
         side, paths = found[0]
         body = _first_body(model, _REGION_BODY[a.region], side) or "pelvis"
-        muscles.append(_Muscle(mi, a.name, side, paths, body))
+        muscles.append(_Muscle(mi, mi.match.name, side, paths, body))
         if len(found) > 1:
             muscles[-1].paths = [p for _, ps in found for p in ps]  # both sides: resolved by fit
+        if len(parts) > 1:
+            notes.append(
+                f"{mi.path.name}: several muscles in one mesh, the {what} ("
+                + ", ".join(n.replace("_", " ") for n in parts)
+                + f"): it follows the paths of all of them ({', '.join(paths)})"
+            )
     if not muscles:
         raise SceneError(
             f"{mesh_dir}: no mesh of the folder could be matched to a muscle path of "
@@ -309,6 +327,22 @@ def _muscles_to_paths(
     for m in muscles:
         if m.info.side and m.info.side != main_side:
             m.name = f"{m.name}_{'left' if m.side == 'l' else 'right'}"
+    # one muscle in several meshes (its parts segmented apart): each its own scene muscle on
+    # the muscle's paths, said
+    seen: dict[str, list[_Muscle]] = {}
+    for m in muscles:
+        seen.setdefault(m.name, []).append(m)
+    for name, same in seen.items():
+        if len(same) < 2:
+            continue
+        for i, m in enumerate(same[1:], 2):
+            m.name = f"{name}_{i}"
+        notes.append(
+            f"the {name.replace('_', ' ')} is in {len(same)} meshes ("
+            + ", ".join(m.info.path.name for m in same)
+            + f"): each follows all of its paths, as {', '.join(m.name for m in same)}; "
+            "join them into one mesh where they are one muscle"
+        )
     return muscles
 
 
@@ -459,7 +493,8 @@ def _placement(
                 per[sd] = (_fit_in(model, best, _Muscle(m.info, m.name, sd, ps, m.body), s), ps)
             sd = min(per, key=lambda k: per[k][0].near)
             m.side, m.paths = sd, per[sd][1]
-            m.body = _first_body(model, _REGION_BODY[_ANATOMY[m.name].region], sd) or m.body
+            region = _ANATOMY[_PARTS[m.info.match.name][0]].region  # type: ignore[union-attr]
+            m.body = _first_body(model, _REGION_BODY[region], sd) or m.body
             fit = per[sd][0]
         m.fit = fit
     return best, place_note
