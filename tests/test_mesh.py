@@ -558,10 +558,19 @@ def test_volume_hessian_reduced_matches_finite_differences():
     )
 
 
-def test_bounding_box_is_numpys_min_and_max():
-    from musclewrap.mesh import bounding_box
+def test_oriented_box_holds_every_point_and_only_points_near_it():
+    from musclewrap.mesh import in_oriented_box, oriented_box
 
     rng = np.random.default_rng(3)
-    for P in (rng.normal(size=(1, 3)), rng.normal(size=(500, 3)) * [1.0, 1e3, 1e-3]):
-        lo, hi = bounding_box(P)
-        assert np.array_equal(lo, P.min(0)) and np.array_equal(hi, P.max(0))
+    # a long oblique cloud: its axis-aligned box is mostly empty, its own box is not
+    t = rng.uniform(-1.0, 1.0, (2000, 1))
+    P = t * [100.0, 80.0, 60.0] + rng.normal(scale=3.0, size=(2000, 3))
+    R, lo, hi = oriented_box(P)
+    assert np.allclose(R.T @ R, np.eye(3))
+    assert np.array_equal(in_oriented_box(P, R, lo, hi), np.arange(len(P)))
+    Q = rng.uniform(P.min(0), P.max(0), (5000, 3))
+    rows = in_oriented_box(Q, R, lo, hi)
+    X = Q @ R
+    inside = np.flatnonzero(((X >= lo) & (X <= hi)).all(axis=1))
+    assert np.array_equal(rows, inside)
+    assert len(rows) < 0.2 * len(Q)  # most of the axis-aligned box is left out

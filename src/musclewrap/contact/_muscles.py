@@ -36,9 +36,10 @@ from ..constants import defaults, tol
 from ..mesh import (
     WindingGrid,
     bin_boxes,
-    bounding_box,
     in_box,
+    in_oriented_box,
     mean_edge_length,
+    oriented_box,
     vertex_adjacency,
     volume,
 )
@@ -258,7 +259,9 @@ def overlaps(
     for n, (V, _) in surfaces.items():
         kept = kept_boxes.get(n)
         if kept is None or kept[0] is not V:
-            kept = kept_boxes[n] = (V, *bounding_box(V))
+            # along its principal axes: an oblique muscle fills little of its axis-aligned
+            # box, where another's vertices that cannot be inside it would be tested
+            kept = kept_boxes[n] = (V, *oriented_box(V))
         boxes[n] = kept[1:]
     out: dict[str, list[Overlap]] = {n: [] for n in surfaces}
     todo = []  # (me, other, its points in the other's box) of the pairs looked at anew
@@ -270,7 +273,7 @@ def overlaps(
                 if kept[2] is not None:  # neither has moved since
                     out[me].append(kept[2])
                 continue
-            todo.append((me, other, in_box(P, *boxes[other])))
+            todo.append((me, other, in_oriented_box(P, *boxes[other])))
     # one grid per surface looked into (kept while it does not move), binned once round
     # every point that looks into it
     grids: dict[str, WindingGrid] = {}
