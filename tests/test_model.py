@@ -73,3 +73,40 @@ def test_registration_similarity_and_landmarks():
     # two landmarks and no axes: the line through them is matched, not the turn about it
     T = similarity(P[:2], Q[:2], None)
     assert np.allclose(P[:2] @ T[:3, :3].T + T[:3, 3], Q[:2], atol=1e-9)
+
+
+def test_a_whole_femur_gives_its_head_and_condyles_in_any_frame(data_dir):
+    """Issue 47: the hip centre from a femur mesh's head, the knee from its condyles, found
+    whichever way the mesh lies; OpenSim's femurs (in the femur's frame) put the head on the
+    hip, the body's origin."""
+    from musclewrap.errors import SceneError
+    from musclewrap.mesh import read_mesh
+    from musclewrap.model import femur_landmarks, landmark_point
+
+    for name in ("femur_r.vtp", "r_femur.vtp"):
+        V, F = read_mesh(data_dir / "opensim/Geometry" / name)[:2]
+        head, knee, _ = femur_landmarks(V, F, name)
+        assert np.linalg.norm(head) < 0.003, (name, head)  # metres
+        assert abs(knee[1] + 0.40) < 0.015 and np.hypot(knee[0], knee[2]) < 0.015, (name, knee)
+    V, F = read_mesh(data_dir / "lhdl/bones/LHDL_R_Femur.vtk")[:2]
+    head, knee, said = femur_landmarks(V, F, "LHDL")
+    assert "femoral head sphere r 23.1" in said
+    rng = np.random.default_rng(7)
+    for _ in range(3):  # turned and moved anyhow, the same points (to 0.1 mm: the vote's
+        # cells lie along the mesh's axes)
+        Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        Q *= np.sign(np.linalg.det(Q))
+        shift = rng.normal(scale=500.0, size=3)
+        h2, k2, _ = femur_landmarks(V @ Q.T + shift, F, "LHDL")
+        assert np.linalg.norm(h2 - (head @ Q.T + shift)) < 0.1
+        assert np.linalg.norm(k2 - (knee @ Q.T + shift)) < 1e-6
+    assert np.allclose(landmark_point(V, F, "femoral_head", "hip", "LHDL")[0], head)
+    assert np.allclose(landmark_point(V, F, "femur_distal", "knee", "LHDL")[0], knee)
+    # half a femur (no condyles to tell from the head): said
+    t = (V - V.mean(0)) @ np.linalg.eigh(np.cov(V.T))[1][:, -1]
+    keep = np.flatnonzero(t < np.quantile(t, 0.5))
+    with pytest.raises(SceneError, match="LHDL"):
+        sub = np.full(len(V), -1)
+        sub[keep] = np.arange(len(keep))
+        Fk = sub[F][(sub[F] >= 0).all(axis=1)]
+        femur_landmarks(V[keep], Fk, "LHDL")

@@ -370,6 +370,33 @@ def test_init_says_a_muscle_in_two_meshes_and_two_muscles_in_one(data_dir, tmp_p
     assert sorted(m.name for m in sc.muscles) == sorted(r.muscles)
 
 
+def test_init_registers_by_a_whole_femur_where_no_cartilage_is(data_dir, tmp_path):
+    """Issue 47: the LHDL muscles and femur (another subject's CT frame, no cartilage) on
+    gait2392: the hip from the femur's head, the knee from its condyles; the paths then
+    run through their muscles and check finds nothing wrong."""
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    for f in ("GluteusMaximus", "GluteusMedius", "Iliacus", "Psoas"):
+        (folder / f"LHDL_R_{f}.vtk").symlink_to(data_dir / f"lhdl/muscles/LHDL_R_{f}.vtk")
+    (folder / "LHDL_R_Femur.vtk").symlink_to(data_dir / "lhdl/bones/LHDL_R_Femur.vtk")
+    r = init_scene(
+        data_dir / "opensim/models/subject01_simbody.osim", folder, tmp_path / "s.toml",
+        motion=data_dir / "opensim/motions/subject01_walk1_ik.mot",
+    )  # fmt: skip
+    sc = load_scene(r.scene)
+    assert sc.registration is not None
+    assert [(lm.name, lm.fit, lm.body) for lm in sc.registration.landmarks] == [
+        ("hip", "femoral_head", "femur_r"),
+        ("knee", "femur_distal", "tibia_r"),
+    ]
+    assert all(lm.mesh.name == "LHDL_R_Femur.vtk" for lm in sc.registration.landmarks)
+    assert set(r.muscles) == {"gluteus_maximus", "gluteus_medius", "iliacus", "psoas"}
+    rep = check_scene(sc)
+    assert rep.ok, [str(f) for f in rep.errors]
+    # the median muscle's paths come within a few mm of it for a quarter of their length
+    assert np.median([f.near for f in rep.fits.values()]) < 5.0
+
+
 def test_init_lists_what_it_cannot_place(data_dir, tmp_path):
     folder = tmp_path / "meshes"
     folder.mkdir()

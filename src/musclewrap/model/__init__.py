@@ -25,8 +25,10 @@ from ._names import (
 )
 from ._opensim import OpenSimModel, import_opensim
 from ._register import (
+    FEMUR_FITS,
     axes_rotation,
     check_landmarks,
+    femur_landmarks,
     fit_sphere,
     landmark_point,
     similarity,
@@ -35,6 +37,7 @@ from ._register import (
 
 __all__ = [
     "BONES",
+    "FEMUR_FITS",
     "GROUPS",
     "LANDMARKS",
     "MUSCLES",
@@ -46,6 +49,7 @@ __all__ = [
     "OpenSimModel",
     "axes_rotation",
     "check_landmarks",
+    "femur_landmarks",
     "fit_sphere",
     "import_opensim",
     "landmark_point",

@@ -14,7 +14,7 @@ import numpy as np
 from .._typing import PathLike
 from ..constants import UNITS, defaults
 from ..errors import SceneError, suggest
-from ..model import axes_rotation
+from ..model import FEMUR_FITS, axes_rotation
 from ._keys import SCENE_KEYS
 
 __all__ = ["UNITS", "BoneSpec", "FibreSpec", "MuscleSpec", "Scene", "load_scene"]
@@ -32,6 +32,8 @@ _COLLISIONS = set(SCENE_KEYS["collisions"])
 _FIBRES = set(SCENE_KEYS["fibres"])
 _BONE = set(SCENE_KEYS["bones.NAME"])
 _LANDMARK = set(SCENE_KEYS["registration.landmark"])
+#: how a landmark's point is found on its mesh (`musclewrap.model.landmark_point`)
+LANDMARK_FITS = ("sphere", "centroid", *FEMUR_FITS)
 
 
 @dataclass(frozen=True)
@@ -655,8 +657,10 @@ def _registration(raw: dict[str, Any], base: Path, src: Path, osim: Path | None)
             if k not in lm:
                 raise SceneError(f"{src}: {where} needs '{k}'")
         fit = lm.get("fit", "centroid")
-        if fit not in ("sphere", "centroid"):
-            raise SceneError(f"{src}: {where} fit = {fit!r}; use 'sphere' or 'centroid'")
+        if fit not in LANDMARK_FITS:
+            raise SceneError(
+                f"{src}: {where} fit = {fit!r}; use one of {', '.join(map(repr, LANDMARK_FITS))}"
+            )
         point = lm.get("point", [0.0, 0.0, 0.0])
         if not (
             isinstance(point, list)

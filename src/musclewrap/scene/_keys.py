@@ -99,8 +99,9 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
     "registration.landmark": {
         "name": "The landmark's name (in the run's notes).",
         "mesh": "The mesh the landmark is found on.",
-        "fit": "``sphere`` (the centre of a fitted sphere) or ``centroid`` (the surface's "
-        "area-weighted centroid, the default).",
+        "fit": "``sphere`` (the centre of a fitted sphere), ``centroid`` (the surface's "
+        "area-weighted centroid, the default), or on a whole femur's mesh ``femoral_head`` "
+        "(its head's centre: the hip) or ``femur_distal`` (its condyles' centroid: the knee).",
         "body": "The landmark goes onto this body's origin at the rest pose ...",
         "point": "... or onto this point of the body (model units).",
     },

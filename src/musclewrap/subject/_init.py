@@ -36,6 +36,7 @@ from ..model import (
     NameMatch,
     OpenSimModel,
     axes_rotation,
+    femur_landmarks,
     landmark_point,
     line_fits,
     match_bone,
@@ -702,6 +703,20 @@ def _landmarks(
         except SceneError:
             continue
         found[name] = (name, mi, point, body, fit)
+    if len(found) < 2:
+        # no cartilage for one of them: a whole femur's head (the hip) and condyles (the knee)
+        for mi in meshes:
+            if mi.kind != "bone" or mi.match is None or mi.match.name != "femur":
+                continue
+            if (mi.side or side) != side or f"tibia_{side}" not in model.body_names:
+                continue
+            try:
+                hip, knee, _ = femur_landmarks(mi.V, mi.F, mi.path)
+            except SceneError:
+                continue
+            found.setdefault("hip", ("hip", mi, hip, f"femur_{side}", "femoral_head"))
+            found.setdefault("knee", ("knee", mi, knee, f"tibia_{side}", "femur_distal"))
+            break
     return [found[k] for k in ("hip", "knee") if k in found]
 
 
