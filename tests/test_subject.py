@@ -162,7 +162,13 @@ RENAMED = {
     "side letter glued on": lambda s, k, n: f"{s[0]}{n}",
     "hyphens": lambda s, k, n: f"{_snake(n).replace('_', '-')}-{s[0]}",
     "abbreviations": lambda s, k, n: f"Subject12_{s}_{_ABBREVIATED.get(n, n)}",
+    "a typo": lambda s, k, n: f"{s}_{_typo(n)}",
 }  # fmt: skip
+
+
+def _typo(camel: str) -> str:
+    """The name with its fourth letter doubled (``GluteusMaximus`` -> ``GlutteusMaximus``)."""
+    return camel[:4] + camel[3] + camel[4:]
 
 
 def _vhf_names(data_dir: Path) -> list[tuple[Path, tuple[str, str, str]]]:
@@ -306,20 +312,29 @@ def test_init_on_the_vhf_folder_finds_every_gait2392_muscle(data_dir, tmp_path):
     assert rep.ok, [str(f) for f in rep.errors]
 
 
-@pytest.mark.parametrize("style", ["another subject's prefix", "abbreviations", "BIDS-like labels"])
-def test_init_on_a_renamed_folder_writes_the_same_scene(data_dir, tmp_path, style):
+_GAIT = "opensim/models/subject01_simbody.osim"
+_WALK = "opensim/motions/subject01_walk1_ik.mot"
+
+
+@pytest.fixture(scope="module")
+def vhf_mapping(data_dir, tmp_path_factory):
+    """What init writes for the VHF folder as it is named (once for the renamed ones)."""
+    out = tmp_path_factory.mktemp("vhf") / "a.toml"
+    a = init_scene(data_dir / _GAIT, data_dir / "vhf", out, motion=data_dir / _WALK)
+    return _mapping(load_scene(a.scene))
+
+
+@pytest.mark.parametrize("style", sorted(RENAMED))
+def test_init_on_a_renamed_folder_writes_the_same_scene(data_dir, tmp_path, style, vhf_mapping):
     """Issue 47: the VHF folder renamed maps every muscle to the same paths, every bone to
-    the same body, and finds the same registration, each file within its tests."""
+    the same body, and finds the same registration."""
     folder = tmp_path / "renamed"
     folder.mkdir()
     for f, parts in _vhf_names(data_dir):
         (folder / f"{RENAMED[style](*parts)}.stl").symlink_to(f)
-    model = data_dir / "opensim/models/subject01_simbody.osim"
-    motion = data_dir / "opensim/motions/subject01_walk1_ik.mot"
-    a = init_scene(model, data_dir / "vhf", tmp_path / "a.toml", motion=motion)
-    b = init_scene(model, folder, tmp_path / "b.toml", motion=motion)
+    b = init_scene(data_dir / _GAIT, folder, tmp_path / "b.toml", motion=data_dir / _WALK)
     assert not b.unplaced, b.unplaced
-    assert _mapping(load_scene(b.scene)) == _mapping(load_scene(a.scene))
+    assert _mapping(load_scene(b.scene)) == vhf_mapping
 
 
 def test_init_stops_where_no_placement_puts_the_muscles_on_their_paths(data_dir, tmp_path):
@@ -395,6 +410,39 @@ def test_init_registers_by_a_whole_femur_where_no_cartilage_is(data_dir, tmp_pat
     assert rep.ok, [str(f) for f in rep.errors]
     # the median muscle's paths come within a few mm of it for a quarter of their length
     assert np.median([f.near for f in rep.fits.values()]) < 5.0
+
+
+@pytest.mark.parametrize("case", ["nothing recognisable", "no registration", "two subjects"])
+def test_init_refuses_with_what_to_do_and_writes_nothing(data_dir, tmp_path, capsys, case):
+    """Issue 47's three refusals, through the command line: exit status 2, a message that
+    says what to do, no scene and no sweep written."""
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    vhf = sorted((data_dir / "vhf").glob("*.stl"))
+    if case == "nothing recognisable":
+        for i, f in enumerate(vhf[:4]):
+            (folder / f"scan_{i:04d}.stl").symlink_to(f)
+        says = ["no mesh of the folder could be matched", "Name each mesh by its muscle"]
+    elif case == "no registration":
+        for i, f in enumerate(vhf):
+            (folder / (f"scan_{i:02d}.stl" if "Cartilage" in f.name else f.name)).symlink_to(f)
+        says = ["no placement puts the muscles on their paths", "femoral head's cartilage"]
+    else:  # the VHF folder with two LHDL muscles (another subject's CT frame) among them
+        for f in vhf:
+            (folder / f.name).symlink_to(f)
+        for m in ("Psoas", "Sartorius"):
+            src = data_dir / "lhdl/muscles" / f"LHDL_R_{m}.vtk"
+            if src.exists():
+                (folder / src.name).symlink_to(src)
+        (folder / "LHDL_R_Iliacus.vtk").symlink_to(data_dir / "lhdl/muscles/LHDL_R_Iliacus.vtk")
+        says = ["not in one frame", "LHDL_R_Iliacus.vtk", "one subject's meshes"]
+    out = tmp_path / "s.toml"
+    code = main(["init", str(data_dir / _GAIT), str(folder), "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    for s in says:
+        assert s in err, (s, err)
+    assert not out.exists() and not list(tmp_path.glob("*.mot"))
 
 
 def test_init_lists_what_it_cannot_place(data_dir, tmp_path):

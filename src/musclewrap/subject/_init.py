@@ -322,7 +322,13 @@ def _muscles_to_paths(
     if not muscles:
         raise SceneError(
             f"{mesh_dir}: no mesh of the folder could be matched to a muscle path of "
-            f"{model.path.name}" + ("" if not unplaced else "; " + "; ".join(unplaced[:5]))
+            f"{model.path.name}, so no scene was written"
+            + ("" if not unplaced else "; " + "; ".join(unplaced[:5]))
+            + (f"; and {len(unplaced) - 5} more" if len(unplaced) > 5 else "")
+            + ". Name each mesh by its muscle, bone or cartilage (any prefix, case or "
+            "separators: S07_R_gracilis.stl, Subject12_Right_VL.stl, femur-R.stl; the "
+            "spellings: musclewrap.subject.MUSCLES), or write the scene by hand "
+            "(docs: Scenes)."
         )
     # a muscle named on the other side than most keeps its side in its name
     for m in muscles:
@@ -466,6 +472,7 @@ def _placement(
     best, best_fits = candidates[k], fits_by[k]
     say(f"placement: {best.describe()} (score {scores[k]:.3g} {mesh_unit})")
     _refuse_far(meshes, candidates, fits_by, k, mesh_unit)
+    _refuse_mixed(best, best_fits, mesh_unit)
     place_note = (
         f"placement: {best.describe()}: the median muscle's paths come within "
         f"{np.median([f.near for f in best_fits.values()]):.3g} {mesh_unit} of it for a quarter of "
@@ -545,6 +552,26 @@ def _refuse_far(
         "R_FemurDistal_Cartilage.stl)"
         + (f"; not recognised by name: {', '.join(unknown)}" if unknown else "")
         + "."
+    )
+
+
+def _refuse_mixed(best: _Placement, fits: dict[str, LineFit], mesh_unit: str) -> None:
+    """Stop where the placement puts most muscles on their paths and some far off them.
+
+    Meshes of two subjects (or two frames) in one folder: no one placement holds for
+    all, and a scene would put some a body's length off their paths.
+    """
+    far = {n: f for n, f in fits.items() if f.near > defaults.init_far * f.extent}
+    if not far or len(far) == len(fits):
+        return
+    good = [f for n, f in fits.items() if n not in far]
+    raise SceneError(
+        f"init: the meshes are not in one frame, so no scene was written: placed as "
+        f"{best.describe()}, {len(good)} muscles lie on their paths (within "
+        f"{max(f.near for f in good):.3g} {mesh_unit}) and {len(far)} far off them: "
+        + ", ".join(f"{n} ({f.near:.3g} {mesh_unit})" for n, f in sorted(far.items()))
+        + ". A folder of two subjects' meshes, or of meshes exported in two frames? Give init "
+        "one subject's meshes in one frame (a folder each), or move the others out."
     )
 
 
