@@ -445,6 +445,27 @@ def test_init_refuses_with_what_to_do_and_writes_nothing(data_dir, tmp_path, cap
     assert not out.exists() and not list(tmp_path.glob("*.mot"))
 
 
+def test_init_takes_an_unnamed_spherical_cap_for_the_hip(data_dir, tmp_path):
+    """Issue 47: the hip's cartilages named nothing (scan_*.stl): the roundest cap among the
+    unnamed meshes is the hip's cartilage by its shape, the scene says so, and the muscles
+    get the same paths as with the names."""
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    for f in sorted((data_dir / "vhf").glob("*.stl")):
+        hip = "FemurHead" in f.name or "Acetabulum" in f.name
+        (folder / (f"scan_{f.name[18:22]}.stl" if hip else f.name)).symlink_to(f)
+    r = init_scene(data_dir / _GAIT, folder, tmp_path / "s.toml", motion=data_dir / _WALK)
+    sc = load_scene(r.scene)
+    assert sc.registration is not None
+    hip = next(lm for lm in sc.registration.landmarks if lm.name == "hip")
+    assert hip.mesh.name.startswith("scan_") and hip.fit == "sphere"
+    assert "by its shape: a spherical cap" in r.text
+    a = init_scene(data_dir / _GAIT, data_dir / "vhf", tmp_path / "a.toml", motion=data_dir / _WALK)
+    assert r.muscles == a.muscles
+    rep = check_scene(sc)
+    assert rep.ok, [str(f) for f in rep.errors]
+
+
 def test_init_lists_what_it_cannot_place(data_dir, tmp_path):
     folder = tmp_path / "meshes"
     folder.mkdir()

@@ -242,6 +242,13 @@ class Defaults:
         model's paths run, and a scene would place them there. The VHF folder on
         gait2392 (registered) and on Rajagopal 2016, and the LHDL meshes on their model,
         give at most 0.0006; the VHF folder whose cartilages' names say nothing, 3.4.
+    init_cap_rms : float
+        `musclewrap.subject.init_scene`: a mesh no name places is the hip's cartilage
+        when the rms distance from its fitted sphere is under this fraction of the
+        radius (and it is a cap, not a band). The VHF femoral head's and acetabulum's
+        cartilages fit to 0.052 and 0.030; the next roundest VHF meshes, the gracilis
+        (a band) 0.104 and the distal femur's cartilage 0.144, the patella 0.195, the
+        muscles 0.10-0.35.
     """
 
     cage_size: int = 300
@@ -288,6 +295,7 @@ class Defaults:
     view_contact_reach: float = 5.0
     init_alike_deg: float = 15.0
     init_far: float = 0.25
+    init_cap_rms: float = 0.08
 
 
 tol = Tolerances()

@@ -37,6 +37,7 @@ from ..model import (
     OpenSimModel,
     axes_rotation,
     femur_landmarks,
+    fit_sphere,
     landmark_point,
     line_fits,
     match_bone,
@@ -134,7 +135,50 @@ def survey(folder: Path) -> list[MeshInfo]:
                 f"named like a muscle ({m.name}) but not closed ({chk.boundary_edges} boundary edges)",
             )
         out.append(MeshInfo(p, kind, match, side, V, F, closed, why))
+    _caps_by_shape(out)
     return out
+
+
+def _caps_by_shape(meshes: list[MeshInfo]) -> None:
+    """Where no name gives the hip's cartilage, the roundest cap among the unnamed meshes.
+
+    A mesh whose name says nothing is taken for the femoral head's cartilage when it is
+    a cap of a sphere: rms distance from its fitted sphere under
+    ``defaults.init_cap_rms`` of the radius and its vertices facing every way (the least
+    second moment of their directions from the centre at least 0.15: a band or a sheet
+    is not a cap). The femoral head's and the acetabulum's cartilages (concentric, both
+    the hip) are caps; a distal femur's cartilage, a patella, a tibia and every VHF
+    muscle are not.
+    """
+    named = any(
+        mi.kind == "landmark" and mi.match is not None
+        and mi.match.name in ("femoral_head", "acetabulum")
+        for mi in meshes
+    )  # fmt: skip
+    if named:
+        return
+    best: tuple[float, MeshInfo, float, float] | None = None
+    for mi in meshes:
+        if mi.kind is not None or not mi.why.startswith("its name") or "fits the" in mi.why:
+            continue  # placed, or named (an open muscle, a tie): shape does not overrule names
+        if len(mi.V) < 20:
+            continue
+        c, r, rms = fit_sphere(mi.V)
+        U = (mi.V - c) / np.maximum(np.linalg.norm(mi.V - c, axis=1), 1e-300)[:, None]
+        spread = float(np.linalg.eigvalsh(U.T @ U / len(U))[0])
+        if rms < defaults.init_cap_rms * r and spread >= 0.15:
+            if best is None or rms / r < best[0]:
+                best = (rms / r, mi, r, rms)
+    if best is None:
+        return
+    _, mi, r, rms = best
+    mi.kind, mi.why = "landmark", ""
+    mi.match = NameMatch(
+        "femoral_head",
+        round(1.0 - rms / r, 3),
+        f"by its shape: a spherical cap of radius {r:.3g} (rms {rms:.2g}), the roundest mesh "
+        "no name placed, taken for the hip's cartilage",
+    )
 
 
 def _rank(match: NameMatch) -> tuple[bool, int]:
@@ -885,7 +929,13 @@ def _scene_text(
         assert mi.match is not None
         what = "landmark surface" if mi.kind == "landmark" else "bone"
         L.append(
-            f"# {mi.path.name}: a {what}, the {mi.match.name.replace('_', ' ')} by name ({mi.match.how}), carried by {body}"
+            f"# {mi.path.name}: a {what}, the {mi.match.name.replace('_', ' ')} "
+            + (
+                mi.match.how
+                if mi.match.how.startswith("by its shape")
+                else f"by name ({mi.match.how})"
+            )
+            + f", carried by {body}"
         )
         L += [f"[bones.{name}]", f"mesh = {_q(_rel(mi.path, base))}", f"body = {_q(body)}", ""]
     return "\n".join(L).rstrip() + "\n"
