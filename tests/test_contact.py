@@ -561,3 +561,26 @@ def test_without_the_fine_finish_the_cage_is_the_same(bent):
     np.testing.assert_allclose(cage_only.V, d.muscle.W @ cage_only.cage, atol=1e-9)
     assert abs(cage_only.relative_volume_error) <= 1e-12
     assert np.abs(full.V - cage_only.V).max() > 1.0
+
+
+def test_the_finish_takes_the_poses_finds_again_to_the_same_bytes(bent):
+    """A pose solved without its finish keeps what its contact found (`PoseContact`: the
+    bounds, the line targets, the bone finds); `settle` taking them gives the same bytes as
+    one that finds them anew, and as the pose finished at once."""
+    import dataclasses
+
+    d, cur = bent
+    box = Obstacle(*_box([12.0, -300, -300], [400, 300, 500]))
+    full = d.deform(cur, obstacles=[box])
+    half = d.deform(cur, obstacles=[box], finish=False)
+    assert half.pose is not None and full.pose is None
+    kept = d.settle(half, half.cage, half.V, cur, obstacles=[box])
+    anew = d.settle(dataclasses.replace(half, pose=None), half.cage, half.V, cur, obstacles=[box])
+    assert kept.pose is None
+    for r in (kept, anew):
+        np.testing.assert_array_equal(r.V, full.V)
+        np.testing.assert_array_equal(r.cage, full.cage)
+        assert (r.contact_vertices, r.penetration_depth, r.bone_inside_depth) == (
+            full.contact_vertices, full.penetration_depth, full.bone_inside_depth,
+        )  # fmt: skip
+    assert "pose" not in full.summary()

@@ -59,6 +59,29 @@ def test_overlaps_kept_over_rounds_whatever_the_muscles_are_called():
                 assert np.array_equal(a.rows, b.rows) and np.array_equal(a.depth, b.depth)
 
 
+def test_the_exact_check_takes_the_rounds_memo_to_the_same_numbers():
+    """`overlap_depths` with the rounds' memo (taken from the faces that face each other)
+    gives what it gives anew over every face: the grids and the empty pairs are kept, a
+    pair with vertices inside is looked at again; one far apart shares nothing."""
+    from musclewrap.contact import overlap_depths, overlaps
+
+    surf = {
+        "a": _sphere(10.0, [0.0, 0.0, 0.0]),
+        "b": _sphere(10.0, [16.0, 0.0, 0.0]),
+        "c": _sphere(10.0, [0.0, 40.0, 0.0]),
+    }
+    pairs = [("a", "b"), ("a", "c"), ("b", "c")]
+    # the faces of b that face a: only its left half, so the rounds' depths differ
+    Vb, Fb = surf["b"]
+    facing = {("a", "b"): np.flatnonzero(Vb[Fb].mean(axis=1)[:, 0] < 16.0)}
+    memo: dict = {}
+    overlaps(surf, pairs, facing, memo)
+    surf["c"] = (surf["c"][0] + [0.0, 1.0, 0.0], surf["c"][1])  # c moves after the rounds
+    kept, fresh = overlap_depths(surf, pairs, memo), overlap_depths(surf, pairs)
+    assert kept == fresh
+    assert kept["a"][0] > 0 and kept["c"] == (0, 0.0)
+
+
 def test_overlaps_of_one_muscle_alone_are_none():
     from musclewrap.run._verify import inside_depths
 
