@@ -97,7 +97,7 @@ def test_registration_errors_name_the_problem(tmp_path):
             "[registration]\naxes = ['y', 'z', 'x']\n[[registration.landmark]]\n"
             "mesh = 'muscle.vtp'\nbody = 'a'\nfit = 'cube'\n"
             "[[registration.landmark]]\nmesh = 'muscle.vtp'\nbody = 'b'\n",
-            "use 'sphere' or 'centroid'",
+            "fit = 'cube'; use one of 'sphere', 'centroid', 'femoral_head', 'femur_distal'",
         ),
     ]
     muscles = '[muscles.m]\nmesh = "muscle.vtp"\npaths = ["p"]\n'
