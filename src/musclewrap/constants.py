@@ -241,14 +241,17 @@ class Defaults:
         distance a quarter of their length is within): the meshes are not where the
         model's paths run, and a scene would place them there. The VHF folder on
         gait2392 (registered) and on Rajagopal 2016, and the LHDL meshes on their model,
-        give at most 0.0006; the VHF folder whose cartilages' names say nothing, 3.4.
+        give at most 0.0006; the VHF folder whose cartilages' names say nothing, 3.4
+        (``python benchmarks/tuning/bench_shapes.py --placements``).
     init_cap_rms : float
         `musclewrap.subject.init_scene`: a mesh no name places is the hip's cartilage
         when the rms distance from its fitted sphere is under this fraction of the
-        radius (and it is a cap, not a band). The VHF femoral head's and acetabulum's
-        cartilages fit to 0.052 and 0.030; the next roundest VHF meshes, the gracilis
-        (a band) 0.104 and the distal femur's cartilage 0.144, the patella 0.195, the
-        muscles 0.10-0.35.
+        radius (and it is a cap, not a band: `musclewrap.model.cap_spread` >= 0.15). The
+        VHF femoral head's and acetabulum's cartilages fit to 0.052 and 0.030 (spread
+        0.27, 0.19); rounder or as round VHF muscles are bands (the sartorius 0.012,
+        the iliacus 0.099, the gracilis 0.104: spread <= 0.04); of the meshes spread
+        0.15 or more the nearest fits to 0.144 (the distal femur's cartilage)
+        (``python benchmarks/tuning/bench_shapes.py``).
     """
 
     cage_size: int = 300

@@ -170,6 +170,19 @@ def _region_kernel(P, g, y0, z0, hy, hz):  # noqa: ANN001, ANN202 # pragma: no c
 
 
 @numba.njit(cache=True)
+def _face_cells(F, cy, cz, t, i0, i1, j0, j1):  # noqa: ANN001, ANN202 # pragma: no cover
+    # face t's range of cells clipped to [i0, i1] x [j0, j1], from the region's corner
+    # (an empty range where it lies outside)
+    a, b, c = F[t, 0], F[t, 1], F[t, 2]
+    return (
+        max(min(cy[a], cy[b], cy[c]), i0) - i0,
+        min(max(cy[a], cy[b], cy[c]), i1) - i0,
+        max(min(cz[a], cz[b], cz[c]), j0) - j0,
+        min(max(cz[a], cz[b], cz[c]), j1) - j0,
+    )
+
+
+@numba.njit(cache=True)
 def _bin_kernel(F, cy, cz, i0, i1, j0, j1):  # noqa: ANN001, ANN202 # pragma: no cover
     # the faces binned by their cell ranges in the cells [i0, i1] x [j0, j1] (as
     # `bin_boxes` bins them: cell (i, j) at (i - i0) * (j1 - j0 + 1) + j - j0, each in face
@@ -179,11 +192,7 @@ def _bin_kernel(F, cy, cz, i0, i1, j0, j1):  # noqa: ANN001, ANN202 # pragma: no
     nj = j1 - j0 + 1
     start = np.zeros((i1 - i0 + 1) * nj + 1, dtype=np.int64)
     for t in range(m):
-        a, b, c = F[t, 0], F[t, 1], F[t, 2]
-        lo_i = max(min(cy[a], cy[b], cy[c]), i0) - i0
-        hi_i = min(max(cy[a], cy[b], cy[c]), i1) - i0
-        lo_j = max(min(cz[a], cz[b], cz[c]), j0) - j0
-        hi_j = min(max(cz[a], cz[b], cz[c]), j1) - j0
+        lo_i, hi_i, lo_j, hi_j = _face_cells(F, cy, cz, t, i0, i1, j0, j1)
         for i in range(lo_i, hi_i + 1):
             for j in range(lo_j, hi_j + 1):
                 start[i * nj + j + 1] += 1
@@ -192,11 +201,7 @@ def _bin_kernel(F, cy, cz, i0, i1, j0, j1):  # noqa: ANN001, ANN202 # pragma: no
     fill = start[:-1].copy()
     items = np.empty(start[-1], dtype=np.int64)
     for t in range(m):
-        a, b, c = F[t, 0], F[t, 1], F[t, 2]
-        lo_i = max(min(cy[a], cy[b], cy[c]), i0) - i0
-        hi_i = min(max(cy[a], cy[b], cy[c]), i1) - i0
-        lo_j = max(min(cz[a], cz[b], cz[c]), j0) - j0
-        hi_j = min(max(cz[a], cz[b], cz[c]), j1) - j0
+        lo_i, hi_i, lo_j, hi_j = _face_cells(F, cy, cz, t, i0, i1, j0, j1)
         for i in range(lo_i, hi_i + 1):
             for j in range(lo_j, hi_j + 1):
                 k = i * nj + j

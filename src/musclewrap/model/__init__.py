@@ -27,6 +27,7 @@ from ._opensim import OpenSimModel, import_opensim
 from ._register import (
     FEMUR_FITS,
     axes_rotation,
+    cap_spread,
     check_landmarks,
     femur_landmarks,
     fit_sphere,
@@ -48,6 +49,7 @@ __all__ = [
     "NameMatch",
     "OpenSimModel",
     "axes_rotation",
+    "cap_spread",
     "check_landmarks",
     "femur_landmarks",
     "fit_sphere",

@@ -14,6 +14,7 @@ from ..mesh import face_areas, vertex_normals
 __all__ = [
     "FEMUR_FITS",
     "axes_rotation",
+    "cap_spread",
     "check_landmarks",
     "femur_landmarks",
     "fit_sphere",
@@ -46,6 +47,17 @@ def surface_centroid(V: FloatArray, F: np.ndarray) -> FloatArray:
     """Area-weighted centroid of a triangle surface (independent of vertex density)."""
     area = face_areas(V, F)
     return (V[F].mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
+
+
+def cap_spread(P: FloatArray, c: FloatArray) -> float:
+    """How many ways the points ``P`` face from the centre ``c``: 0 for a band, 1/3 for a cap.
+
+    The least second moment of their unit directions from ``c``: 1/3 on a whole sphere
+    or a hemisphere, near 0 on a band round an axis (a shaft, a strap of muscle).
+    """
+    U = P - c
+    U = U / np.maximum(np.linalg.norm(U, axis=1), 1e-300)[:, None]
+    return float(np.linalg.eigvalsh(U.T @ U / len(U))[0])
 
 
 #: the landmarks a whole femur's mesh gives (`femur_landmarks`), as a landmark's ``fit``
@@ -118,8 +130,7 @@ def femur_landmarks(
     # their directions from the centre: 1/3 on a whole sphere or a hemisphere, 0.26-0.28 on
     # the three femurs at hand, 0.10-0.13 on the LHDL femur's halves, where the sphere
     # found is a band round the cut shaft)
-    U = (P[on] - c) / r
-    spread = float(np.linalg.eigvalsh(U.T @ U / len(U))[0])
+    spread = cap_spread(P[on], c)
     if not spread >= 0.2:
         raise SceneError(
             f"{source}: no femoral head: the roundest end is a band, not a cap (spread "

@@ -36,6 +36,7 @@ from ..model import (
     NameMatch,
     OpenSimModel,
     axes_rotation,
+    cap_spread,
     femur_landmarks,
     fit_sphere,
     landmark_point,
@@ -164,9 +165,7 @@ def _caps_by_shape(meshes: list[MeshInfo]) -> None:
         if len(mi.V) < 20:
             continue
         c, r, rms = fit_sphere(mi.V)
-        U = (mi.V - c) / np.maximum(np.linalg.norm(mi.V - c, axis=1), 1e-300)[:, None]
-        spread = float(np.linalg.eigvalsh(U.T @ U / len(U))[0])
-        if rms < defaults.init_cap_rms * r and spread >= 0.15:
+        if rms < defaults.init_cap_rms * r and cap_spread(mi.V, c) >= 0.15:
             if best is None or rms / r < best[0]:
                 best = (rms / r, mi, r, rms)
     if best is None:
