@@ -9,7 +9,8 @@ One page over one protocol (`._sources.Source`) with two sources behind it:
 - a finished run's ``scene.pvd`` (`._sources.Playback` over `._playback.Series`): the time
   slider and play/pause step through its files.
 
-The page's own script and style are files beside this one (``page.js``, ``page.css``).
+The page's own script and style are files of their own (``www/page.js``, ``www/page.css``);
+the script is loaded before the page's app (it views the arrays' bytes as their types).
 
 The browser measures each update, from the slider's input event to the picture
 drawn (two animation frames after the new geometry arrived), and writes the status
@@ -62,8 +63,13 @@ COLOURS = {
 }
 
 #: the page's style and script, files of their own served with the page
-_CSS = Path(__file__).with_name("page.css").read_text(encoding="utf-8")
-_JS = Path(__file__).with_name("page.js").read_text(encoding="utf-8")
+_WWW = Path(__file__).with_name("www")
+_CSS = (_WWW / "page.css").read_text(encoding="utf-8")
+
+
+def _typed(name: str, kind: str) -> tuple[str]:
+    """A binding of state ``name`` (an array's bytes) viewed as ``kind`` (f32, u32, u8)."""
+    return (f"window.mw.typed({name}, '{kind}')",)
 
 
 @dataclass(frozen=True)
@@ -152,6 +158,10 @@ class Viewer:
         self.src: Source = LiveSource(source) if isinstance(source, LiveScene) else Playback(source)
         self.output = Path(output) if output is not None else Path("musclewrap_poses")
         self.server = server or get_server(f"musclewrap-{id(self)}", client_type="vue3")
+        # the page's script, loaded before its app: the bindings view arrays through it
+        self.server.enable_module(
+            {"serve": {"__musclewrap": str(_WWW)}, "scripts": ["__musclewrap/page.js"]}
+        )
         self.state, self.ctrl = self.server.state, self.server.controller
         self.n_frames = self.src.n_frames
         self.times = self.src.times
@@ -219,7 +229,6 @@ class Viewer:
         with DivLayout(self.server) as layout:
             self.ui = layout
             client.Style(_CSS)
-            client.Script(_JS)
             with html.Div(classes="mw"):
                 with html.Div(classes="mw-side"):
                     html.H1(title)
@@ -270,23 +279,31 @@ class Viewer:
     def _representations(self, vtkw: Any) -> None:
         for i, _ in enumerate(self._names["bone"]):
             with vtkw.VtkGeometryRepresentation(property=("bone_look",)):
-                vtkw.VtkPolyData(f"bone{i}", points=(f"bone{i}_p",), polys=(f"bone{i}_f",))
+                vtkw.VtkPolyData(
+                    f"bone{i}",
+                    points=_typed(f"bone{i}_p", "f32"),
+                    polys=_typed(f"bone{i}_f", "u32"),
+                )
         for i, _ in enumerate(self._names["muscle"]):
             with vtkw.VtkGeometryRepresentation():
                 with vtkw.VtkPolyData(
-                    f"muscle{i}", points=(f"muscle{i}_p",), polys=(f"muscle{i}_f",)
+                    f"muscle{i}",
+                    points=_typed(f"muscle{i}_p", "f32"),
+                    polys=_typed(f"muscle{i}_f", "u32"),
                 ):
                     with vtkw.VtkPointData():
                         # RGB as they are (unsigned char colours are not mapped by vtk.js)
                         vtkw.VtkDataArray(
                             registration="setScalars", name="colour", type="Uint8Array",
-                            number_of_components=("3",), values=(f"muscle{i}_c",),
+                            number_of_components=("3",), values=_typed(f"muscle{i}_c", "u8"),
                         )  # fmt: skip
         for kind in ("lines", "fibres"):
             for i, _ in enumerate(self._names[kind]):
                 with vtkw.VtkGeometryRepresentation(property=(f"{kind}_look",)):
                     vtkw.VtkPolyData(
-                        f"{kind}{i}", points=(f"{kind}{i}_p",), lines=(f"{kind}{i}_f",)
+                        f"{kind}{i}",
+                        points=_typed(f"{kind}{i}_p", "f32"),
+                        lines=_typed(f"{kind}{i}_f", "u32"),
                     )
 
     # ------------------------------------------------------------------ events (server loop)

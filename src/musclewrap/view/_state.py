@@ -1,13 +1,13 @@
 """The page's state: arrays as the page decodes them, colours, the pose asked for.
 
 What both of the viewer's sources (`._sources`) and its app (`._app`) put in the trame
-state: positions, triangles and poly-lines as typed arrays (base64 of their bytes),
-colours as RGB, the time line's words.
+state: positions, triangles and poly-lines as the bytes of typed arrays (binary in the
+server's messages; the page views them as their types, ``window.mw.typed``), colours as
+RGB, the time line's words.
 """
 
 from __future__ import annotations
 
-import base64
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -67,22 +67,20 @@ def contact_colours(distance: np.ndarray) -> np.ndarray:
     return np.rint(255.0 * rgb).astype(np.uint8)
 
 
-def encode(a: np.ndarray, dtype: Any) -> dict[str, Any] | list[Any]:
-    """An array in the form the page decodes (base64 of its bytes, with its type).
+def encode(a: np.ndarray, dtype: Any) -> bytes | list[Any]:
+    """An array in the form the page decodes: its bytes as ``dtype`` (binary on the wire).
 
-    An empty one as an empty list (vtk.js cannot decode an empty base64 string).
+    The page's bindings view them as the type their part needs (``window.mw.typed``:
+    float32 positions, uint32 cells, uint8 colours as they are). An empty one as an
+    empty list (vtk.js takes a list as it is).
     """
     b = np.ascontiguousarray(a, dtype=dtype).ravel()
     if not b.size:
         return []
-    return {
-        "bvals": base64.b64encode(b.tobytes()).decode("ascii"),
-        "dtype": str(b.dtype),
-        "shape": [b.size],
-    }
+    return b.tobytes()
 
 
-def cells(F: np.ndarray) -> dict[str, Any] | list[Any]:
+def cells(F: np.ndarray) -> bytes | list[Any]:
     """Cells (k, n) in VTK's legacy form: ``n, i0, ..., n, i0, ...``."""
     F = np.asarray(F)
     if not len(F):
@@ -90,14 +88,14 @@ def cells(F: np.ndarray) -> dict[str, Any] | list[Any]:
     return encode(np.column_stack([np.full(len(F), F.shape[1]), F]), np.uint32)
 
 
-def points(P: np.ndarray) -> dict[str, Any] | list[Any]:
+def points(P: np.ndarray) -> bytes | list[Any]:
     P = np.where(np.isfinite(P), P, 0.0)
     return encode(P, np.float32)
 
 
 def polylines(
     lines: list[np.ndarray],
-) -> tuple[dict[str, Any] | list[Any], dict[str, Any] | list[Any]]:
+) -> tuple[bytes | list[Any], bytes | list[Any]]:
     """Poly-lines as one point array and one cell array."""
     if not lines:
         return points(np.zeros((0, 3))), encode(np.zeros(0), np.uint32)

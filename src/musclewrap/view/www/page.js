@@ -34,6 +34,20 @@
       };
     }
   }
+  const TYPES = { f32: Float32Array, u32: Uint32Array, u8: Uint8Array };
+  const views = new WeakMap();
+  mw.typed = function (v, kind) {
+    if (!(v instanceof Uint8Array)) return v;  // null (nothing yet) or an empty list
+    let got = views.get(v);
+    if (got === undefined) {
+      const T = TYPES[kind], size = T.BYTES_PER_ELEMENT;
+      // a view needs its start aligned to its type: a message's bytes may not be
+      const b = v.byteOffset % size ? v.slice() : v;
+      got = new T(b.buffer, b.byteOffset, b.byteLength / size);
+      views.set(v, got);
+    }
+    return got;
+  };
   let inflight = null, pending = null;  // the input being solved (id, time sent), the next
   function send(p) {
     inflight = { id: p.id, at: performance.now() };
@@ -91,7 +105,12 @@
     }
   }
   function hook() {
-    if (!window.trame || !window.trame.state) { setTimeout(hook, 50); return; }
+    // (this script runs before the app: wait for the server's state and the page's status line)
+    if (!window.trame || !window.trame.state || window.trame.state.get("shown") === undefined
+        || !document.getElementById("mw-update")) {
+      setTimeout(hook, 50);
+      return;
+    }
     window.trame.state.watch(["shown"], shown);
     window.trame.state.watch(["thumbs"], thumbs);
     // a pose there before this page came (a page loaded again, or after its first pose)
