@@ -265,8 +265,11 @@ def _serial(page) -> str:
 
 
 def _moved(page, before: str) -> None:
+    """A picture after ``before``, in full (not the lighter one drawn while a slider moves)."""
     page.wait_for_function(
-        f"document.getElementById('mw-update').dataset.serial != '{before}'", timeout=60_000
+        f"document.getElementById('mw-update').dataset.serial != '{before}' "
+        "&& !window.trame.state.get('light')",
+        timeout=60_000,
     )
 
 
@@ -360,9 +363,7 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
             # the stretch/contact toggle recolours the muscles
             colours = _geometry(page, "muscle0_c")
             page.select_option("#colour", "contact")
-            page.wait_for_function(
-                f"({_FINGERPRINT})('muscle0_c') != '{colours}'", timeout=30_000
-            )
+            page.wait_for_function(f"({_FINGERPRINT})('muscle0_c') != '{colours}'", timeout=30_000)
             # to the bones and the muscles this scene keeps apart, as the legend says
             assert "touching a bone or another muscle" in page.inner_text(".mw-side")
             # a quick drag (an input every 30 ms, poses solved behind it): the thumb stays
@@ -370,6 +371,20 @@ def test_dragging_hip_flexion_in_a_browser(data_dir, tmp_path, chromium):
             held = page.evaluate(_HELD, ["hip_flexion_r", 45, 30, 30])
             assert held["pulled"] == [], held
             assert page.eval_on_selector("#q0", "e => e.value") == "30"
+            # while it moves the surfaces are drawn lighter, as the status line says; let go,
+            # in full, and the lighter surface's vertices are the full one's own
+            assert page.evaluate("window.trame.state.get('light')") is True
+            assert re.search(r"drawn with [\d,]+ of [\d,]+ triangles while a slider moves",
+                             page.inner_text("#status"))  # fmt: skip
+            serial = _serial(page)
+            page.eval_on_selector(
+                "#q0", "e => e.dispatchEvent(new Event('change', {bubbles: true}))"
+            )
+            _moved(page, serial)
+            assert "while a slider moves" not in page.inner_text("#status")
+            full, light = _decoded(page, "muscle0_p"), _decoded(page, "muscle0_lp")
+            assert 0 < len(light) < len(full)
+            assert {tuple(r) for r in light} <= {tuple(r) for r in full}
             # a frame of the motion: the coordinates' thumbs go to its pose
             serial = _serial(page)
             page.get_by_label("time").fill("150")
@@ -550,3 +565,27 @@ def test_the_colours_sent_are_the_runs_pictures():
         contact_colours(np.array([-3.0, 0.0, 2.5, 5.0, 50.0])),
         [[0, 0, 0], [0, 0, 0], [230, 0, 0], [230, 230, 0], [230, 230, 0]],
     )
+
+
+def test_the_lighter_surfaces_are_the_full_ones_vertices():
+    """While a slider moves the page draws `Lighter` surfaces: some of the full surface's
+    own vertices (none moved), closed triangles over them, about the budget's share of
+    the triangles for every part alike; none where the scene is within the budget."""
+    from musclewrap.mesh import check_mesh
+    from musclewrap.synthetic import capsule
+    from musclewrap.view._state import lighter_parts
+
+    V, F = capsule(radius=10.0, length=60.0, n_around=48, cap_rings=12, segments=40)
+    V2, F2 = V * 2.0 + 100.0, F.copy()
+    total = len(F) + len(F2)
+    light = lighter_parts({"muscle0": (V, F), "bone0": (V2, F2)}, total // 4)
+    for (P, T), L in zip([(V, F), (V2, F2)], light.values(), strict=True):
+        assert L.full == len(T)
+        assert 0.2 * len(T) <= len(L.faces) <= 0.3 * len(T)
+        assert len(np.unique(L.keep)) == len(L.keep)
+        np.testing.assert_array_equal(L.faces.min(), 0)
+        assert L.faces.max() == len(L.keep) - 1
+        c = check_mesh(P[L.keep], L.faces)
+        assert c.boundary_edges == 0  # closed, as the full one
+        assert abs(c.volume - check_mesh(P, T).volume) < 0.05 * check_mesh(P, T).volume
+    assert lighter_parts({"muscle0": (V, F), "bone0": (V2, F2)}, total) == {}

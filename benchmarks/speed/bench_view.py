@@ -21,8 +21,8 @@ picture drawn, two animation frames after the geometry arrived):
     python benchmarks/speed/bench_view.py examples/lhdl_walk.toml --colour contact
 
 - a redraw alone: the page's scene drawn again with nothing changed (vtk.js's render,
-  finished by reading back one pixel), 20 times, the median; again with the bones hidden;
-  both again antialiased (a second page, ``?antialias=1``: this browser draws in software,
+  finished by reading back one pixel), 20 times, the median; again with the bones hidden,
+  and again with the lighter surfaces the page draws while a slider moves; the first two again antialiased (a second page, ``?antialias=1``: this browser draws in software,
   where the page leaves antialiasing off) and in a smaller view (700 x 450 pixels of page).
   What the browser's drawing costs whatever the solve: the floor of an update here.
 - plain WebGL: as many triangles as the scene has, drawn by a few lines of WebGL in a new page
@@ -123,16 +123,28 @@ async (n) => {
     return ts;
   }
   const all = times();
+  // the surfaces drawn (in full) and the lighter ones drawn while a slider moves (hidden)
+  const shown = actors.map((_, i) => i).filter((i) => actors[i].getVisibility());
+  const full = shown.filter((i) => triangles[i] > 0);
+  const light = actors.map((_, i) => i).filter((i) => !actors[i].getVisibility() && triangles[i] > 0);
   // the bones are the view's first representations with triangles
   const nb = window.trame.state.get("part_names").bone.length;
-  const bones = actors.map((_, i) => i).filter((i) => triangles[i] > 0).slice(0, nb);
+  const bones = full.slice(0, nb);
   bones.forEach((i) => actors[i].setVisibility(false));
   const nobones = times();
   bones.forEach((i) => actors[i].setVisibility(true));
+  let lighter = [];
+  if (light.length) {  // as drawn while a slider moves
+    full.forEach((i) => actors[i].setVisibility(false));
+    light.forEach((i) => actors[i].setVisibility(true));
+    lighter = times();
+    light.forEach((i) => actors[i].setVisibility(false));
+    full.forEach((i) => actors[i].setVisibility(true));
+  }
   v.renderWindow.render();
   const sum = (ix) => ix.reduce((s, i) => s + triangles[i], 0);
-  return { all, nobones, triangles: sum(actors.map((_, i) => i)), bone_triangles: sum(bones),
-           size: v.openglRenderWindow.getSize() };
+  return { all, nobones, lighter, triangles: sum(shown), bone_triangles: sum(bones),
+           light_triangles: sum(light), size: v.openglRenderWindow.getSize() };
 }
 """
 
@@ -203,13 +215,16 @@ def floor(page: Any, triangles: int, size: list[int], reps: int = 20) -> dict[st
 
 
 def redraw(page: object, n: int = 20) -> dict:
-    """The scene drawn again, nothing changed: medians with and without the bones (ms)."""
+    """The scene drawn again, nothing changed: medians with and without the bones, and
+    drawn lighter as while a slider moves (ms; NaN where the page has no lighter one)."""
     got = page.evaluate(_REDRAW, n)  # type: ignore[attr-defined]
     return {
         "all_ms": statistics.median(got["all"]),
         "nobones_ms": statistics.median(got["nobones"]),
+        "lighter_ms": statistics.median(got["lighter"]) if got["lighter"] else float("nan"),
         "triangles": got["triangles"],
         "bone_triangles": got["bone_triangles"],
+        "light_triangles": got["light_triangles"],
         "size": got["size"],
     }
 
@@ -619,7 +634,8 @@ def main() -> None:
             print(
                 f"{'':<12}redraw alone, nothing changed: {w['all_ms']:.0f} ms ({w['triangles']} "
                 f"triangles, {w['size'][0]}x{w['size'][1]} pixels); without the bones "
-                f"({w['bone_triangles']} triangles) {w['nobones_ms']:.0f} ms"
+                f"({w['bone_triangles']} triangles) {w['nobones_ms']:.0f} ms; lighter, as while "
+                f"a slider moves ({w['light_triangles']} triangles) {w['lighter_ms']:.0f} ms"
             )
             w = r["redraw_aa"]
             print(

@@ -232,6 +232,11 @@ class Defaults:
     view_contact_reach : float
         The viewer's contact colours: vertices within this distance (mesh units) of a
         bone, or of a muscle kept apart from theirs, are coloured as in contact.
+    view_moving_triangles : int
+        The viewer draws about this many triangles in all (muscles and bones, each
+        decimated in proportion, never below a tenth of its own) while a slider moves,
+        and every triangle when it stops: a software-drawing browser's redraw grows with
+        the triangles (BENCHMARKS.md, "The viewer").
     init_alike_deg : float
         `musclewrap.subject.init_scene`: two registrations whose rotations differ by less
         than this (degrees) are the same placement.
@@ -296,6 +301,7 @@ class Defaults:
     check_far_thicknesses: float = 1.0
     check_attached_m: float = 0.010
     view_contact_reach: float = 5.0
+    view_moving_triangles: int = 15_000
     init_alike_deg: float = 15.0
     init_far: float = 0.25
     init_cap_rms: float = 0.08

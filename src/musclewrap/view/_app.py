@@ -26,7 +26,7 @@ import os
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +65,13 @@ COLOURS = {
 #: the page's style and script, files of their own served with the page
 _WWW = Path(__file__).with_name("www")
 _CSS = (_WWW / "page.css").read_text(encoding="utf-8")
+
+
+#: the full surfaces' and the lighter ones' visibility, as `light` is False or True
+_LOOKS = {
+    False: ({"visibility": True}, {"visibility": False}),
+    True: ({"visibility": False}, {"visibility": True}),
+}
 
 
 def _typed(name: str, kind: str) -> tuple[str]:
@@ -173,6 +180,8 @@ class Viewer:
         self._frame = 0
         self._writes = 0  # "Write this pose" clicks not yet served
         self._recolour = False  # the colour menu changed: the shown pose's colours due
+        self._still_id = 0  # the sliders let go after this input: its pose in full
+        self._last_id = 0  # the input id of the pose shown last
         self._wake = threading.Event()
         self._stop = False
         self._serial = 0
@@ -188,6 +197,7 @@ class Viewer:
         self.server.trigger("mw_play")(self._on_play)
         self.server.trigger("mw_camera")(self._set_camera)
         self.server.trigger("mw_hello")(self._on_hello)
+        self.server.trigger("mw_still")(self._on_still)
         self.server.controller.on_server_ready.add(self._on_ready)
         self.state.change("colour")(self._on_colour)
         self._thread = threading.Thread(target=self._work, name="musclewrap-solver", daemon=True)
@@ -213,8 +223,13 @@ class Viewer:
             st[f"q{i}_label"] = f"{v:.2f} {c.unit}"
         for kind, names in self._names.items():
             for i, _ in enumerate(names):
-                # nothing yet (vtk.js leaves a null array alone)
-                st[f"{kind}{i}_p"] = st[f"{kind}{i}_c"] = st[f"{kind}{i}_f"] = None
+                # nothing yet (vtk.js leaves a null array alone); the lighter surfaces too
+                for part in ("_p", "_c", "_f", "_lp", "_lc", "_lf"):
+                    st[f"{kind}{i}{part}"] = None
+        # the full surfaces shown, or the lighter ones while a slider moves
+        st.light = False
+        st.light_note = ""
+        st.look_full, st.look_light = _LOOKS[False]
         # the triangles, once: only the points move (a live scene's with its first pose)
         for kind, F in self.src.faces().items():
             st[kind] = F
@@ -274,29 +289,33 @@ class Viewer:
                             self._representations(vtkw)
                     with html.Div(classes="mw-status", id="status"):
                         html.Div("update -", id="mw-update")
+                        html.Div("{{ light_note }}", id="mw-light", v_if="light")
                         html.Div("{{ status }}", id="mw-figures")
 
     def _representations(self, vtkw: Any) -> None:
+        # each surface twice: in full, and lighter while a slider moves (`Lighter`)
         for i, _ in enumerate(self._names["bone"]):
-            with vtkw.VtkGeometryRepresentation(property=("bone_look",)):
-                vtkw.VtkPolyData(
-                    f"bone{i}",
-                    points=_typed(f"bone{i}_p", "f32"),
-                    polys=_typed(f"bone{i}_f", "u32"),
-                )
+            for s, look in (("_", "look_full"), ("_l", "look_light")):
+                with vtkw.VtkGeometryRepresentation(property=("bone_look",), actor=(look,)):
+                    vtkw.VtkPolyData(
+                        f"bone{i}{s.rstrip('_')}",
+                        points=_typed(f"bone{i}{s}p", "f32"),
+                        polys=_typed(f"bone{i}{s}f", "u32"),
+                    )
         for i, _ in enumerate(self._names["muscle"]):
-            with vtkw.VtkGeometryRepresentation():
-                with vtkw.VtkPolyData(
-                    f"muscle{i}",
-                    points=_typed(f"muscle{i}_p", "f32"),
-                    polys=_typed(f"muscle{i}_f", "u32"),
-                ):
-                    with vtkw.VtkPointData():
-                        # RGB as they are (unsigned char colours are not mapped by vtk.js)
-                        vtkw.VtkDataArray(
-                            registration="setScalars", name="colour", type="Uint8Array",
-                            number_of_components=("3",), values=_typed(f"muscle{i}_c", "u8"),
-                        )  # fmt: skip
+            for s, look in (("_", "look_full"), ("_l", "look_light")):
+                with vtkw.VtkGeometryRepresentation(actor=(look,)):
+                    with vtkw.VtkPolyData(
+                        f"muscle{i}{s.rstrip('_')}",
+                        points=_typed(f"muscle{i}{s}p", "f32"),
+                        polys=_typed(f"muscle{i}{s}f", "u32"),
+                    ):
+                        with vtkw.VtkPointData():
+                            # RGB as they are (unsigned char colours are not mapped by vtk.js)
+                            vtkw.VtkDataArray(
+                                registration="setScalars", name="colour", type="Uint8Array",
+                                number_of_components=("3",), values=_typed(f"muscle{i}{s}c", "u8"),
+                            )  # fmt: skip
         for kind in ("lines", "fibres"):
             for i, _ in enumerate(self._names[kind]):
                 with vtkw.VtkGeometryRepresentation(property=(f"{kind}_look",)):
@@ -319,13 +338,20 @@ class Viewer:
         if self._serial:
             self._camera_soon()
 
-    def _on_input(self, name: str, value: float, ident: int = 0) -> None:
+    def _on_input(self, name: str, value: float, ident: int = 0, moving: bool = False) -> None:
         if name == "__frame__":
             self._frame = int(round(value))
-            self.request(Request("frame", frame=self._frame, id=int(ident)))
+            self.request(Request("frame", frame=self._frame, id=int(ident), moving=bool(moving)))
             return
         self._values[name] = float(value)
-        self.request(Request("values", values=dict(self._values), id=int(ident)))
+        self.request(
+            Request("values", values=dict(self._values), id=int(ident), moving=bool(moving))
+        )
+
+    def _on_still(self, ident: int = 0) -> None:
+        # the slider let go after input ``ident``: that pose, and any before, in full
+        self._still_id = max(self._still_id, int(ident))
+        self._wake.set()
 
     def _on_write(self) -> None:
         self._writes += 1
@@ -374,12 +400,13 @@ class Viewer:
                 self._recolour = False
                 self._send(self.src.colours(self.state.colour))
             r, self._want = self._want, None
-            if r is None:
-                continue
-            try:
-                self._show(r)
-            except Exception as exc:  # noqa: BLE001  # shown on the page, the server goes on
-                self._send({"warning": f"this pose failed: {exc}"})
+            if r is not None:
+                try:
+                    self._show(r)
+                except Exception as exc:  # noqa: BLE001  # shown on the page, the server goes on
+                    self._send({"warning": f"this pose failed: {exc}"})
+            if self._want is None and self._still_id >= self._last_id:
+                self._show_still()  # (nothing where the pose shown is in full)
 
     def _camera_soon(self) -> None:
         """The camera set 0.3 and 1 s from now (on the loop): once the page's view is up."""
@@ -401,7 +428,11 @@ class Viewer:
                 "focalPoint": list(v.focal), "position": list(v.position), "viewUp": list(v.up),
                 "viewAngle": v.angle, "centerOfRotation": list(v.focal),
             }  # fmt: skip
+        if r.moving and r.id <= self._still_id:  # let go before its pose was solved
+            r = replace(r, moving=False)
         update, t_solve = self.src.pose(r, self._values, self.state.colour)
+        if update.get("light") and r.id <= self._still_id:  # let go while it was solved
+            update.update(self.src.still())
         if r.kind == "frame":
             # the coordinates' sliders go to the frame's pose; the time slider too unless the
             # hand is on it
@@ -416,9 +447,30 @@ class Viewer:
             "server": 1e3 * (time.perf_counter() - t0),
             "solve": 1e3 * t_solve,
         }
+        update["look_full"], update["look_light"] = _LOOKS[bool(update.get("light"))]
+        self._last_id = r.id
         self._send(update)
         if self._serial == 1:
-            self.src.after_first()
+            extra = self.src.after_first()
+            if extra:  # the lighter surfaces (their colours too), for the first slider moved
+                extra.update(self.src.colours(self.state.colour))
+                self._send(extra)
+
+    def _show_still(self) -> None:
+        """The pose shown last, in full where it was shown lighter (a picture of its own)."""
+        t0 = time.perf_counter()
+        update = self.src.still()
+        if not update:
+            return
+        update["look_full"], update["look_light"] = _LOOKS[False]
+        self._serial += 1
+        update["shown"] = {
+            "serial": self._serial,
+            "id": self._last_id,
+            "server": 1e3 * (time.perf_counter() - t0),
+            "solve": 0.0,
+        }
+        self._send(update)
 
     def _write(self) -> None:
         if not self.src.can_write or self._serial == 0:

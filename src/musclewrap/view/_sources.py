@@ -19,7 +19,17 @@ from ..mesh import apply_transform
 from ..output import View, stretch_colours
 from ..run import Coordinate, LiveScene, PoseResult
 from ._playback import Series, segments, triangles
-from ._state import Request, cells, contact_colours, encode, points, polylines, time_text
+from ._state import (
+    Lighter,
+    Request,
+    cells,
+    contact_colours,
+    encode,
+    lighter_parts,
+    points,
+    polylines,
+    time_text,
+)
 
 __all__ = ["LiveSource", "Playback", "Source"]
 
@@ -64,8 +74,16 @@ class Source(Protocol):
         """The muscles' colours of the pose shown last, in the colouring ``colour``."""
         ...
 
-    def after_first(self) -> None:
-        """Work worth doing once the first picture is out (compiling kernels, say)."""
+    def after_first(self) -> dict[str, Any]:
+        """Work worth doing once the first picture is out (compiling kernels, say).
+
+        Returns state to send then: the lighter surfaces' triangles (`Lighter`), drawn
+        while a slider moves (a `Request` with ``moving``), if any.
+        """
+        ...
+
+    def still(self) -> dict[str, Any]:
+        """The pose shown last in full, where it was sent lighter (empty: nothing to send)."""
         ...
 
     def write(self, folder: Path) -> list[Path] | None:
@@ -100,6 +118,10 @@ class LiveSource:
         self._sent: dict[str, FloatArray] = {}  # per bone: its transform last sent
         self._bone_meshes: dict[str, Any] = {}
         self.last: PoseResult | None = None
+        self.light: dict[str, Lighter] = {}  # per part ("muscle0", "bone1"): drawn lighter
+        self._sent_light: dict[str, FloatArray] = {}  # per bone: its transform sent lighter
+        self._stale: set[int] = set()  # bones whose full positions are not the pose's
+        self.shown_light = False  # the pose shown last was drawn lighter
 
     def faces(self) -> dict[str, Any]:
         return {}
@@ -130,15 +152,25 @@ class LiveSource:
         if self._faces_due:  # the triangles, with the first pose
             up.update(self._faces())
             self._faces_due = False
+        moving = r.moving and bool(self.light)
         for i, b in enumerate(self.names["bone"]):
-            T = res.bones[b]
-            if not np.array_equal(self._sent.get(b), T):  # a bone moved in the output frame
-                V = self._bone_meshes[b][0]
+            T, V = res.bones[b], self._bone_meshes[b][0]
+            if moving:  # a bone that moved since its lighter surface was sent
+                if not np.array_equal(self._sent_light.get(b), T):
+                    up[f"bone{i}_lp"] = points(apply_transform(T, V[self.light[f"bone{i}"].keep]))
+                    self._sent_light[b] = T
+                if not np.array_equal(self._sent.get(b), T):
+                    self._stale.add(i)
+            elif not np.array_equal(self._sent.get(b), T):  # a bone moved in the output frame
                 up[f"bone{i}_p"] = points(apply_transform(T, V))
                 self._sent[b] = T
         for i, n in enumerate(self.names["muscle"]):
-            up[f"muscle{i}_p"] = points(res.muscles[n])
+            if moving:
+                up[f"muscle{i}_lp"] = points(res.muscles[n][self.light[f"muscle{i}"].keep])
+            else:
+                up[f"muscle{i}_p"] = points(res.muscles[n])
             up[f"lines{i}_p"], up[f"lines{i}_f"] = polylines(res.lines[n])
+        up["light"] = self.shown_light = moving
         for i, n in enumerate(self.names["fibres"]):
             P = res.fibres.get(n)
             up[f"fibres{i}_p"], up[f"fibres{i}_f"] = polylines([] if P is None else list(P))
@@ -181,13 +213,48 @@ class LiveSource:
             else:
                 rgb = stretch_colours(res.stretch[n])
             up[f"muscle{i}_c"] = encode(rgb, np.uint8)
+            if self.light:
+                up[f"muscle{i}_lc"] = encode(rgb[self.light[f"muscle{i}"].keep], np.uint8)
         return up
 
-    def after_first(self) -> None:
+    def after_first(self) -> dict[str, Any]:
         # the contact colours' distances once, after the first picture: their kernels
         # compiled (or read from Numba's cache) before the colour menu asks for them
-        if self.last is not None:
-            self.scene.contact(self.last)
+        res = self.last
+        if res is None:
+            return {}
+        self.scene.contact(res)
+        meshes = {
+            f"muscle{i}": (res.muscles[n], self.scene.muscle_faces(n))
+            for i, n in enumerate(self.names["muscle"])
+        }
+        for i, b in enumerate(self.names["bone"]):
+            meshes[f"bone{i}"] = self._bone_meshes[b]
+        self.light = lighter_parts(meshes)
+        up = light_state(self.light)
+        if self.light:  # the lighter surfaces of this pose, ready for the first slider moved
+            for i, n in enumerate(self.names["muscle"]):
+                up[f"muscle{i}_lp"] = points(res.muscles[n][self.light[f"muscle{i}"].keep])
+            for i, b in enumerate(self.names["bone"]):
+                T = self._sent_light[b] = res.bones[b]
+                V = self._bone_meshes[b][0][self.light[f"bone{i}"].keep]
+                up[f"bone{i}_lp"] = points(apply_transform(T, V))
+        return up
+
+    def still(self) -> dict[str, Any]:
+        res = self.last
+        if res is None or not self.shown_light:
+            return {}
+        self.shown_light = False
+        up: dict[str, Any] = {"light": False}
+        for i, n in enumerate(self.names["muscle"]):
+            up[f"muscle{i}_p"] = points(res.muscles[n])
+        for i in sorted(self._stale):
+            b = self.names["bone"][i]
+            T = self._sent[b] = res.bones[b]
+            up[f"bone{i}_p"] = points(apply_transform(T, self._bone_meshes[b][0]))
+        self._stale.clear()
+        return up
 
     def write(self, folder: Path) -> list[Path] | None:
         if self.last is None:
@@ -213,6 +280,11 @@ class Playback:
         for name, kind in series.parts.items():
             self.names[kind].append(name)
         self._sent: dict[str, Path] = {}  # per bone: its file last sent
+        self._sent_light: dict[str, Path] = {}  # per bone: its file last sent lighter
+        self.light: dict[str, Lighter] = {}
+        self._k = 0  # the frame shown last
+        self.shown_light = False  # the frame shown last was drawn lighter
+        self._first: dict[str, tuple[FloatArray, Any]] = {}  # per part: its first surface
 
     def faces(self) -> dict[str, Any]:
         s = self.series
@@ -223,7 +295,9 @@ class Playback:
                 if first is not None:
                     d = s.part(first, n)
                     assert d is not None
-                    out[f"{kind}{i}_f"] = cells(triangles(d))
+                    F = triangles(d)
+                    self._first[f"{kind}{i}"] = (d["points"], F)
+                    out[f"{kind}{i}_f"] = cells(F)
         return out
 
     def view(self, size: tuple[int, int]) -> View:
@@ -234,19 +308,29 @@ class Playback:
     ) -> tuple[dict[str, Any], float]:
         t0 = time.perf_counter()
         s, k = self.series, int(r.frame or 0)
-        up: dict[str, Any] = {"time_text": time_text(self.times, self.n_frames, k)}
+        self._k = k
+        moving = r.moving and bool(self.light)
+        self.shown_light = moving
+        up: dict[str, Any] = {"time_text": time_text(self.times, self.n_frames, k), "light": moving}
         for kind in ("muscle", "bone"):
             for i, n in enumerate(self.names[kind]):
                 d = s.part(k, n)
                 if d is None:
                     continue
-                if kind == "bone" and self._sent.get(n) == s.files[k][n]:
-                    continue  # the same file as shown: a bone that does not move
-                self._sent[n] = s.files[k][n]
-                up[f"{kind}{i}_p"] = points(d["points"])
+                file = s.files[k][n]
+                if moving:
+                    keep = self.light[f"{kind}{i}"].keep
+                    if kind == "muscle" or self._sent_light.get(n) != file:
+                        up[f"{kind}{i}_lp"] = points(d["points"][keep])
+                        self._sent_light[n] = file
+                elif kind == "muscle" or self._sent.get(n) != file:  # a bone that moved
+                    up[f"{kind}{i}_p"] = points(d["points"])
+                    self._sent[n] = file
                 if kind == "muscle":
-                    c = d.get("point:area_stretch", np.ones(len(d["points"])))
-                    up[f"muscle{i}_c"] = encode(stretch_colours(c), np.uint8)
+                    rgb = stretch_colours(d.get("point:area_stretch", np.ones(len(d["points"]))))
+                    up[f"muscle{i}_c"] = encode(rgb, np.uint8)
+                    if self.light:
+                        up[f"muscle{i}_lc"] = encode(rgb[self.light[f"muscle{i}"].keep], np.uint8)
         for kind in ("lines", "fibres"):
             for i, n in enumerate(self.names[kind]):
                 d = s.part(k, n)
@@ -260,8 +344,44 @@ class Playback:
     def colours(self, colour: str) -> dict[str, Any]:
         return {}  # a run's colours are its files' (the stretch)
 
-    def after_first(self) -> None:
-        pass
+    def after_first(self) -> dict[str, Any]:
+        self.light = lighter_parts(self._first)
+        up = light_state(self.light)
+        s, k = self.series, self._k
+        for kind in ("muscle", "bone") if self.light else ():
+            for i, n in enumerate(self.names[kind]):
+                d = s.part(k, n)
+                if d is not None:  # this frame's lighter surfaces, for the first slider moved
+                    up[f"{kind}{i}_lp"] = points(d["points"][self.light[f"{kind}{i}"].keep])
+                    self._sent_light[n] = s.files[k][n]
+        return up
+
+    def still(self) -> dict[str, Any]:
+        if not self.shown_light:
+            return {}
+        self.shown_light = False
+        s, k = self.series, self._k
+        up: dict[str, Any] = {"light": False}
+        for kind in ("muscle", "bone"):
+            for i, n in enumerate(self.names[kind]):
+                d = s.part(k, n)
+                if d is not None and (kind == "muscle" or self._sent.get(n) != s.files[k][n]):
+                    up[f"{kind}{i}_p"] = points(d["points"])
+                    self._sent[n] = s.files[k][n]
+        return up
 
     def write(self, folder: Path) -> list[Path] | None:
         return None
+
+
+def light_state(light: dict[str, Lighter]) -> dict[str, Any]:
+    """The lighter surfaces' triangles (``muscle0_lf``, ...) and the page's words on them."""
+    if not light:
+        return {}
+    up: dict[str, Any] = {f"{k}_lf": cells(L.faces) for k, L in light.items()}
+    drawn = sum(len(L.faces) for L in light.values())
+    full = sum(L.full for L in light.values())
+    up["light_note"] = (
+        f"drawn with {drawn:,} of {full:,} triangles while a slider moves; all when it stops"
+    )
+    return up

@@ -18,11 +18,13 @@ from ..constants import defaults
 
 __all__ = [
     "CONTACT_STOPS",
+    "Lighter",
     "Request",
     "cells",
     "contact_colours",
     "css_rgb",
     "encode",
+    "lighter_parts",
     "points",
     "polylines",
     "time_text",
@@ -37,6 +39,54 @@ class Request:
     values: dict[str, float] = field(default_factory=dict)
     frame: int | None = None
     id: int = 0
+    moving: bool = False  # a slider moving (drawn lighter until it stops)
+
+
+@dataclass(frozen=True)
+class Lighter:
+    """A surface drawn lighter while a slider moves: some of its vertices, their triangles.
+
+    ``keep``: rows of the full surface's vertices (decimation that removes vertices, never
+    moves one: vtk's DecimatePro without splitting), ``faces``: triangles over them. The
+    positions shown are the full pose's own, ``V[keep]``.
+    """
+
+    keep: np.ndarray
+    faces: np.ndarray
+    full: int  # the full surface's triangles
+
+    @classmethod
+    def of(cls, V: np.ndarray, F: np.ndarray, reduction: float) -> Lighter:
+        """``F`` over ``V`` with about ``reduction`` of its triangles removed."""
+        import pyvista as pv
+        from scipy.spatial import cKDTree
+
+        V = np.asarray(V, dtype=np.float64)
+        F = np.asarray(F, dtype=np.int64)
+        if reduction <= 0.0 or len(F) < 100:
+            return cls(np.arange(len(V)), F, len(F))
+        d = pv.PolyData.from_regular_faces(V, F).decimate_pro(reduction, preserve_topology=True)
+        faces = np.asarray(d.regular_faces, dtype=np.int64)
+        # the kept vertices are the full surface's own (the nearest: at distance 0)
+        _, keep = cKDTree(V).query(np.asarray(d.points, dtype=np.float64))
+        return cls(np.asarray(keep, dtype=np.int64), faces, len(F))
+
+
+def lighter_parts(
+    meshes: dict[str, tuple[np.ndarray, np.ndarray]], budget: int | None = None
+) -> dict[str, Lighter]:
+    """Each part's `Lighter`, about ``budget`` triangles in all.
+
+    ``budget``: ``defaults.view_moving_triangles`` unless given. Every part keeps the same
+    share of its triangles (at least a tenth); none where the whole scene is within the
+    budget already.
+    """
+    budget = defaults.view_moving_triangles if budget is None else budget
+    total = sum(len(F) for _, F in meshes.values())
+    keep = min(1.0, max(0.1, budget / max(total, 1)))
+    if keep >= 1.0:
+        return {}
+    return {k: Lighter.of(V, F, 1.0 - keep) for k, (V, F) in meshes.items()}
 
 
 def time_text(times: FloatArray, n_frames: int, k: int) -> str:

@@ -52,16 +52,25 @@
   function send(p) {
     inflight = { id: p.id, at: performance.now() };
     mw.sent[p.id] = inflight.at;
-    window.trame.trigger("mw_input", [p.source, p.value, p.id]);
+    window.trame.trigger("mw_input", [p.source, p.value, p.id, p.moving]);
   }
+  // A slider's input events while it moves ask for poses drawn lighter (the server's
+  // `Lighter` surfaces); its change event (let go, a key, a value typed) says that the
+  // poses up to the last input are to be drawn in full: the server draws the one it has
+  // shown again in full, or a later one in full at once.
   document.addEventListener("input", (e) => {
     const el = e.target;
     if (!el || !el.dataset || !el.dataset.mw || !window.trame) return;
     const id = ++mw.n;
     mw.t[id] = performance.now();
-    const p = { source: el.dataset.mw, value: parseFloat(el.value), id };
+    const p = { source: el.dataset.mw, value: parseFloat(el.value), id, moving: true };
     // a pose asked for more than 3 s ago and not come back (a failed one): ask anyway
     if (inflight && performance.now() - inflight.at < 3000) pending = p; else send(p);
+  }, true);
+  document.addEventListener("change", (e) => {
+    const el = e.target;
+    if (!el || !el.dataset || !el.dataset.mw || !window.trame) return;
+    window.trame.trigger("mw_still", [mw.n]);
   }, true);
   function median(a) { const s = [...a].sort((x, y) => x - y); return s[Math.floor(s.length / 2)]; }
   function shown(s) {
