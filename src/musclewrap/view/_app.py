@@ -390,8 +390,20 @@ class Viewer:
 
     # ------------------------------------------------------------------ the solver thread
     def _work(self) -> None:
+        light_due = True
         while not self._stop:
-            self._wake.wait()
+            idle = not self._wake.wait(timeout=1.0)
+            if idle and light_due and self._serial:
+                # a second with nothing asked after the first picture: the lighter surfaces
+                # (their colours too), for the first slider moved; not sooner, where the
+                # browser is still drawing the first picture on the same cores
+                light_due = False
+                extra = self.src.lighter()
+                if extra:
+                    extra.update(self.src.colours(self.state.colour))
+                    self._send(extra)
+            if idle:
+                continue
             self._wake.clear()
             while self._writes:
                 self._writes -= 1
@@ -451,10 +463,7 @@ class Viewer:
         self._last_id = r.id
         self._send(update)
         if self._serial == 1:
-            extra = self.src.after_first()
-            if extra:  # the lighter surfaces (their colours too), for the first slider moved
-                extra.update(self.src.colours(self.state.colour))
-                self._send(extra)
+            self.src.after_first()
 
     def _show_still(self) -> None:
         """The pose shown last, in full where it was shown lighter (a picture of its own)."""

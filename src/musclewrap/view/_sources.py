@@ -74,11 +74,15 @@ class Source(Protocol):
         """The muscles' colours of the pose shown last, in the colouring ``colour``."""
         ...
 
-    def after_first(self) -> dict[str, Any]:
-        """Work worth doing once the first picture is out (compiling kernels, say).
+    def after_first(self) -> None:
+        """Work worth doing once the first picture is out (compiling kernels, say)."""
+        ...
 
-        Returns state to send then: the lighter surfaces' triangles (`Lighter`), drawn
-        while a slider moves (a `Request` with ``moving``), if any.
+    def lighter(self) -> dict[str, Any]:
+        """The lighter surfaces (`Lighter`) of the pose shown last, as state to send.
+
+        What a `Request` with ``moving`` draws; made once (empty after that, or where the
+        scene is within the budget), when the page has been idle after its first picture.
         """
         ...
 
@@ -217,13 +221,16 @@ class LiveSource:
                 up[f"muscle{i}_lc"] = encode(rgb[self.light[f"muscle{i}"].keep], np.uint8)
         return up
 
-    def after_first(self) -> dict[str, Any]:
+    def after_first(self) -> None:
         # the contact colours' distances once, after the first picture: their kernels
         # compiled (or read from Numba's cache) before the colour menu asks for them
+        if self.last is not None:
+            self.scene.contact(self.last)
+
+    def lighter(self) -> dict[str, Any]:
         res = self.last
-        if res is None:
+        if res is None or self.light:
             return {}
-        self.scene.contact(res)
         meshes = {
             f"muscle{i}": (res.muscles[n], self.scene.muscle_faces(n))
             for i, n in enumerate(self.names["muscle"])
@@ -344,7 +351,12 @@ class Playback:
     def colours(self, colour: str) -> dict[str, Any]:
         return {}  # a run's colours are its files' (the stretch)
 
-    def after_first(self) -> dict[str, Any]:
+    def after_first(self) -> None:
+        pass
+
+    def lighter(self) -> dict[str, Any]:
+        if self.light or not self._first:
+            return {}
         self.light = lighter_parts(self._first)
         up = light_state(self.light)
         s, k = self.series, self._k
