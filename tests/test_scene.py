@@ -335,3 +335,80 @@ def test_the_documented_columns_are_the_files_columns_and_the_keys_the_readers()
     # every table of the top level is described, and every key of it refused when unknown
     tables = {k for k, v in SCENE_KEYS[""].items() if v.startswith("Table")}
     assert tables == {t.split(".")[0] for t in SCENE_KEYS if t}
+
+
+@pytest.mark.realdata
+def test_a_bone_from_the_models_own_geometry(data_dir, tmp_path):
+    """``[bones.NAME] model = FILE``: the mesh the model attaches to the body, scaled by its
+    scale factors and the units, in the body's frame: the femur's head on the hip joint
+    centre (the body's origin), where the registered VHF vastus intermedius wraps it; a
+    wrong file, folder or combination is refused by name."""
+    from musclewrap.model import fit_sphere
+    from musclewrap.run import check_scene
+    from musclewrap.run._read import _read_bone
+
+    osim = data_dir / "opensim" / "models" / "subject01_simbody.osim"
+    vhf = data_dir / "vhf"
+    text = f"""name = "the model's femur"
+[units]
+mesh = "mm"
+model = "m"
+[model]
+osim = "{osim}"
+motion = "{data_dir / "opensim" / "motions" / "subject01_walk1_ik.mot"}"
+coordinates = ["hip_flexion_r", "knee_angle_r"]
+mesh_frame = "registration"
+[registration]
+axes = ["y", "z", "x"]
+[[registration.landmark]]
+name = "hip"
+mesh = "{vhf / "VHF_Right_Cartilage_FemurHead_smooth.stl"}"
+fit = "sphere"
+body = "femur_r"
+[[registration.landmark]]
+name = "knee"
+mesh = "{vhf / "VHF_Right_Cartilage_FemurDistal_smooth.stl"}"
+fit = "centroid"
+body = "tibia_r"
+[muscles.vastus_intermedius]
+mesh = "{vhf / "VHF_Right_Muscle_VastusIntermedius_smooth.stl"}"
+paths = ["vas_int_r"]
+body = "femur_r"
+[bones.femur]
+model = "femur_r.vtp"
+body = "femur_r"
+"""
+    toml = tmp_path / "s.toml"
+    toml.write_text(text)
+    femur = load_scene(toml).bones[0]
+    assert femur.frame == femur.body == "femur_r"
+    assert femur.scale == pytest.approx((1147.24,) * 3)  # its scale factors, m to mm
+    assert "femur_r.vtp" in femur.source and "1.14724" in femur.source
+    V, _, _, _ = _read_bone(femur, None)
+    assert 500 < np.ptp(V[:, 1]) < 540  # 0.453 m long, scaled
+    head = V[np.linalg.norm(V, axis=1) < 40.0]
+    centre, radius, _ = fit_sphere(head)
+    assert np.linalg.norm(centre) < 5.0 and 20.0 < radius < 35.0  # on the hip joint centre
+    rep = check_scene(load_scene(toml))
+    assert rep.ok, [str(f) for f in rep.errors]
+    inside = [f.message for f in rep.findings if "inside the bone 'femur' at rest" in f.message]
+    assert inside  # the muscle lies on it (the generic femur is thicker than the VHF's)
+
+    def refused(edit, match):
+        toml.write_text(text.replace('model = "femur_r.vtp"', edit))
+        with pytest.raises(SceneError, match=match):
+            load_scene(toml)
+
+    refused(
+        'model = "tibia_r.vtp"',
+        r"femur_r' attaches no mesh 'tibia_r.vtp' \(it attaches: femur_r.vtp\)",
+    )
+    refused('model = "femur_r.vtp"\nmesh = "x.stl"', "gives both 'model' and 'mesh'")
+    refused('model = "femur_r.vtp"\nframe = "ground"', "gives both 'model' and 'frame'")
+    toml.write_text(
+        text.replace(
+            'mesh_frame = "registration"', f'mesh_frame = "registration"\ngeometry = "{tmp_path}"'
+        )
+    )
+    with pytest.raises(SceneError, match=r"femur_r.vtp' is in none of .*\[model\] geometry"):
+        load_scene(toml)

@@ -1,12 +1,14 @@
 """The OpenSim side of a scene: the model, its motion, names, registration and the lines' fit.
 
 What a scene takes from a musculoskeletal model: `OpenSimModel` (bodies, coordinates,
-paths, posed), `Motion` (coordinate values per frame), the lower limb's anatomy by name
+paths, posed), `Motion` (coordinate values per frame), the bone meshes it attaches to its
+bodies (`model_geometry`), the lower limb's anatomy by name
 (`match_muscle`, `match_bone`), the similarity that places meshes of another subject
 (`similarity`, `axes_rotation`) and how well a mesh sits on its lines (`line_fits`).
 """
 
 from ._fit import LineFit, line_fit, line_fits, outside_distance, resample_polyline
+from ._geometry import ModelGeometry, geometry_folders, model_geometry
 from ._motion import Motion, random_motion, read_motion, write_motion
 from ._names import (
     BONES,
@@ -44,6 +46,7 @@ __all__ = [
     "MUSCLES",
     "Anatomy",
     "LineFit",
+    "ModelGeometry",
     "Motion",
     "MuscleGroup",
     "NameMatch",
@@ -53,6 +56,7 @@ __all__ = [
     "check_landmarks",
     "femur_landmarks",
     "fit_sphere",
+    "geometry_folders",
     "import_opensim",
     "landmark_point",
     "line_fit",
@@ -61,6 +65,7 @@ __all__ = [
     "match_group",
     "match_muscle",
     "mesh_name_tokens",
+    "model_geometry",
     "outside_distance",
     "path_anatomy",
     "random_motion",

@@ -158,7 +158,7 @@ def _check(
     bones: dict[str, tuple[FloatArray, IntArray]] = {}
     for b in scene.bones:
         try:
-            V, F, flipped, open_edges = _read_bone(b.mesh, cache)
+            V, F, flipped, open_edges = _read_bone(b, cache)
         except (MeshError, ValueError) as exc:
             rep.add("error", b.name, str(exc))
             continue

@@ -104,7 +104,7 @@ def read_inputs(
         Node(("read-muscle", str(m.mesh), m.repair, c), ReadMuscle(m, c)) for m in scene.muscles
     ]
     nodes += [
-        Node(("read-bone", str(b.mesh), collisions, c), ReadBone(b, c, collisions))
+        Node(("read-bone", str(b.mesh), b.scale, collisions, c), ReadBone(b, c, collisions))
         for b in scene.bones
     ]
     done = gather(runner, nodes)
@@ -192,7 +192,7 @@ class ReadBone:
             return False
         if not self.closed:
             return True
-        closed = _mesh_cache_file(self.bone.mesh, cache, "bone-closed")
+        closed = _mesh_cache_file(self.bone.mesh, cache, _closed_tag(self.bone))
         if closed is not None and closed.is_file():
             return True
         try:  # a closed bone needs no closing
@@ -204,8 +204,10 @@ class ReadBone:
     def run(self) -> tuple[FloatArray, IntArray, list[str]]:
         b = self.bone
         cache = None if self.cache is None else Path(self.cache)
-        V, F, flipped, open_edges = _read_bone(b.mesh, cache)
-        notes = [f"{b.name}: faces were oriented inward: flipped"] if flipped else []
+        V, F, flipped, open_edges = _read_bone(b, cache)
+        notes = [f"{b.name}: {b.source}"] if b.source else []  # a model's mesh
+        if flipped:
+            notes.append(f"{b.name}: faces were oriented inward: flipped")
         if self.closed:
             V, F = _closed_bone(b, V, F, open_edges, cache, _silent, notes)
         return V, F, notes
@@ -261,12 +263,14 @@ def _read_muscle(
     return d["V"], d["F"], [str(n) for n in d["notes"]], d["input_id"]
 
 
-def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bool, int]:
-    """Read, tidy and orient outward a bone mesh (not required to be manifold); cached.
+def _read_bone(b: BoneSpec, cache: Path | None) -> tuple[FloatArray, IntArray, bool, int]:
+    """Read, tidy and orient outward a bone's mesh (not required to be manifold); cached.
 
-    Returns the vertices, the faces, whether they were flipped, and the number of
-    boundary edges (an open bone: contact has to close it).
+    Returns the vertices (times the bone's ``scale``: a model's mesh), the faces, whether
+    they were flipped, and the number of boundary edges (an open bone: contact has to
+    close it).
     """
+    path = b.mesh
 
     def build() -> dict[str, np.ndarray]:
         V, F, _ = tidy_mesh(*read_mesh(path))
@@ -280,7 +284,13 @@ def _read_bone(path: Path, cache: Path | None) -> tuple[FloatArray, IntArray, bo
         }
 
     d = _cached_mesh(path, cache, "bone|boundary edges", build)
-    return d["V"], d["F"], bool(d["flipped"]), int(d["boundary_edges"])
+    V = d["V"] if b.scale == (1.0, 1.0, 1.0) else d["V"] * np.asarray(b.scale)
+    return V, d["F"], bool(d["flipped"]), int(d["boundary_edges"])
+
+
+def _closed_tag(b: BoneSpec) -> str:
+    """The cache tag of a bone's closed mesh (its scale in it: a model's mesh is scaled)."""
+    return "bone-closed" if b.scale == (1.0, 1.0, 1.0) else f"bone-closed|scale {b.scale!r}"
 
 
 def _closed_bone(
@@ -311,7 +321,7 @@ def _closed_bone(
             ) from None
         return {"V": RV, "F": RF, "notes": np.array(rnotes, dtype=str)}
 
-    d = _cached_mesh(b.mesh, cache, "bone-closed", build)
+    d = _cached_mesh(b.mesh, cache, _closed_tag(b), build)
     for n in (str(x) for x in d["notes"]):
         notes.append(f"{b.name}: {n}")
         say(f"{b.name}: {n}")

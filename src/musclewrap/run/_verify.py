@@ -143,7 +143,7 @@ def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[di
     bones = {}
     for b in scene.bones:
         V, F, _ = tidy_mesh(*read_mesh(b.mesh))
-        bones[b.name] = (V, F, b.body)
+        bones[b.name] = (V * np.asarray(b.scale), F, b.body)  # (a model's mesh: scaled)
     drive = drive_scene(scene, frames, {n: V.mean(axis=0) for n, (V, _, _) in bones.items()})
     rest_volume = {}
     for m in scene.muscles:

@@ -106,6 +106,11 @@ class BoneSpec:
     mesh: Path
     body: str
     frame: str
+    #: the file's vertices are multiplied by these (a model's mesh: its scale factors
+    #: times the model-to-mesh unit factor)
+    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    #: where it came from, where not a mesh of the scene's own (the run's notes say so)
+    source: str = ""
 
 
 @dataclass(frozen=True)
@@ -192,6 +197,16 @@ def _file(base: Path, value: Any, where: str, src: Path) -> Path:
     return p
 
 
+def _folder(base: Path, value: Any, where: str, src: Path) -> Path:
+    if not isinstance(value, str) or not value:
+        raise SceneError(f"{src}: {where} must be a folder path (string), got {value!r}")
+    p = Path(value).expanduser()
+    p = Path(os.path.normpath(p if p.is_absolute() else base / p))
+    if not p.is_dir():
+        raise SceneError(f"{src}: {where} = '{value}': no such folder ({p})")
+    return p
+
+
 def _name(k: str, where: str, src: Path) -> str:
     if not k or any(c in k for c in '/\\:*?"<>|') or k.startswith("."):
         raise SceneError(f"{src}: {where} name '{k}' cannot be used as a folder name")
@@ -234,7 +249,13 @@ def load_scene(path: PathLike) -> Scene:
         raise SceneError(f"{src}: [model] mesh_frame = 'registration' needs a [registration] table")
     drive.update(_lines_fields(lines, base, src))
     output = _output_fields(raw, src)
-    reading = _Reading(src, base, osim, "csv" in lines, drive["bodies_csv"], mesh_frame)
+    geometry = (
+        _folder(base, model["geometry"], "[model] geometry", src) if "geometry" in model else None
+    )
+    reading = _Reading(
+        src, base, osim, "csv" in lines, drive["bodies_csv"], mesh_frame, geometry,
+        UNITS[model_unit] / UNITS[mesh_unit],
+    )  # fmt: skip
     bones = _bones(raw, reading)
     bone_names = {b.name for b in bones}
     coll = _table(raw.get("collisions", {}), "collisions", src)
@@ -276,6 +297,8 @@ class _Reading:
     line_csv: bool  # the lines come from a CSV ([lines] csv)
     bodies_csv: Path | None
     mesh_frame: str
+    geometry: Path | None  # [model] geometry: the model's mesh files
+    scale: float  # model units to mesh units
 
 
 def _read_toml(src: Path) -> dict[str, Any]:
@@ -419,11 +442,14 @@ def _bones(raw: Mapping[str, Any], r: _Reading) -> list[BoneSpec]:
     for bname, b in _table(raw.get("bones", {}), "bones", src).items():
         b = _table(b, f"bones.{bname}", src)
         _keys(b, _BONE, f"[bones.{bname}]", src)
-        if "mesh" not in b:
-            raise SceneError(f"{src}: [bones.{bname}] needs 'mesh'")
         body = b.get("body", "ground")
         if not isinstance(body, str):
             raise SceneError(f"{src}: [bones.{bname}] body must be a body's name")
+        if "model" in b:
+            bones.append(_model_bone(bname, b, body, r))
+            continue
+        if "mesh" not in b:
+            raise SceneError(f"{src}: [bones.{bname}] needs 'mesh' (or 'model': the model's own)")
         if osim is None and bodies_csv is None and body != "ground":
             raise SceneError(
                 f"{src}: [bones.{bname}] body needs an OpenSim model ([model] osim) or the "
@@ -439,6 +465,34 @@ def _bones(raw: Mapping[str, Any], r: _Reading) -> list[BoneSpec]:
             )
         )
     return bones
+
+
+def _model_bone(bname: str, b: Mapping[str, Any], body: str, r: _Reading) -> BoneSpec:
+    """``[bones.NAME] model = FILE``: the model's own mesh of ``body``, as the model places it."""
+    from ..model import model_geometry
+
+    src, where = r.src, f"[bones.{bname}]"
+    for k in ("mesh", "frame"):
+        if k in b:
+            raise SceneError(
+                f"{src}: {where} gives both 'model' and '{k}': the model's mesh is placed in its "
+                "body's frame as the model places it; give one of 'mesh' and 'model'"
+            )
+    if r.osim is None:
+        raise SceneError(f"{src}: {where} model needs an OpenSim model ([model] osim)")
+    if body == "ground":
+        raise SceneError(f"{src}: {where} model needs 'body': the body the model attaches it to")
+    file = _get(b, "model", str, where, src)
+    try:
+        g = model_geometry(r.osim, body, file, r.geometry)
+    except ValueError as exc:
+        raise SceneError(f"{src}: {where} model: {exc}") from None
+    scale = tuple(float(f) * r.scale for f in g.scale)
+    factors = " ".join(f"{f:g}" for f in g.scale)
+    return BoneSpec(
+        _name(bname, "bone", src), g.path, body, body, (scale[0], scale[1], scale[2]),
+        f"the model's {g.mesh_file} of {body} (scale factors {factors}, {g.path})",
+    )  # fmt: skip
 
 
 def _collision_settings(coll: Mapping[str, Any], src: Path) -> tuple[bool, float, bool, str]:

@@ -42,6 +42,9 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "output_frame": "Frame of every output: a body's name or ``ground`` (the default).",
         "mesh_frame": "Frame the meshes are given in: ``body`` (each in its body's frame at "
         "the rest pose, the default), ``ground``, a body's name, or ``registration``.",
+        "geometry": "The folder of the model's mesh files, for bones taken from the model "
+        "(``[bones.NAME] model``; default: the model's folder, its ``Geometry`` folder, or the "
+        "``Geometry`` folder beside it).",
     },
     "lines": {
         "csv": "Action lines per frame: header ``frame,time,muscle,line,point,x,y,z``, mesh "
@@ -88,6 +91,9 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
     },
     "bones.NAME": {
         "mesh": "The bone's surface mesh.",
+        "model": "Instead of ``mesh``: the model's own mesh of this body, by its file name "
+        "(a ``<mesh_file>`` of the body's ``<attached_geometry>`` in the ``.osim``), placed and "
+        "scaled as the model does (its ``scale_factors``, in the body's frame).",
         "body": "The body that carries it.",
         "frame": "Frame this mesh is given in, overriding ``[model] mesh_frame``.",
     },
