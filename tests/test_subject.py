@@ -312,6 +312,29 @@ def test_init_on_the_vhf_folder_finds_every_gait2392_muscle(data_dir, tmp_path):
     assert rep.ok, [str(f) for f in rep.errors]
 
 
+def test_init_takes_the_models_bones_the_folder_lacks(data_dir, tmp_path):
+    """``--model-bones``: the VHF folder has no femur or pelvis, so the model's own meshes
+    of femur_r and pelvis join the scene (its other side's pelvis not), said in its comment,
+    and the scene checks with the muscles lying on them."""
+    r = init_scene(
+        data_dir / _GAIT, data_dir / "vhf", tmp_path / "vhf.toml", motion=data_dir / _WALK,
+        model_bones=True,
+    )  # fmt: skip
+    sc = load_scene(r.scene)
+    got = {b.name: (b.mesh.name, b.body) for b in sc.bones if b.source}
+    assert got == {
+        "femur": ("femur_r.vtp", "femur_r"), "pelvis": ("pelvis.vtp", "pelvis"),
+        "sacrum": ("sacrum.vtp", "pelvis"),
+    }  # fmt: skip
+    assert len(sc.bones) == 5 + 3  # the folder's own five kept
+    assert "# bones from the model (init --model-bones)" in r.text
+    assert 'model = "femur_r.vtp"' in r.text and "l_pelvis" not in r.text
+    rep = check_scene(sc)
+    assert rep.ok, [str(f) for f in rep.errors]
+    on = {f.subject for f in rep.findings if "inside the bone 'femur' at rest" in f.message}
+    assert "vastus_intermedius" in on
+
+
 _GAIT = "opensim/models/subject01_simbody.osim"
 _WALK = "opensim/motions/subject01_walk1_ik.mot"
 

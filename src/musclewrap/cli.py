@@ -187,6 +187,13 @@ def _add_init(sub: _Commands) -> None:
         help="motion to drive the scene (.mot/.sto); without one, a sweep of each driven "
         "coordinate over its range is written beside the scene",
     )
+    it.add_argument(
+        "--model-bones",
+        action="store_true",
+        help="where no bone of the folder is carried by a body that carries muscles (a thigh "
+        "segmented without its femur), take the model's own meshes of that body "
+        "([bones.NAME] model = FILE), said in the scene's comment",
+    )
     it.add_argument("--force", action="store_true", help="write over an existing scene file")
 
 
@@ -547,6 +554,7 @@ def _cmd_init(a: argparse.Namespace) -> int:
         Path(a.mesh_dir),
         out,
         motion=Path(a.motion) if a.motion else None,
+        model_bones=a.model_bones,
         log=lambda m: print(m, file=sys.stderr),
     )
     print(

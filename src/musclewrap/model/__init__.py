@@ -8,7 +8,7 @@ bodies (`model_geometry`), the lower limb's anatomy by name
 """
 
 from ._fit import LineFit, line_fit, line_fits, outside_distance, resample_polyline
-from ._geometry import ModelGeometry, geometry_folders, model_geometry
+from ._geometry import ModelGeometry, body_meshes, geometry_folders, model_geometry
 from ._motion import Motion, random_motion, read_motion, write_motion
 from ._names import (
     BONES,
@@ -52,6 +52,7 @@ __all__ = [
     "NameMatch",
     "OpenSimModel",
     "axes_rotation",
+    "body_meshes",
     "cap_spread",
     "check_landmarks",
     "femur_landmarks",

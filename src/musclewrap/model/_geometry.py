@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["ModelGeometry", "geometry_folders", "model_geometry"]
+__all__ = ["ModelGeometry", "body_meshes", "geometry_folders", "model_geometry"]
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ def geometry_folders(osim: Path, folder: Path | None = None) -> list[Path]:
     return [here, here / "Geometry", here.parent / "Geometry"]
 
 
-def _body_meshes(osim: Path, body: str) -> list[tuple[str, tuple[float, float, float]]]:
+def body_meshes(osim: Path, body: str) -> list[tuple[str, tuple[float, float, float]]]:
     """The ``(mesh_file, scale_factors)`` a model attaches to ``body`` (empty: none)."""
     try:
         root = ET.parse(osim).getroot()
@@ -74,7 +74,7 @@ def model_geometry(
         Naming the model and the body: where the body attaches no such mesh (with the
         ones it does attach), or where the file is in none of `geometry_folders`.
     """
-    meshes = _body_meshes(osim, body)
+    meshes = body_meshes(osim, body)
     found = [s for f, s in meshes if f == mesh_file or Path(f).name == mesh_file]
     if not found:
         have = ", ".join(sorted({f for f, _ in meshes})) or "none"

@@ -239,6 +239,7 @@ def init_scene(
     out: Path,
     *,
     motion: Path | None = None,
+    model_bones: bool = False,
     log: Callable[[str], None] | None = None,
 ) -> InitResult:
     """Write a scene for the meshes of ``mesh_dir`` on the model ``osim`` (see module doc).
@@ -255,6 +256,10 @@ def init_scene(
         The motion to drive the scene with. Without one, a sweep of each driven
         coordinate over its range is written beside the scene
         (``<scene>_sweep.mot``).
+    model_bones : bool, optional
+        Where no bone of the folder is carried by a body that carries muscles, take
+        the model's own meshes of that body (``[bones.NAME] model``), said in the
+        scene's comment.
     log : callable, optional
         Receives one line per step.
 
@@ -278,6 +283,7 @@ def init_scene(
     found_notes: list[str] = []
     muscles = _muscles_to_paths(model, meshes, main_side, unplaced, mesh_dir, found_notes)
     bones = _bones_to_bodies(model, meshes, main_side, unplaced)
+    from_model = _model_bones(model, muscles, bones, main_side, found_notes) if model_bones else []
     mesh_unit, s, units_note = _mesh_unit(model, muscles, say)
     driven = _driven(model, muscles, bones, motion)
     best, place_note = _placement(model, meshes, muscles, driven, s, main_side, mesh_unit, say)
@@ -304,6 +310,7 @@ def init_scene(
         unplaced,
         [units_note, place_note, *found_notes],
         written is not None,
+        from_model,
     )
     with atomic_path(out) as part:
         part.write_text(text, encoding="utf-8")
@@ -311,7 +318,7 @@ def init_scene(
         out,
         text,
         {m.name: tuple(m.paths) for m in muscles},
-        {n: b for _, n, b in bones},
+        {**{n: b for _, n, b in bones}, **{n: b for n, _, b in from_model}},
         unplaced,
         [units_note, place_note, *found_notes],
         written,
@@ -394,6 +401,52 @@ def _muscles_to_paths(
             "join them into one mesh where they are one muscle"
         )
     return muscles
+
+
+def _model_bones(
+    model: OpenSimModel,
+    muscles: list[_Muscle],
+    bones: list[tuple[MeshInfo, str, str]],
+    main_side: str,
+    notes: list[str],
+) -> list[tuple[str, str, str]]:
+    """The model's own meshes of the bodies that carry muscles but no bone of the folder.
+
+    ``(scene name, mesh file, body)`` for each mesh the model attaches to such a body
+    and that is on disk (`musclewrap.model.geometry_folders`), less those named for the
+    other side; what was taken, and what could not be, goes to ``notes``.
+    """
+    from ..model import body_meshes, model_geometry
+
+    have = {body for mi, _, body in bones if mi.kind == "bone"}
+    names = {n for _, n, _ in bones} | {m.name for m in muscles}
+    out: list[tuple[str, str, str]] = []
+    for body in sorted({m.body for m in muscles} - have):
+        for file, _ in body_meshes(model.path, body):
+            stem = Path(file).stem
+            _, side = mesh_name_tokens(stem)
+            if side is not None and side != main_side:
+                continue  # the other side's half of a body (l_pelvis.vtp)
+            try:
+                model_geometry(model.path, body, file)
+            except ValueError as exc:
+                notes.append(f"the model's {file} of {body} not taken: {exc}")
+                continue
+            found = match_bone(stem)
+            name = found[0].name if found is not None else stem.lower()
+            while name in names:
+                name += "_model"
+            names.add(name)
+            out.append((name, file, body))
+    if out:
+        notes.append(
+            "bones from the model (init --model-bones), where the folder has none for a body "
+            "that carries muscles: "
+            + ", ".join(f"{n} ({f} of {b})" for n, f, b in out)
+            + "; generic meshes: a muscle of this subject may lie into them at rest "
+            "(musclewrap check says how far)"
+        )
+    return out
 
 
 def _bones_to_bodies(
@@ -866,6 +919,7 @@ def _scene_text(
     unplaced: list[str],
     notes: list[str],
     swept: bool,
+    from_model: list[tuple[str, str, str]] = (),  # type: ignore[assignment]
 ) -> str:
     base = Path(os.path.abspath(out)).parent
     unit = mesh_unit
@@ -937,4 +991,9 @@ def _scene_text(
             + f", carried by {body}"
         )
         L += [f"[bones.{name}]", f"mesh = {_q(_rel(mi.path, base))}", f"body = {_q(body)}", ""]
+    for name, file, body in from_model:
+        L.append(
+            f"# the model's own {file} of {body} (init --model-bones): the folder has no bone for it"
+        )
+        L += [f"[bones.{name}]", f"model = {_q(file)}", f"body = {_q(body)}", ""]
     return "\n".join(L).rstrip() + "\n"
