@@ -133,6 +133,10 @@ def test_deep_squat_through_its_deepest_frames(data_dir, tmp_path):
     # the gluteus maximus's line runs through the femur on these frames: said how deep
     gm = [r for r in s.rows if r["muscle"] == "gluteus_maximus"]
     assert max(r["line_inside_depth_max"] for r in gm) > 3.0
+    # contact wins there: how far the surface left its line, and the fit where it is free
+    assert max(r["lines_conflict_max"] for r in gm) > 3.0
+    assert all(np.isfinite(r["skeleton_fit_free"]) for r in s.rows)
+    assert any(n.startswith("gluteus_maximus: on ") and "contact wins" in n for n in s.notes)
     # other frames around them, one worker, another chunking: the same files, byte for byte
     s1 = run_scene(scene, tmp_path / "b", frames="716:741:8", workers=1, **common)
     assert len(s1.rows) == 4 * 4

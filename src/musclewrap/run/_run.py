@@ -570,6 +570,7 @@ class _SceneRun:
             self.inputs.contact is not None,
             self.notes,
         )
+        self.notes += _conflict_notes(rows, scene.mesh_unit)
         worst = max(
             (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
             for r in rows
@@ -717,3 +718,27 @@ class _SceneRun:
         Journal.finish(self.outdir)  # complete: nothing left to resume
         self.summary.seconds = time.perf_counter() - self.t0
         return self.summary
+
+
+def _conflict_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
+    """The notes of the muscles whose lines ran inside a bone (contact wins over the lines).
+
+    On how many frames, how deep, and how far the surface, kept out of the bone, left
+    them there; and how well it followed them where they lie outside the bones.
+    """
+    out = []
+    for name in dict.fromkeys(r["muscle"] for r in rows):
+        mine = [r for r in rows if r["muscle"] == name and r.get("lines_conflict_max", 0) > 0]
+        if not mine:
+            continue
+        worst = max(mine, key=lambda r: r["lines_conflict_max"])
+        free = [r.get("skeleton_fit_free", np.nan) for r in rows if r["muscle"] == name]
+        out.append(
+            f"{name}: on {len(mine)} frame(s) its lines run inside a bone (up to "
+            f"{max(r['line_inside_depth_max'] for r in mine):.3g} {unit} deep); contact wins "
+            f"there: the surface leaves them by up to {worst['lines_conflict_max']:.3g} {unit} "
+            f"(frame {worst['frame']}; lines_conflict_max in report.csv); where the lines lie "
+            f"outside the bones it follows them to {np.nanmax(free):.3g} {unit} "
+            "(skeleton_fit_free, the worst frame's mean)"
+        )
+    return out

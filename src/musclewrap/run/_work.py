@@ -534,7 +534,28 @@ class _MuscleFrames:
             list(self.span.lines[k].values()), list(here.values()), 0.25 * self.d._fine_edge
         )
         n_in, depth, bone_depth = self.penetration(res, here)
-        return FrameMeasures(shape, n_in, depth, bone_depth, line_depth)
+        free, conflict = self._line_fits(k, res, here)
+        return FrameMeasures(shape, n_in, depth, bone_depth, line_depth, free, conflict)
+
+    def _line_fits(
+        self, k: int, res: DeformationResult, here: dict[str, Any]
+    ) -> tuple[float, float]:
+        """The skeleton fit where the lines are free, and how far it is off where they are not.
+
+        The skeleton samples split by where their place on the frame's lines lies: outside
+        every bone (the mean distance of the deformed samples from the lines there:
+        ``skeleton_fit_free``) or inside one, where the surface kept out of the bone cannot
+        follow the line (the largest distance there: ``lines_conflict_max``, 0 if none).
+        """
+        nan = float("nan")
+        if not np.isfinite(res.cage).all():
+            return nan, nan
+        dist, s_cur = self.d.sample_fits(res.cage, self.span.lines[k])
+        inside = np.zeros(len(s_cur), dtype=bool)
+        for pl in here.values():
+            inside |= pl.obstacle.signed(np.ascontiguousarray(pl.to_obstacle(s_cur)))[0] < 0.0
+        free = float(dist[~inside].mean()) if (~inside).any() else nan
+        return free, float(dist[inside].max(initial=0.0))
 
     def _write_surface(self, k: int, res: DeformationResult) -> None:
         """The deformed surface of frame ``k`` in the output frame, with its point arrays."""
@@ -618,6 +639,8 @@ class _MuscleFrames:
                 res.penetration_depth_before if self.contact is not None else m.depth
             ),
             "line_inside_depth_max": m.line_depth,
+            "skeleton_fit_free": m.fit_free,
+            "lines_conflict_max": m.conflict,
             "reason": res.reason,
         }
 
@@ -630,6 +653,8 @@ class FrameMeasures(NamedTuple):
     depth: float  # the deepest of them (mesh units)
     bone_depth: float  # the deepest bone vertex inside the muscle
     line_depth: float  # the deepest point of the muscle's lines inside a bone
+    fit_free: float  # skeleton fit over the samples whose lines lie outside the bones
+    conflict: float  # the samples' largest distance from their lines inside a bone
 
 
 @dataclass(frozen=True)

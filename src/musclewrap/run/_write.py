@@ -68,7 +68,14 @@ class RunSummary:
             f"  worst |relative volume error| {worst('relative_volume_error'):.2e}; "
             f"unconverged frames {self.unconverged}"
             + (f" ({failed} without positions, no mesh written)" if failed else "")
-            + f"; skeleton fit mean <= {worst('skeleton_fit_mean'):.3g}; "
+            + f"; skeleton fit mean <= {worst('skeleton_fit_mean'):.3g}"
+            + (
+                " (where the lines lie outside the bones <= "
+                + f"{np.nanmax([r.get('skeleton_fit_free', np.nan) for r in solved] + [0.0]):.3g})"
+                if any(r.get("lines_conflict_max", 0) > 0 for r in solved)
+                else ""
+            )
+            + "; "
             f"shape change <= {worst('shape_change_max'):.3g} edge lengths; deepest bone "
             f"penetration {worst('penetration_depth_max'):.3g}"
             + (

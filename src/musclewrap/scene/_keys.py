@@ -157,6 +157,12 @@ OUTPUT_COLUMNS: dict[str, dict[str, str]] = {
         "penetration_depth_before": "Deepest vertex inside a bone before the contact (mesh units).",
         "line_inside_depth_max": "Deepest point of the muscle's own action lines inside a "
         "bone (mesh units): where the model's path itself passes through a bone.",
+        "skeleton_fit_free": "Mean distance between the deformed skeleton samples and the "
+        "action lines over the samples whose place on the lines lies outside every bone of "
+        "the muscle (mesh units): the fit where the lines can be followed.",
+        "lines_conflict_max": "Largest distance between a deformed skeleton sample and its "
+        "line where its place on the line lies inside a bone (mesh units; 0: none): how far "
+        "the surface, kept out of the bone, had to leave its line.",
         "reason": "Why a frame did not converge, or how it converged.",
     },
     "fibres.csv": {

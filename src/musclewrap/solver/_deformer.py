@@ -326,6 +326,27 @@ class Deformer(ContactSteps, PaperSteps):
         )
         return float(dist.mean()), float(dist.max())
 
+    def sample_fits(
+        self, x: FloatArray, current_lines: Mapping[str, npt.ArrayLike]
+    ) -> tuple[FloatArray, FloatArray]:
+        """Each skeleton sample's distance from its current line, and its place on that line.
+
+        ``S x`` (the samples deformed with the cage ``x``) against ``current_lines`` as
+        `deform` took them: the distances whose mean is ``skeleton_fit_mean``, and the
+        samples ``s'`` of the current lines (where they lie inside a bone, the surface
+        kept out of it cannot follow them).
+        """
+        cur = check_lines(current_lines, "current lines")
+        s_cur = self.sampling.evaluate(cur, "current lines")
+        Sx = np.asarray(self.S @ np.asarray(x, dtype=np.float64))
+        dist = np.concatenate(
+            [
+                _point_polyline_distance(Sx[rows], cur[name])
+                for rows, name in zip(self._line_slices, self.sampling.names, strict=True)
+            ]
+        )
+        return dist, s_cur
+
     def fine_volume_gradient(self, x: FloatArray) -> FloatArray:
         """Gradient of the fine volume w.r.t. cage vertices, ``W^T dV(W x)`` (chain rule)."""
         mu = self.muscle
