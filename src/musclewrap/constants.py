@@ -232,6 +232,10 @@ class Defaults:
     view_contact_reach : float
         The viewer's contact colours: vertices within this distance (mesh units) of a
         bone, or of a muscle kept apart from theirs, are coloured as in contact.
+    line_conflict_mm : float
+        A run's notes name a muscle whose action lines run deeper than this (mm) inside
+        a bone (``line_inside_depth_max``): where contact makes the surface leave them
+        (``lines_conflict_max``); shallower ones are in report.csv only.
     view_moving_triangles : int
         The viewer draws about this many triangles in all (muscles and bones, each
         decimated in proportion, never below a tenth of its own) while a slider moves,
@@ -302,6 +306,7 @@ class Defaults:
     check_attached_m: float = 0.010
     view_contact_reach: float = 5.0
     view_moving_triangles: int = 15_000
+    line_conflict_mm: float = 0.5
     init_alike_deg: float = 15.0
     init_far: float = 0.25
     init_cap_rms: float = 0.08

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..constants import UNITS, defaults
 from ..errors import SceneError
 from ..mesh import apply_transform
 from ..model import resample_polyline
@@ -727,14 +728,22 @@ def _conflict_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
     them there; and how well it followed them where they lie outside the bones.
     """
     out = []
+    deep = defaults.line_conflict_mm * 1e-3 / UNITS[unit]  # in mesh units
     for name in dict.fromkeys(r["muscle"] for r in rows):
-        mine = [r for r in rows if r["muscle"] == name and r.get("lines_conflict_max", 0) > 0]
+        mine = [
+            r
+            for r in rows
+            if r["muscle"] == name
+            and r.get("lines_conflict_max", 0) > 0
+            and r["line_inside_depth_max"] > deep
+        ]
         if not mine:
             continue
         worst = max(mine, key=lambda r: r["lines_conflict_max"])
         free = [r.get("skeleton_fit_free", np.nan) for r in rows if r["muscle"] == name]
         out.append(
-            f"{name}: on {len(mine)} frame(s) its lines run inside a bone (up to "
+            f"{name}: on {len(mine)} frame(s) its lines run more than {deep:g} {unit} inside a "
+            f"bone (up to "
             f"{max(r['line_inside_depth_max'] for r in mine):.3g} {unit} deep); contact wins "
             f"there: the surface leaves them by up to {worst['lines_conflict_max']:.3g} {unit} "
             f"(frame {worst['frame']}; lines_conflict_max in report.csv); where the lines lie "

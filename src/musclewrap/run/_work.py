@@ -634,6 +634,7 @@ class _MuscleFrames:
             "penetration_depth_max": m.depth,
             "bone_inside_depth_max": m.bone_depth,
             "muscle_overlap_max": float("nan") if overlap is None else overlap,
+            "muscle_rounds": res.muscle_rounds,
             "contact_vertices": res.contact_vertices,
             "penetration_depth_before": (
                 res.penetration_depth_before if self.contact is not None else m.depth

@@ -86,6 +86,7 @@ class RunSummary:
             )
             + (
                 f"; deepest vertex in another muscle {worst('muscle_overlap_max'):.3g}"
+                + _rounds_text(solved)
                 if any(np.isfinite(r.get("muscle_overlap_max", np.nan)) for r in solved)
                 else ""
             ),
@@ -97,6 +98,18 @@ class RunSummary:
         ]
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
+
+
+def _rounds_text(rows: list[dict[str, Any]]) -> str:
+    """The muscles' rounds a frame (`musclewrap.solver.meet`): median, most, and where."""
+    by_frame = {r["frame"]: r.get("muscle_rounds", 0) for r in rows}
+    if not by_frame:
+        return ""
+    most = max(by_frame, key=lambda k: by_frame[k])
+    return (
+        f" after {np.median(list(by_frame.values())):g} rounds a frame (median; most "
+        f"{by_frame[most]}, frame {most})"
+    )
 
 
 def _bone_display(

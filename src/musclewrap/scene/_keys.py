@@ -153,6 +153,9 @@ OUTPUT_COLUMNS: dict[str, dict[str, str]] = {
         "by the contact, NaN without it).",
         "muscle_overlap_max": "Deepest vertex of this muscle inside another muscle (mesh "
         "units; NaN without muscle contact).",
+        "muscle_rounds": "Rounds that took the muscles kept apart out of each other in this "
+        "frame (the same for all of them; 0: apart after their own solves, or muscles not "
+        "kept apart).",
         "contact_vertices": "Vertices the contact moved.",
         "penetration_depth_before": "Deepest vertex inside a bone before the contact (mesh units).",
         "line_inside_depth_max": "Deepest point of the muscle's own action lines inside a "
