@@ -215,8 +215,11 @@ def floor(page: Any, triangles: int, size: list[int], reps: int = 20) -> dict[st
 
 
 def redraw(page: object, n: int = 20) -> dict:
-    """The scene drawn again, nothing changed: medians with and without the bones, and
-    drawn lighter as while a slider moves (ms; NaN where the page has no lighter one)."""
+    """The scene drawn again, nothing changed: medians (ms), in full and lighter.
+
+    With and without the bones, and drawn lighter as while a slider moves (NaN where
+    the page has no lighter one).
+    """
     got = page.evaluate(_REDRAW, n)  # type: ignore[attr-defined]
     return {
         "all_ms": statistics.median(got["all"]),
