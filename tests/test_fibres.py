@@ -31,6 +31,20 @@ def test_fibres_run_inside_from_origin_to_insertion(capsule_fibres):
     assert len(np.unique(fb.points[:, 7].round(6), axis=0)) == 60
 
 
+def test_each_fibre_has_its_share_of_the_cross_section(capsule_fibres):
+    """Shares of the widest level's cells, nearest seed (they sum to 1); on a capsule's
+    round section spread evenly, so no fibre takes much more than its 1/60; the areas
+    are the shares of the volume over the mean fibre length (the section, PCSA-like)."""
+    m, _, fb = capsule_fibres
+    assert fb.share.shape == fb.area.shape == (60,)
+    assert (fb.share > 0).all() and abs(fb.share.sum() - 1.0) < 1e-12
+    assert fb.share.max() < 3.0 / 60 and fb.share.min() > 0.1 / 60  # 0.19-2.05 of 1/60
+    pcsa = m.volume_rest / fb.lengths().mean()
+    np.testing.assert_allclose(fb.area, fb.share * pcsa, rtol=1e-12)
+    # the capsule's section: radius 20 (the PCSA of a cylinder-like body near it)
+    assert 0.7 * np.pi * 20**2 < fb.area.sum() < 1.3 * np.pi * 20**2
+
+
 @pytest.mark.parametrize("scenario", CAPSULE_SCENARIOS)
 def test_fibres_stay_inside_the_deformed_muscle(capsule_fibres, scenario):
     import igl

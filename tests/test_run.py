@@ -74,6 +74,18 @@ def test_fibres_in_a_line_csv_scene(tmp_path):
         np.testing.assert_allclose(m.cell_data["stretch"], L[k] / L[0], rtol=1e-9)
         got = [float(r["length"]) for r in rows if r["frame"] == str(k)]
         np.testing.assert_allclose(got, L[k], rtol=1e-12)
+    # each fibre's share of the cross-section and its area, the same in every frame's row
+    # and cell data; the shares sum to 1, the areas to the volume over the mean length
+    share = {r["fibre"]: float(r["share"]) for r in rows}
+    assert all(float(r["share"]) == share[r["fibre"]] for r in rows)
+    assert abs(sum(share.values()) - 1.0) < 1e-9 and min(share.values()) > 0
+    np.testing.assert_allclose(m.cell_data["share"], [share[str(i)] for i in range(20)])
+    area = np.array([float(r["area"]) for r in rows if r["frame"] == "0"])
+    from musclewrap.mesh import read_mesh, volume
+
+    vol = abs(volume(*read_mesh(out / "fusiform" / "fusiform_0000.vtp")))
+    np.testing.assert_allclose(area.sum() * L[0].mean(), vol, rtol=1e-3)  # frame 0: rest
+    np.testing.assert_allclose(area / area.sum(), [share[str(i)] for i in range(20)], rtol=1e-9)
     # the demo's muscle shortens as its line does: so do its fibres
     assert L[6].mean() < L[0].mean()
     # a second run reads the fibres from the cache: the same files

@@ -13,6 +13,7 @@ exactly as they carry the surface (`Fibres.at`).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -52,6 +53,14 @@ class Fibres:
         The surface vertices of the attachment areas the field was solved between.
     spacing : float
         The grid spacing of the field (mesh units).
+    share : (N,) float64 array
+        Each fibre's share of the muscle's cross-section where it is widest (the field's
+        level of most cells): the cells of that level nearer its seed than any other
+        fibre's (shares sum to 1). Equal shares where unknown.
+    area : (N,) float64 array
+        Each fibre's cross-section: its share of the muscle's volume over its mean fibre
+        length at rest (the physiological cross-section, without pennation), mesh
+        units squared: weights for its force or moment arm.
     """
 
     points: FloatArray
@@ -59,6 +68,8 @@ class Fibres:
     origin: IntArray
     insertion: IntArray
     spacing: float
+    share: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    area: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0))
 
     def at(self, cage: npt.ArrayLike) -> FloatArray:
         """The fibres' points for deformed cage positions ``cage`` (``DeformationResult.cage``)."""
@@ -476,6 +487,7 @@ def fibres_at_rest(
     width passes (tested), one of 0.7 does not. ``voxels`` refines the grid.
     """
     import igl
+    from scipy.spatial import cKDTree
 
     from ..conditions import polyline_at
     from ..coordinates import mean_value_coordinates
@@ -506,11 +518,12 @@ def fibres_at_rest(
         j = int(np.argmax(dist))
         order.append(j)
         dist = np.minimum(dist, np.linalg.norm(cand - cand[j], axis=1))
-    whole = []
-    for line in trace_fibres(field, cand[order]):
+    whole, seeded = [], []  # the whole fibres, and which of the seeds each came from
+    for j, line in enumerate(trace_fibres(field, cand[order])):
         ends = field.sample(line[[0, -1]]) if len(line) >= 3 else np.array([1.0, 0.0])
         if ends[0] <= 0.05 and ends[1] >= 0.95:  # else it stopped short of an attachment
             whole.append(polyline_at(line, np.linspace(0.0, 1.0, points)))
+            seeded.append(j)
     inside_all = np.zeros(0, dtype=bool)
     if whole:
         w = igl.fast_winding_number(V, F, np.concatenate(whole))
@@ -520,14 +533,25 @@ def fibres_at_rest(
             f"only {int(inside_all.sum())} of {count} fibres stay inside the muscle: "
             "use more voxels"
         )
-    P = np.array(whole)[np.flatnonzero(inside_all)[:count]]
+    kept = np.flatnonzero(inside_all)[:count]
+    P = np.array(whole)[kept]
     W = mean_value_coordinates(P.reshape(-1, 3), muscle.cage.C, muscle.cage.CF)
+    # each fibre's share of the widest level: its seed's cells there (nearest seed)
+    slab = cells[np.abs(u - level) <= 0.5 * (edges[1] - edges[0])]
+    centres = field.corner + (slab + 0.5) * field.spacing
+    seeds = cand[np.asarray(order)[np.asarray(seeded)[kept]]]
+    _, owner = cKDTree(seeds).query(centres)
+    share = np.bincount(owner, minlength=len(seeds)).astype(np.float64)
+    share /= share.sum()
+    lengths = np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1)
     return Fibres(
         points=P,
         W=W,
         origin=np.unique(np.asarray(origin, dtype=np.int64)),
         insertion=np.unique(np.asarray(insertion, dtype=np.int64)),
         spacing=field.spacing,
+        share=share,
+        area=share * float(muscle.volume_rest) / float(lengths.mean()),
     )
 
 

@@ -71,6 +71,8 @@ def fibres_of(muscle: Muscle, job: MuscleJob, path: Path | None) -> tuple[Fibres
             "origin": fb.origin,
             "insertion": fb.insertion,
             "spacing": np.array(fb.spacing),
+            "share": fb.share,
+            "area": fb.area,
         }
 
     try:
@@ -83,6 +85,8 @@ def fibres_of(muscle: Muscle, job: MuscleJob, path: Path | None) -> tuple[Fibres
         origin=z["origin"],
         insertion=z["insertion"],
         spacing=float(z["spacing"]),
+        share=z["share"],
+        area=z["area"],
     ), None
 
 
@@ -171,6 +175,8 @@ def write_frame_fibres(path: Path, fb: Fibres, points: FloatArray, T: FloatArray
             "fibre": np.arange(n, dtype=np.int64),
             "length": lengths,
             "stretch": lengths / fb.lengths(),
+            "share": fb.share,
+            "area": fb.area,
         },
     )
 
@@ -194,6 +200,9 @@ def _rows(
         for fr in res.fibres:
             k = position[fr.frame]
             lengths = np.asarray(fr.lengths, dtype=np.float64)
+            nan = [float("nan")] * len(lengths)
+            share = res.fibre_share if len(res.fibre_share) == len(lengths) else nan
+            area = res.fibre_area if len(res.fibre_area) == len(lengths) else nan
             arms = np.asarray(fr.moment_arms, dtype=np.float64).reshape(len(coords), len(lengths))
             base = {"frame": fr.frame, "time": fr.time, "muscle": name}
             if not coords:
@@ -201,6 +210,8 @@ def _rows(
                     {
                         **base,
                         "fibre": i,
+                        "share": share[i],
+                        "area": area[i],
                         "length": float(x),
                         "coordinate": "",
                         "coordinate_value": "",
@@ -215,6 +226,8 @@ def _rows(
                     {
                         **base,
                         "fibre": i,
+                        "share": share[i],
+                        "area": area[i],
                         "length": float(x),
                         "coordinate": c,
                         "coordinate_value": value,

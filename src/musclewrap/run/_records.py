@@ -42,7 +42,7 @@ __all__ = [
     "fibres_key",
 ]
 
-FIBRES_FORMAT = 1  # of the cached fibres
+FIBRES_FORMAT = 2  # of the cached fibres (2: with their shares and areas)
 
 
 def fibres_key(muscle_key: str, job: MuscleJob) -> str:
@@ -308,6 +308,9 @@ class ChunkResult:
     seconds_prepare: float = 0.0
     cache_hit: bool = False
     note: str | None = None
+    #: the fibres' shares of the cross-section and their areas (`musclewrap.fibres.Fibres`)
+    fibre_share: list[float] = field(default_factory=list)
+    fibre_area: list[float] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -322,6 +325,8 @@ class ChunkResult:
             seconds_prepare=d["seconds_prepare"],
             cache_hit=d["cache_hit"],
             note=d["note"],
+            fibre_share=d.get("fibre_share", []),
+            fibre_area=d.get("fibre_area", []),
         )
 
 
@@ -360,6 +365,8 @@ class MuscleOutcome:
     cache_hit: bool
     note: str | None
     comparison: Comparison
+    fibre_share: list[float] = field(default_factory=list)
+    fibre_area: list[float] = field(default_factory=list)
 
     @classmethod
     def merge(
@@ -376,4 +383,6 @@ class MuscleOutcome:
             cache_hit=prepared.cache_hit if prepared is not None else first.cache_hit,
             note="; ".join(dict.fromkeys(notes)) or None,
             comparison=comparison,
+            fibre_share=next((p.fibre_share for p in parts if p.fibre_share), []),
+            fibre_area=next((p.fibre_area for p in parts if p.fibre_area), []),
         )

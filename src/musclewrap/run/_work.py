@@ -395,6 +395,9 @@ class _MuscleFrames:
         self.out = Path(job.outdir)
         self.result = ChunkResult(job.name, [], [], seconds_prepare=seconds_prepare, cache_hit=hit)
         self.fb, fibre_note = _fibres(job, muscle)
+        if self.fb is not None:
+            self.result.fibre_share = [float(x) for x in self.fb.share]
+            self.result.fibre_area = [float(x) for x in self.fb.area]
         unbound = _unbound_note(job.name, d.unbound)
         self.result.note = "; ".join(n for n in (note, unbound, fibre_note) if n) or None
         self.kw: dict[str, Any] = {"method": job.method, "max_iterations": job.max_iterations}

@@ -173,6 +173,12 @@ OUTPUT_COLUMNS: dict[str, dict[str, str]] = {
         "time": "The motion's time (s).",
         "muscle": "The muscle's name.",
         "fibre": "The fibre's index in the muscle.",
+        "share": "The fibre's share of the muscle's cross-section where it is widest (the "
+        "cells of that level of the fibres' field nearer its seed than any other's; the "
+        "muscle's shares sum to 1): a weight for it.",
+        "area": "The fibre's cross-section: its share of the muscle's volume over its mean "
+        "fibre length at rest (mesh units squared; the physiological cross-section without "
+        "pennation).",
         "length": "The fibre's length in this frame (mesh units).",
         "coordinate": "The coordinate of the moment arm (empty without moment arms).",
         "coordinate_value": "That coordinate's value in this frame (degrees or mm).",
