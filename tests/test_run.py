@@ -380,8 +380,12 @@ def _check_sweep_fibres(folder, n):
             total += len(w)
         assert outside == 0, (m, outside, total)
     fibres = _rows(folder / "fibres.csv")
-    assert list(fibres[0]) == ["frame", "time", "muscle", "fibre", "length", "coordinate",
-                               "coordinate_value", "moment_arm"]  # fmt: skip
+    assert list(fibres[0]) == ["frame", "time", "muscle", "fibre", "share", "area", "length",
+                               "coordinate", "coordinate_value", "moment_arm"]  # fmt: skip
+    # every muscle's fibres share its cross-section: the shares sum to 1
+    for m in muscles:
+        share = {r["fibre"]: float(r["share"]) for r in fibres if r["muscle"] == m}
+        assert len(share) == 100 and abs(sum(share.values()) - 1.0) < 1e-9, m
     assert len(fibres) == n * len(muscles) * 100 * len(coords)
     # the swept coordinate's value in degrees beside each moment arm (issue 25)
     swept = f"{folder.name}_r"

@@ -1,12 +1,15 @@
 """A new user's first `musclewrap demo` against the second, wall time.
 
-    python benchmarks/speed/bench_first_run.py [--no-gif | --kernels]
+    python benchmarks/speed/bench_first_run.py [--no-gif | --kernels | --each]
 
 Emulates a fresh install: Numba's cache (``NUMBA_CACHE_DIR``) and musclewrap's
 (``MUSCLEWRAP_CACHE``) point at empty folders, then
 ``musclewrap demo`` runs twice in new processes, the first compiling the kernels, the second
 reading them back. (Python's own bytecode is left as it is: pip compiles it when installing.) Prints both wall
 times and their ratio (issue 15's target: the first <= 3x the second).
+
+``--each``: every kernel of `musclewrap._jit.KERNELS` compiled in turn in one fresh process
+with an empty cache (Numba's own start paid first, on a trivial kernel), the slowest first.
 """
 
 from __future__ import annotations
@@ -19,6 +22,24 @@ import tempfile
 import time
 from pathlib import Path
 
+_EACH = """
+import importlib, time
+import numba
+from numba.core.sigutils import normalize_signature
+from musclewrap._jit import KERNELS
+numba.njit(lambda x: x + 1)(1)
+rows = []
+for group, kernels in KERNELS.items():
+    for module, name, signature in kernels:
+        k = getattr(importlib.import_module(f"musclewrap.{module}"), name)
+        t = time.perf_counter()
+        k.compile(tuple(normalize_signature(signature)[0]))
+        rows.append((time.perf_counter() - t, group, name))
+for dt, group, name in sorted(rows, reverse=True):
+    print(f"{dt:6.2f} s  {group:<12} {name}")
+print(f"{sum(r[0] for r in rows):6.2f} s  all")
+"""
+
 
 def main() -> None:
     p = argparse.ArgumentParser()
@@ -29,7 +50,15 @@ def main() -> None:
         help="instead: seconds to compile each group of musclewrap._jit.KERNELS, and all, "
         "each in a fresh process with an empty cache (after the imports)",
     )
+    p.add_argument("--each", action="store_true", help="instead: seconds to compile each kernel")
     a = p.parse_args()
+    if a.each:
+        with tempfile.TemporaryDirectory() as tmp:
+            env = {**os.environ, "NUMBA_CACHE_DIR": tmp}
+            r = subprocess.run([sys.executable, "-c", _EACH], env=env, capture_output=True,
+                               text=True, check=True)  # fmt: skip
+        print(r.stdout, end="")
+        return
     if a.kernels:
         for group in ("pose", "preparation", "contact", None):
             with tempfile.TemporaryDirectory() as tmp:
