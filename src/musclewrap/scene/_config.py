@@ -187,23 +187,14 @@ def _get(
     return v
 
 
-def _file(base: Path, value: Any, where: str, src: Path) -> Path:
+def _file(base: Path, value: Any, where: str, src: Path, kind: str = "file") -> Path:
+    """``value`` resolved against the scene's folder: an existing file (or ``kind`` folder)."""
     if not isinstance(value, str) or not value:
-        raise SceneError(f"{src}: {where} must be a file path (string), got {value!r}")
+        raise SceneError(f"{src}: {where} must be a {kind} path (string), got {value!r}")
     p = Path(value).expanduser()
     p = Path(os.path.normpath(p if p.is_absolute() else base / p))
-    if not p.is_file():
-        raise SceneError(f"{src}: {where} = '{value}': no such file ({p})")
-    return p
-
-
-def _folder(base: Path, value: Any, where: str, src: Path) -> Path:
-    if not isinstance(value, str) or not value:
-        raise SceneError(f"{src}: {where} must be a folder path (string), got {value!r}")
-    p = Path(value).expanduser()
-    p = Path(os.path.normpath(p if p.is_absolute() else base / p))
-    if not p.is_dir():
-        raise SceneError(f"{src}: {where} = '{value}': no such folder ({p})")
+    if not (p.is_dir() if kind == "folder" else p.is_file()):
+        raise SceneError(f"{src}: {where} = '{value}': no such {kind} ({p})")
     return p
 
 
@@ -250,7 +241,9 @@ def load_scene(path: PathLike) -> Scene:
     drive.update(_lines_fields(lines, base, src))
     output = _output_fields(raw, src)
     geometry = (
-        _folder(base, model["geometry"], "[model] geometry", src) if "geometry" in model else None
+        _file(base, model["geometry"], "[model] geometry", src, "folder")
+        if "geometry" in model
+        else None
     )
     reading = _Reading(
         src, base, osim, "csv" in lines, drive["bodies_csv"], mesh_frame, geometry,
