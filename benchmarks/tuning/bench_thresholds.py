@@ -1,6 +1,6 @@
 """The contact's thresholds on either side of their defaults, on the deep squat.
 
-    python benchmarks/tuning/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine|points|reach]
+    python benchmarks/tuning/bench_thresholds.py [--only path_step|cage_depth|cage_size|facing|fine|points|reach|softness]
 
 Drives `examples/lhdl_squat.toml` (the OpenCap deep squat, hip flexion to 106 deg) and, per
 setting, runs the muscles it matters for with the setting replaced, checks the written meshes
@@ -32,6 +32,10 @@ muscle) and prints the largest shape change (and on how many frames it exceeds 0
   fibres (its fibres' moment arms more than 3 mm from the median of their 5 neighbouring
   frames, shape change, iterations), and per setting what it leaves unbound on every muscle
   of the gait2392 and LHDL walks.
+
+- ``softness`` (``contact_softness``, the regularisation of the cage's contact conditions): 0.1,
+  0.2, 0.3, 0.4, 0.5 (default), 0.7 and 1, on the squat's deepest frames (700-740 every 4th,
+  every muscle, every frame checked) and on `examples/gait2392_walk.toml` every 10th frame.
 
 Every run is in this process, on one worker (a replaced default does not reach worker
 processes); no timing is taken but for ``points``.
@@ -95,7 +99,16 @@ def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument(
         "--only",
-        choices=("path_step", "cage_depth", "cage_size", "facing", "fine", "points", "reach"),
+        choices=(
+            "path_step",
+            "cage_depth",
+            "cage_size",
+            "facing",
+            "fine",
+            "points",
+            "reach",
+            "softness",
+        ),  # fmt: skip
     )
     a = p.parse_args()
     from musclewrap.scene import load_scene
@@ -179,6 +192,18 @@ def main() -> None:
 
     if a.only in (None, "reach"):
         _reach(cache)
+    if a.only in (None, "softness"):
+        names = tuple(m.name for m in scene.muscles)
+        gait = load_scene(ROOT / "examples" / "gait2392_walk.toml")
+        gnames = tuple(m.name for m in gait.muscles)
+        print("contact_softness (squat frames 700:741:4 and gait2392 walk 0:211:10, all checked)")
+        for soft in (0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0):
+            rows, checked = _run(
+                scene, names, "700:741:4", "700:741:4", cache, contact_softness=soft
+            )
+            _print(f"softness {soft:g}, squat", names, rows, checked, others=True)
+            rows, checked = _run(gait, gnames, "0:211:10", "0:211:10", cache, contact_softness=soft)
+            _print(f"softness {soft:g}, gait2392", gnames, rows, checked, others=True)
 
 
 def _reach(cache: Path) -> None:

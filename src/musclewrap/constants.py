@@ -182,7 +182,9 @@ class Defaults:
         scaled down to it).
     contact_softness : float
         Regularisation of the cage's contact conditions, relative to the mean
-        of their own diagonal (0: hard conditions).
+        of their own diagonal (0: hard conditions). Softer conditions spread a
+        deep push over more of the cage: at deep hip flexion the surface creases
+        less (BENCHMARKS.md, "Thresholds, either side").
     contact_points_per_cage_vertex : int
         Conditions on points of the surface (another muscle's vertices, or a bone's,
         standing in the muscle) kept per cage vertex in a cage contact step: the
@@ -291,7 +293,7 @@ class Defaults:
     contact_cage_bone_passes: int = 1
     contact_bone_depth: float = 0.1
     contact_band: float = 2.0
-    contact_softness: float = 0.1
+    contact_softness: float = 0.5
     contact_cage_reach: float = 1.25
     contact_points_per_cage_vertex: int = 3
     muscle_rounds: int = 30
