@@ -92,6 +92,9 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("mesh._geometry", "_in_box_kernel", f"({_A2}, {_A1}, {_A1}, {_I1})"),
         ("mesh._geometry", "_projected_box_kernel", f"({_A2}, {_A2})"),
         ("mesh._geometry", "_in_oriented_box_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_I1})"),
+        # the fine finish's spread of a push over the rings round it
+        ("contact._finish", "_rings_kernel", f"(int32[::1], int32[::1], {_I1}, int64, {_I1})"),
+        ("contact._finish", "_smooth", f"(int32[::1], int32[::1], {_A2}, {_I1}, int64, float64)"),
     ),
 }  # fmt: skip
 

@@ -499,8 +499,11 @@ class Viewer:
 
     def _send(self, update: dict[str, Any]) -> None:
         loop = self._loop
-        if loop is not None:
-            loop.call_soon_threadsafe(self._push, update)
+        if loop is not None and not loop.is_closed():
+            try:
+                loop.call_soon_threadsafe(self._push, update)
+            except RuntimeError:  # closed meanwhile (the server stopped): nobody to tell
+                pass
 
     def _push(self, update: dict[str, Any]) -> None:
         """The state updated (on the server's loop)."""
