@@ -589,3 +589,37 @@ def test_the_lighter_surfaces_are_the_full_ones_vertices():
         assert c.boundary_edges == 0  # closed, as the full one
         assert abs(c.volume - check_mesh(P, T).volume) < 0.05 * check_mesh(P, T).volume
     assert lighter_parts({"muscle0": (V, F), "bone0": (V2, F2)}, total) == {}
+
+
+def test_drawn_keeps_the_full_positions_back_while_a_slider_moves():
+    """`Drawn`: a moving pose sends the lighter positions only; `still` sends the full ones
+    of the last pose; a bone (a token) is sent only where it moved, and one that moved and
+    came back while the slider moved is not sent again."""
+    from musclewrap.synthetic import capsule
+    from musclewrap.view._state import Drawn
+
+    V, F = capsule()  # 30,144 triangles: twice that is over the budget
+    d = Drawn()
+    up = {}
+    d.begin(False)
+    d.put(up, "muscle0", V)
+    d.put(up, "bone0", V + 100.0, "at rest")
+    assert set(up) == {"muscle0_p", "bone0_p"}
+    made = d.make_light({"muscle0": (V, F), "bone0": (V, F)}, {"muscle0": (V, None)})
+    assert {"muscle0_lf", "bone0_lf", "muscle0_lp", "light_note"} <= set(made)
+    keep = d.light["muscle0"].keep
+    for token, P in (("moved", V + 1.0), ("at rest", V + 2.0)):
+        up = {}
+        assert d.begin(True)
+        d.put(up, "muscle0", P)
+        d.put(up, "bone0", V + 100.0, token)
+        assert "muscle0_p" not in up and "bone0_p" not in up
+        np.testing.assert_array_equal(
+            np.frombuffer(up["muscle0_lp"], np.float32).reshape(-1, 3), (P[keep]).astype(np.float32)
+        )
+    up = d.still()
+    assert set(up) == {"light", "muscle0_p"} and up["light"] is False  # the bone came back
+    np.testing.assert_array_equal(
+        np.frombuffer(up["muscle0_p"], np.float32), (V + 2.0).astype(np.float32).ravel()
+    )
+    assert d.still() == {}  # the page has them now

@@ -453,7 +453,8 @@ def _check_overlaps(
                 rep.add(
                     "note", m.name,
                     f"{n} vertices inside the bone '{b.name}' at rest, up to {depth:.3g} {unit}: "
-                    "the run pushes them out once, volume kept"
+                    "the run pushes them out once, volume kept, unless that folds the "
+                    "surface (then it keeps them and says so)"
                     + (" (rest_overlap = 'keep': kept)" if scene.rest_overlap == "keep" else ""),
                 )  # fmt: skip
     if not scene.muscle_collisions:

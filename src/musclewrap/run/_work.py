@@ -555,8 +555,8 @@ class _MuscleFrames:
             return nan, nan
         dist, s_cur = self.d.sample_fits(res.cage, self.span.lines[k])
         inside = np.zeros(len(s_cur), dtype=bool)
-        for pl in here.values():
-            inside |= pl.obstacle.signed(np.ascontiguousarray(pl.to_obstacle(s_cur)))[0] < 0.0
+        for pl in here.values():  # exact, where the grid's bounds cannot decide
+            inside[pl.obstacle.query(pl.to_obstacle(s_cur), 0.0)[0]] = True
         free = float(dist[~inside].mean()) if (~inside).any() else nan
         return free, float(dist[inside].max(initial=0.0))
 

@@ -316,14 +316,18 @@ class Deformer(ContactSteps, PaperSteps):
             e += self.anchor_weight**2 * float(np.sum(r * r))
         return float(e), Sx
 
-    def _skeleton_fit(self, Sx: FloatArray, cur: Mapping[str, FloatArray]) -> tuple[float, float]:
-        """Mean and largest distance of the deformed samples ``S x`` to their current lines."""
-        dist = np.concatenate(
+    def _sample_distances(self, Sx: FloatArray, cur: Mapping[str, FloatArray]) -> FloatArray:
+        """Each deformed sample's (``S x``) distance to its current line."""
+        return np.concatenate(
             [
                 _point_polyline_distance(Sx[rows], cur[name])
                 for rows, name in zip(self._line_slices, self.sampling.names, strict=True)
             ]
         )
+
+    def _skeleton_fit(self, Sx: FloatArray, cur: Mapping[str, FloatArray]) -> tuple[float, float]:
+        """Mean and largest distance of the deformed samples ``S x`` to their current lines."""
+        dist = self._sample_distances(Sx, cur)
         return float(dist.mean()), float(dist.max())
 
     def sample_fits(
@@ -339,13 +343,7 @@ class Deformer(ContactSteps, PaperSteps):
         cur = check_lines(current_lines, "current lines")
         s_cur = self.sampling.evaluate(cur, "current lines")
         Sx = np.asarray(self.S @ np.asarray(x, dtype=np.float64))
-        dist = np.concatenate(
-            [
-                _point_polyline_distance(Sx[rows], cur[name])
-                for rows, name in zip(self._line_slices, self.sampling.names, strict=True)
-            ]
-        )
-        return dist, s_cur
+        return self._sample_distances(Sx, cur), s_cur
 
     def fine_volume_gradient(self, x: FloatArray) -> FloatArray:
         """Gradient of the fine volume w.r.t. cage vertices, ``W^T dV(W x)`` (chain rule)."""

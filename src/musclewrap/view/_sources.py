@@ -9,6 +9,7 @@ each pose as a run would (`musclewrap.run.LiveScene`); `Playback` reads a run's
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -19,17 +20,7 @@ from ..mesh import apply_transform
 from ..output import View, stretch_colours
 from ..run import Coordinate, LiveScene, PoseResult
 from ._playback import Series, segments, triangles
-from ._state import (
-    Lighter,
-    Request,
-    cells,
-    contact_colours,
-    encode,
-    lighter_parts,
-    points,
-    polylines,
-    time_text,
-)
+from ._state import Drawn, Request, cells, contact_colours, points, polylines, time_text
 
 __all__ = ["LiveSource", "Playback", "Source"]
 
@@ -119,13 +110,9 @@ class LiveSource:
         # the triangles, once, with the first pose: the muscles' solvers are built in the
         # solver thread while the page loads
         self._faces_due = True
-        self._sent: dict[str, FloatArray] = {}  # per bone: its transform last sent
         self._bone_meshes: dict[str, Any] = {}
         self.last: PoseResult | None = None
-        self.light: dict[str, Lighter] = {}  # per part ("muscle0", "bone1"): drawn lighter
-        self._sent_light: dict[str, FloatArray] = {}  # per bone: its transform sent lighter
-        self._stale: set[int] = set()  # bones whose full positions are not the pose's
-        self.shown_light = False  # the pose shown last was drawn lighter
+        self.drawn = Drawn()  # the surfaces' positions the page has, full and lighter
 
     def faces(self) -> dict[str, Any]:
         return {}
@@ -156,25 +143,13 @@ class LiveSource:
         if self._faces_due:  # the triangles, with the first pose
             up.update(self._faces())
             self._faces_due = False
-        moving = r.moving and bool(self.light)
-        for i, b in enumerate(self.names["bone"]):
-            T, V = res.bones[b], self._bone_meshes[b][0]
-            if moving:  # a bone that moved since its lighter surface was sent
-                if not np.array_equal(self._sent_light.get(b), T):
-                    up[f"bone{i}_lp"] = points(apply_transform(T, V[self.light[f"bone{i}"].keep]))
-                    self._sent_light[b] = T
-                if not np.array_equal(self._sent.get(b), T):
-                    self._stale.add(i)
-            elif not np.array_equal(self._sent.get(b), T):  # a bone moved in the output frame
-                up[f"bone{i}_p"] = points(apply_transform(T, V))
-                self._sent[b] = T
+        up["light"] = self.drawn.begin(r.moving)
+        for i, b in enumerate(self.names["bone"]):  # sent where it moved in the output frame
+            T = res.bones[b]
+            self.drawn.put(up, f"bone{i}", self._bone_at(b, T), T.tobytes())
         for i, n in enumerate(self.names["muscle"]):
-            if moving:
-                up[f"muscle{i}_lp"] = points(res.muscles[n][self.light[f"muscle{i}"].keep])
-            else:
-                up[f"muscle{i}_p"] = points(res.muscles[n])
+            self.drawn.put(up, f"muscle{i}", res.muscles[n])
             up[f"lines{i}_p"], up[f"lines{i}_f"] = polylines(res.lines[n])
-        up["light"] = self.shown_light = moving
         for i, n in enumerate(self.names["fibres"]):
             P = res.fibres.get(n)
             up[f"fibres{i}_p"], up[f"fibres{i}_f"] = polylines([] if P is None else list(P))
@@ -216,9 +191,7 @@ class LiveSource:
                 rgb = contact_colours(self.scene.contact(res)[n])
             else:
                 rgb = stretch_colours(res.stretch[n])
-            up[f"muscle{i}_c"] = encode(rgb, np.uint8)
-            if self.light:
-                up[f"muscle{i}_lc"] = encode(rgb[self.light[f"muscle{i}"].keep], np.uint8)
+            self.drawn.colours(up, f"muscle{i}", rgb)
         return up
 
     def after_first(self) -> None:
@@ -229,39 +202,24 @@ class LiveSource:
 
     def lighter(self) -> dict[str, Any]:
         res = self.last
-        if res is None or self.light:
+        if res is None or self.drawn.light:
             return {}
-        meshes = {
-            f"muscle{i}": (res.muscles[n], self.scene.muscle_faces(n))
-            for i, n in enumerate(self.names["muscle"])
-        }
+        meshes, now = {}, {}
+        for i, n in enumerate(self.names["muscle"]):
+            meshes[f"muscle{i}"] = (res.muscles[n], self.scene.muscle_faces(n))
+            now[f"muscle{i}"] = (res.muscles[n], None)
         for i, b in enumerate(self.names["bone"]):
+            T = res.bones[b]
             meshes[f"bone{i}"] = self._bone_meshes[b]
-        self.light = lighter_parts(meshes)
-        up = light_state(self.light)
-        if self.light:  # the lighter surfaces of this pose, ready for the first slider moved
-            for i, n in enumerate(self.names["muscle"]):
-                up[f"muscle{i}_lp"] = points(res.muscles[n][self.light[f"muscle{i}"].keep])
-            for i, b in enumerate(self.names["bone"]):
-                T = self._sent_light[b] = res.bones[b]
-                V = self._bone_meshes[b][0][self.light[f"bone{i}"].keep]
-                up[f"bone{i}_lp"] = points(apply_transform(T, V))
-        return up
+            now[f"bone{i}"] = (self._bone_at(b, T), T.tobytes())
+        return self.drawn.make_light(meshes, now)
 
     def still(self) -> dict[str, Any]:
-        res = self.last
-        if res is None or not self.shown_light:
-            return {}
-        self.shown_light = False
-        up: dict[str, Any] = {"light": False}
-        for i, n in enumerate(self.names["muscle"]):
-            up[f"muscle{i}_p"] = points(res.muscles[n])
-        for i in sorted(self._stale):
-            b = self.names["bone"][i]
-            T = self._sent[b] = res.bones[b]
-            up[f"bone{i}_p"] = points(apply_transform(T, self._bone_meshes[b][0]))
-        self._stale.clear()
-        return up
+        return self.drawn.still()
+
+    def _bone_at(self, b: str, T: FloatArray) -> Callable[[], FloatArray]:
+        """Bone ``b``'s display positions placed by ``T`` (computed where they are sent)."""
+        return lambda: apply_transform(T, self._bone_meshes[b][0])
 
     def write(self, folder: Path) -> list[Path] | None:
         if self.last is None:
@@ -286,11 +244,8 @@ class Playback:
         self.names: dict[str, list[str]] = {"muscle": [], "bone": [], "lines": [], "fibres": []}
         for name, kind in series.parts.items():
             self.names[kind].append(name)
-        self._sent: dict[str, Path] = {}  # per bone: its file last sent
-        self._sent_light: dict[str, Path] = {}  # per bone: its file last sent lighter
-        self.light: dict[str, Lighter] = {}
+        self.drawn = Drawn()  # the surfaces' positions the page has, full and lighter
         self._k = 0  # the frame shown last
-        self.shown_light = False  # the frame shown last was drawn lighter
         self._first: dict[str, tuple[FloatArray, Any]] = {}  # per part: its first surface
 
     def faces(self) -> dict[str, Any]:
@@ -316,28 +271,20 @@ class Playback:
         t0 = time.perf_counter()
         s, k = self.series, int(r.frame or 0)
         self._k = k
-        moving = r.moving and bool(self.light)
-        self.shown_light = moving
-        up: dict[str, Any] = {"time_text": time_text(self.times, self.n_frames, k), "light": moving}
+        up: dict[str, Any] = {"time_text": time_text(self.times, self.n_frames, k)}
+        up["light"] = self.drawn.begin(r.moving)
         for kind in ("muscle", "bone"):
             for i, n in enumerate(self.names[kind]):
                 d = s.part(k, n)
                 if d is None:
                     continue
-                file = s.files[k][n]
-                if moving:
-                    keep = self.light[f"{kind}{i}"].keep
-                    if kind == "muscle" or self._sent_light.get(n) != file:
-                        up[f"{kind}{i}_lp"] = points(d["points"][keep])
-                        self._sent_light[n] = file
-                elif kind == "muscle" or self._sent.get(n) != file:  # a bone that moved
-                    up[f"{kind}{i}_p"] = points(d["points"])
-                    self._sent[n] = file
+                # a bone's file: the same as shown, a bone that does not move
+                self.drawn.put(
+                    up, f"{kind}{i}", d["points"], None if kind == "muscle" else s.files[k][n]
+                )
                 if kind == "muscle":
-                    rgb = stretch_colours(d.get("point:area_stretch", np.ones(len(d["points"]))))
-                    up[f"muscle{i}_c"] = encode(rgb, np.uint8)
-                    if self.light:
-                        up[f"muscle{i}_lc"] = encode(rgb[self.light[f"muscle{i}"].keep], np.uint8)
+                    c = d.get("point:area_stretch", np.ones(len(d["points"])))
+                    self.drawn.colours(up, f"muscle{i}", stretch_colours(c))
         for kind in ("lines", "fibres"):
             for i, n in enumerate(self.names[kind]):
                 d = s.part(k, n)
@@ -355,45 +302,18 @@ class Playback:
         pass
 
     def lighter(self) -> dict[str, Any]:
-        if self.light or not self._first:
+        if self.drawn.light or not self._first:
             return {}
-        self.light = lighter_parts(self._first)
-        up = light_state(self.light)
-        s, k = self.series, self._k
-        for kind in ("muscle", "bone") if self.light else ():
-            for i, n in enumerate(self.names[kind]):
-                d = s.part(k, n)
-                if d is not None:  # this frame's lighter surfaces, for the first slider moved
-                    up[f"{kind}{i}_lp"] = points(d["points"][self.light[f"{kind}{i}"].keep])
-                    self._sent_light[n] = s.files[k][n]
-        return up
-
-    def still(self) -> dict[str, Any]:
-        if not self.shown_light:
-            return {}
-        self.shown_light = False
-        s, k = self.series, self._k
-        up: dict[str, Any] = {"light": False}
+        s, k, now = self.series, self._k, {}
         for kind in ("muscle", "bone"):
             for i, n in enumerate(self.names[kind]):
                 d = s.part(k, n)
-                if d is not None and (kind == "muscle" or self._sent.get(n) != s.files[k][n]):
-                    up[f"{kind}{i}_p"] = points(d["points"])
-                    self._sent[n] = s.files[k][n]
-        return up
+                if d is not None:  # this frame's, for the first slider moved
+                    now[f"{kind}{i}"] = (d["points"], None if kind == "muscle" else s.files[k][n])
+        return self.drawn.make_light(self._first, now)
+
+    def still(self) -> dict[str, Any]:
+        return self.drawn.still()
 
     def write(self, folder: Path) -> list[Path] | None:
         return None
-
-
-def light_state(light: dict[str, Lighter]) -> dict[str, Any]:
-    """The lighter surfaces' triangles (``muscle0_lf``, ...) and the page's words on them."""
-    if not light:
-        return {}
-    up: dict[str, Any] = {f"{k}_lf": cells(L.faces) for k, L in light.items()}
-    drawn = sum(len(L.faces) for L in light.values())
-    full = sum(L.full for L in light.values())
-    up["light_note"] = (
-        f"drawn with {drawn:,} of {full:,} triangles while a slider moves; all when it stops"
-    )
-    return up

@@ -8,6 +8,7 @@ RGB, the time line's words.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -18,6 +19,7 @@ from ..constants import defaults
 
 __all__ = [
     "CONTACT_STOPS",
+    "Drawn",
     "Lighter",
     "Request",
     "cells",
@@ -87,6 +89,97 @@ def lighter_parts(
     if keep >= 1.0:
         return {}
     return {k: Lighter.of(V, F, 1.0 - keep) for k, (V, F) in meshes.items()}
+
+
+#: a part's positions, or a function that gives them
+Positions = np.ndarray | Callable[[], np.ndarray]
+
+
+def _positions(P: Positions) -> np.ndarray:
+    return P() if callable(P) else P
+
+
+class Drawn:
+    """The positions the page has of each surface, in full and lighter (`Lighter`).
+
+    Both of the viewer's sources put their surfaces' positions through it: while a slider
+    moves (``moving``) a part's lighter positions are sent and its full ones kept back
+    until `still`; otherwise the full ones. ``token`` says what makes a part's positions
+    differ from the ones sent (a bone's transform, or its file): the same token, nothing
+    sent; None, always sent (a muscle).
+    """
+
+    def __init__(self) -> None:
+        self.light: dict[str, Lighter] = {}  # per part ("muscle0", "bone1")
+        self._sent: dict[str, Any] = {}  # per part: the token of its full positions sent
+        self._sent_light: dict[str, Any] = {}
+        self._held: dict[str, tuple[np.ndarray, Any]] = {}  # full positions kept back
+        self.shown_light = False  # the pose shown last was drawn lighter
+
+    def begin(self, moving: bool) -> bool:
+        """A pose to draw: whether lighter (a slider moving, and lighter surfaces made)."""
+        self.shown_light = moving and bool(self.light)
+        return self.shown_light
+
+    def put(self, up: dict[str, Any], key: str, P: Positions, token: Any = None) -> None:
+        """Part ``key``'s positions into the state update ``up``, as this pose is drawn.
+
+        ``P``: the positions, or a function that gives them (called only where sent).
+        """
+        if self.shown_light and key in self.light:
+            if token is None or self._sent_light.get(key) != token:
+                up[f"{key}_lp"] = points(_positions(P)[self.light[key].keep])
+                self._sent_light[key] = token
+            if token is None or self._sent.get(key) != token:
+                self._held[key] = (P, token)
+            else:  # back where the page's full positions are
+                self._held.pop(key, None)
+            return
+        self._held.pop(key, None)
+        if token is None or self._sent.get(key) != token:
+            up[f"{key}_p"] = points(_positions(P))
+            self._sent[key] = token
+
+    def colours(self, up: dict[str, Any], key: str, rgb: np.ndarray) -> None:
+        """Part ``key``'s colours (RGB, uint8) into ``up``, full and lighter."""
+        up[f"{key}_c"] = encode(rgb, np.uint8)
+        if key in self.light:
+            up[f"{key}_lc"] = encode(rgb[self.light[key].keep], np.uint8)
+
+    def make_light(
+        self, meshes: dict[str, tuple[np.ndarray, np.ndarray]], now: dict[str, tuple[Any, Any]]
+    ) -> dict[str, Any]:
+        """The lighter surfaces (`lighter_parts` of ``meshes``), with the positions ``now``.
+
+        ``now[key]``: the part's positions shown and their token. Returns the state that
+        draws them: their triangles, positions and the page's words (empty: none needed).
+        """
+        self.light = lighter_parts(meshes)
+        if not self.light:
+            return {}
+        up: dict[str, Any] = {f"{k}_lf": cells(L.faces) for k, L in self.light.items()}
+        drawn = sum(len(L.faces) for L in self.light.values())
+        full = sum(L.full for L in self.light.values())
+        up["light_note"] = (
+            f"drawn with {drawn:,} of {full:,} triangles while a slider moves; all when it stops"
+        )
+        for k, (P, token) in now.items():
+            if k in self.light:
+                up[f"{k}_lp"] = points(_positions(P)[self.light[k].keep])
+                self._sent_light[k] = token
+        return up
+
+    def still(self) -> dict[str, Any]:
+        """The full positions kept back while a slider moved (empty: the page has them)."""
+        if not self.shown_light:
+            return {}
+        self.shown_light = False
+        up: dict[str, Any] = {"light": False}
+        for key, (P, token) in self._held.items():
+            up[f"{key}_p"] = points(_positions(P))
+            self._sent[key] = token
+        self._held.clear()
+        return up
 
 
 def time_text(times: FloatArray, n_frames: int, k: int) -> str:
