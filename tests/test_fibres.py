@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from musclewrap import Muscle
-from musclewrap.fibres import attachment_areas, fibres_at_rest
+from musclewrap.fibres import areas_on_bones, attachment_areas, fibres_at_rest
 from musclewrap.synthetic import CAPSULE_SCENARIOS, capsule, capsule_scenario
 
 
@@ -80,6 +80,54 @@ def test_attachment_areas_from_the_lines_and_their_errors():
         attachment_areas(V, rest, reach=0.6)
     with pytest.raises(ValueError, match="no action lines"):
         attachment_areas(V, {})
+
+
+def test_attachment_areas_on_the_bones_of_each_end():
+    """A vertex on a bone of the origin's body counts in the origin's half of the muscle
+    only; a side with no such bone, or too few vertices on it, takes its end cap."""
+    V, _ = capsule(n_around=16, cap_rings=4, segments=20)  # along z, 0..200
+    rest, _ = capsule_scenario("bend")
+    caps = attachment_areas(V, rest)
+    # a bone along one side from z = 20 to 150: the origin's area is its part below 100
+    side = (V[:, 0] < -15) & (V[:, 2] > 20) & (V[:, 2] < 150)
+    o, i, rules = areas_on_bones(V, rest, side, None)
+    assert rules == ("bones", "ends")
+    np.testing.assert_array_equal(o, np.flatnonzero(side & (V[:, 2] < 100)))
+    np.testing.assert_array_equal(i, caps[1])
+    # the same bone as the insertion's: its part above 100
+    o, i, rules = areas_on_bones(V, rest, None, side)
+    assert rules == ("ends", "bones") and V[i, 2].min() > 100 and (V[i, 0] < -15).all()
+    np.testing.assert_array_equal(o, caps[0])
+    # a bone of the origin's body that the muscle lies on only in its other half (the
+    # psoas over the pelvic brim) is no origin: the cap
+    brim = (V[:, 0] < -15) & (V[:, 2] > 120) & (V[:, 2] < 160)
+    o, _, rules = areas_on_bones(V, rest, brim, None)
+    assert rules[0] == "ends"
+    np.testing.assert_array_equal(o, caps[0])
+    # too few vertices: the cap; fewer than `least` is the rule
+    few = np.zeros(len(V), dtype=bool)
+    few[np.flatnonzero(side & (V[:, 2] < 100))[:3]] = True
+    assert areas_on_bones(V, rest, few, None)[2][0] == "ends"
+    assert areas_on_bones(V, rest, few, None, least=3)[2][0] == "bones"
+    with pytest.raises(ValueError, match="a mask per vertex"):
+        areas_on_bones(V, rest, side[:-1], None)
+
+
+def test_fibres_start_along_a_side_attachment_not_at_the_cap():
+    """A muscle attached along one side (a fan, as the gluteus maximus along the iliac
+    crest): its fibres start spread over that side, where the end caps gather them."""
+    m = Muscle.from_mesh(*capsule(n_around=32, cap_rings=8, segments=40), cage_size=200)
+    rest, _ = capsule_scenario("bend")
+    V = m.V
+    side = (V[:, 0] < -12) & (V[:, 2] > 10) & (V[:, 2] < 100)
+    o, i, _ = areas_on_bones(V, rest, side, None)
+    fb = fibres_at_rest(m, rest, count=40, voxels=30_000, origin=o, insertion=i)
+    capped = fibres_at_rest(m, rest, count=40, voxels=30_000)
+    h = 2 * fb.spacing
+    start = fb.points[:, 0]
+    assert (start[:, 0] < -12 + h).all()  # on the attachment
+    # spread along it: over most of its 90 mm (86 here), against the cap's 20 mm (17)
+    assert np.ptp(start[:, 2]) > 70 and np.ptp(capped.points[:, 0, 2]) < 20 + h
 
 
 @pytest.mark.realdata

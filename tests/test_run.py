@@ -58,6 +58,18 @@ def test_fibres_in_a_line_csv_scene(tmp_path):
     out = tmp_path / "out"
     s = run_scene(scene, out, workers=1, cache_dir=tmp_path / "cache", progress=None)
     assert s.unconverged == 0
+    # without a model the bodies of the line's ends are not known: the end caps, said so
+    # by the run and by check (with the areas in its picture)
+    areas = (
+        "the fibres' attachment areas: origin: its end cap, as the scene has no bone of its "
+        "body"
+    )
+    assert any(areas in n for n in s.notes), s.notes
+    from musclewrap.run import check_scene
+
+    rep = check_scene(scene, picture=tmp_path / "check.png", cache_dir=tmp_path / "cache")
+    assert any(areas in f.message for f in rep.findings), [str(f) for f in rep.findings]
+    assert rep.picture is not None and rep.picture.stat().st_size > 10_000
     rows = _rows(out / "fibres.csv")
     assert len(rows) == 7 * 20 and {r["coordinate"] for r in rows} == {""}
     assert not (out / "moment_arms.csv").exists()
@@ -334,7 +346,17 @@ def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys, collisions):
             else:
                 assert float(r["skeleton_fit_mean"]) <= 1.0, r
                 assert float(r["shape_change_max"]) <= 0.5, r
-    assert "unconverged frames 0" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "unconverged frames 0" in said
+    if collisions:
+        # the fibres run from where each muscle lies on its bones (issue 48), the psoas from
+        # its top (its origin, the lumbar spine, is not in the scene; the pelvic brim it lies
+        # on is in its lower half)
+        areas = "the fibres' attachment areas: "
+        for m in ("gluteus_maximus", "gluteus_medius", "iliacus"):
+            assert f"{m}: {areas}origin: where it lies on iliac or sacrum" in said
+        assert f"psoas: {areas}origin: its end cap, as fewer than" in said
+        assert said.count("insertion: where it lies on femur") >= 4
 
 
 def _moment_arm_series(rows, *fields):

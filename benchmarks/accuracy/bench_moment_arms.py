@@ -58,6 +58,20 @@ from numpy.typing import NDArray
 
 ROOT = Path(__file__).resolve().parents[2]
 
+#: The same specimen's fibres, Modenese & Kohout (2020), Table 2, as issue 48 quotes them:
+#: (swept coordinate, muscle) -> the smallest and largest moment arm across its fibres over
+#: the sweep, mm (8 of the 12 muscle-tasks; the other four are not quoted there)
+PUBLISHED = {
+    ("hip_flexion_r", "psoas"): (9.0, 26.0),
+    ("hip_flexion_r", "iliacus"): (13.0, 46.0),
+    ("hip_flexion_r", "gluteus_maximus"): (-92.0, -19.0),
+    ("hip_flexion_r", "gluteus_medius"): (-35.0, 15.0),
+    ("hip_adduction_r", "psoas"): (5.0, 21.0),
+    ("hip_adduction_r", "gluteus_medius"): (-75.0, -4.0),
+    ("hip_rotation_r", "psoas"): (-5.0, 4.0),
+    ("hip_rotation_r", "iliacus"): (-2.0, 9.0),
+}
+
 
 def line_against_opensim(scene) -> None:  # noqa: ANN001
     from musclewrap.scene import drive_scene
@@ -148,6 +162,22 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
                     )
             swept = _swept(folder / "fibres.csv", scene.fibres.moment_arms)
             if swept is not None:
+                print(
+                    f"  about {swept}, smallest .. largest across fibres and frames (mm), mean, "
+                    "against the published fibres (PUBLISHED):"
+                )
+                for m, (lo, hi, mean) in _ranges(folder / "fibres.csv", swept).items():
+                    row = f"    {m:16s} {lo:6.1f} .. {hi:6.1f}  mean {mean:6.1f}"
+                    pub = PUBLISHED.get((swept, m))
+                    if pub is not None:
+                        over = min(hi, pub[1]) - max(lo, pub[0])
+                        row += (
+                            f"   published {pub[0]:6.1f} .. {pub[1]:6.1f}: width "
+                            f"{(hi - lo) / (pub[1] - pub[0]):.2f}, covers "
+                            f"{max(over, 0.0) / (pub[1] - pub[0]):.0%} of it"
+                            + ("" if over > 0 else " (no overlap)")
+                        )
+                    print(row)
                 print(f"  per fibre the 90th percentile about {swept}, range across fibres (mm):")
                 for m, (pos, neg) in _peaks(folder / "fibres.csv", swept).items():
                     print(
@@ -202,6 +232,18 @@ def _swept(path: Path, coords: Any) -> str | None:
         values.setdefault(x["coordinate"], set()).add(x["coordinate_value"])
     moving = [c for c in coords if len(values.get(c, ())) > 1]
     return moving[0] if len(moving) == 1 else None
+
+
+def _ranges(path: Path, coord: str) -> dict[str, tuple[float, float, float]]:
+    """Per muscle, the smallest and largest moment arm about ``coord`` and the mean."""
+    per: dict[str, list[NDArray[np.float64]]] = {}
+    for (m, _), r in _series(path, coord).items():
+        per.setdefault(m, []).append(r)
+    out = {}
+    for m, rs in per.items():
+        a = np.concatenate(rs)
+        out[m] = (float(a.min()), float(a.max()), float(a.mean()))
+    return out
 
 
 def _peaks(path: Path, coord: str) -> dict[str, tuple[tuple[float, float], ...]]:

@@ -108,6 +108,13 @@ class Defaults:
         point is kept: an attachment, where the muscle starts on the bone, not a
         bone the muscle merely lies on at rest and slides over (the psoas on the
         pelvic brim).
+    fibre_area_reach : float
+        The fibres' attachment areas from the anatomy
+        (`musclewrap.fibres.areas_on_bones`): a muscle vertex within this many of
+        its mean edge lengths of the margin of a bone of the body its lines start
+        (end) in, at rest, lies on its origin's (insertion's) bone.
+    fibre_area_least : int
+        A side with fewer such vertices takes its end cap instead.
     samples_per_line : int
         Minimum number of arc-length samples per action line.
     line_reach : float
@@ -275,6 +282,8 @@ class Defaults:
     anchor_feather: int = 4
     anchor_reach: float = 0.5
     anchor_end_reach: float = 0.15
+    fibre_area_reach: float = 1.0
+    fibre_area_least: int = 10
     samples_per_line: int = 33
     line_reach: float = 1.0
     max_iterations: int = 60

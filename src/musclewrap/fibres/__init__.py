@@ -3,6 +3,7 @@
 from ._field import (
     Fibres,
     HarmonicField,
+    areas_on_bones,
     attachment_areas,
     fibres_at_rest,
     harmonic_field,
@@ -13,6 +14,7 @@ from ._field import (
 __all__ = [
     "Fibres",
     "HarmonicField",
+    "areas_on_bones",
     "attachment_areas",
     "fibres_at_rest",
     "harmonic_field",

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 __all__ = [
     "Fibres",
     "HarmonicField",
+    "areas_on_bones",
     "attachment_areas",
     "fibres_at_rest",
     "harmonic_field",
@@ -137,6 +138,57 @@ def attachment_areas(
     lo, hi = float(t.min()), float(t.max())
     span = hi - lo
     return np.flatnonzero(t <= lo + reach * span), np.flatnonzero(t >= hi - reach * span)
+
+
+def areas_on_bones(
+    V: FloatArray,
+    lines: Mapping[str, npt.ArrayLike],
+    on_origin: npt.ArrayLike | None,
+    on_insertion: npt.ArrayLike | None,
+    *,
+    reach: float = 0.1,
+    least: int | None = None,
+) -> tuple[IntArray, IntArray, tuple[str, str]]:
+    """The attachment areas where the muscle lies on the bones of its ends' bodies.
+
+    ``on_origin``: per vertex, whether it lies on a bone of the body the lines start
+    in (at rest; None where the scene has no such bone); ``on_insertion`` the same for
+    the body they end in. The origin's area is the vertices on an origin bone in the
+    half of the muscle on the origin's side (along the axis of `attachment_areas`),
+    the insertion's those on an insertion bone in the other half: a muscle that lies
+    on a bone of its origin's body further on (the psoas over the pelvic brim) does
+    not start there. Where a side has fewer than ``least`` such vertices
+    (``defaults.fibre_area_least``), its end cap (`attachment_areas` with ``reach``).
+
+    Returns
+    -------
+    origin, insertion : sorted int64 arrays
+    rules : (str, str)
+        Per side, ``"bones"`` or ``"ends"``: which rule gave it.
+    """
+    from ..constants import defaults
+
+    least = defaults.fibre_area_least if least is None else least
+    caps = attachment_areas(V, lines, reach)
+    paths = [np.asarray(p, dtype=np.float64) for p in lines.values()]
+    axis = np.mean([p[-1] for p in paths], axis=0) - np.mean([p[0] for p in paths], axis=0)
+    t = V @ (axis / np.linalg.norm(axis))
+    half = 0.5 * (float(t.min()) + float(t.max()))
+    areas, rules = [], []
+    for cap, on, side in ((caps[0], on_origin, t < half), (caps[1], on_insertion, t > half)):
+        area = np.zeros(0, dtype=np.int64)
+        if on is not None:
+            mask = np.asarray(on, dtype=bool)
+            if mask.shape != (len(V),):
+                raise ValueError(f"a mask per vertex is needed ({len(V)}), got {mask.shape}")
+            area = np.flatnonzero(mask & side)
+        if len(area) >= least:
+            areas.append(area)
+            rules.append("bones")
+        else:
+            areas.append(cap)
+            rules.append("ends")
+    return areas[0], areas[1], (rules[0], rules[1])
 
 
 @dataclass(frozen=True)

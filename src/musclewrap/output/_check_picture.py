@@ -33,6 +33,9 @@ def draw_check(out: Path, data: dict[str, Any]) -> Path:
     for i, (P, d) in enumerate(data["lines"]):
         arrays[f"line|{i}|P"] = P
         arrays[f"line|{i}|d"] = d
+    for i, (n, (start, end)) in enumerate(data.get("areas", {}).items()):
+        arrays[f"areas|{i}|{n}|O"] = start
+        arrays[f"areas|{i}|{n}|I"] = end
     env = dict(os.environ)
     if not env.get("DISPLAY"):
         env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
@@ -64,7 +67,7 @@ def _main(src: str, png: str) -> None:
     right = np.cross(front, up)
     groups: dict[tuple[str, int, str], dict[str, np.ndarray]] = {}
     for k in d.files:
-        if k.startswith(("muscles|", "bones|", "line|")):
+        if k.startswith(("muscles|", "bones|", "line|", "areas|")):
             parts = k.split("|")
             if parts[0] == "line":
                 groups.setdefault(("line", int(parts[1]), ""), {})[parts[2]] = d[k]
@@ -84,6 +87,14 @@ def _main(src: str, png: str) -> None:
         pl.subplot(0, col)
         pl.set_background("white")
         for (kind, i, name), g in sorted(groups.items()):
+            if kind == "areas":
+                # the fibres' attachment areas: origin dark red, insertion dark blue
+                for key, colour in (("O", "#b2182b"), ("I", "#2166ac")):
+                    if len(g[key]):
+                        pl.add_points(
+                            g[key], color=colour, point_size=5, render_points_as_spheres=True
+                        )
+                continue
             if kind == "line":
                 continue
             F = np.hstack([np.full((len(g["F"]), 1), 3), g["F"]]).ravel()
@@ -114,6 +125,11 @@ def _main(src: str, png: str) -> None:
             font_size=11,
             color="black",
         )
+        if col == 0 and any(k == "areas" for k, _, _ in groups):
+            pl.add_text(
+                "fibres' attachment areas: origin red, insertion blue",
+                position="lower_left", font_size=9, color="black",
+            )  # fmt: skip
     pl.screenshot(png)
     pl.close()
 

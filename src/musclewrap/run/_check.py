@@ -33,9 +33,11 @@ from ..model import (
 )
 from ..output import draw_check
 from ..scene import UNITS, Drive, MuscleSpec, Scene, drive_scene, load_scene, rest_pose
+from ._fibres import describe_areas, on_bones
 from ._read import (
     _read_bone,
     _read_muscle,
+    attachment_area,
     check_muscles_apart,
     default_cache_dir,
     rest_lines_problem,
@@ -146,9 +148,10 @@ def _check(
             return
     say("reading the meshes")
     muscles: dict[str, tuple[FloatArray, IntArray]] = {}
+    ids: dict[str, IntArray] = {}
     for m in scene.muscles:
         try:
-            V, F, notes, _ = _read_muscle(m, cache)
+            V, F, notes, ids[m.name] = _read_muscle(m, cache)
         except MeshError as exc:
             rep.add("error", m.name, str(exc), "repair the mesh, or set repair = true")
             continue
@@ -204,10 +207,82 @@ def _check(
     rest_m = {n: (apply_transform(to_out[_body(scene, n)], V), F) for n, (V, F) in body_m.items()}
     rest_b = {n: (apply_transform(to_out[_body(scene, n)], V), F) for n, (V, F) in body_b.items()}
     _check_overlaps(scene, drive, body_m, rest_m, rest_b, rep, cache)
+    areas = {}
+    if scene.fibres is not None:
+        say("the fibres' attachment areas")
+        areas = _fibre_areas(scene, drive, body_m, body_b, ids, rep, cache)
     if picture is not None:
         say("drawing the rest pose")
         data = _picture_data(scene, model, drive, body_m, to_out, rep)
-        rep.picture = draw_check(Path(picture), {**data, "muscles": rest_m, "bones": rest_b})
+        # the areas' vertices in the output frame, as the muscles are drawn
+        shown = {n: (rest_m[n][0][o], rest_m[n][0][i]) for n, (o, i) in areas.items()}
+        rep.picture = draw_check(
+            Path(picture), {**data, "muscles": rest_m, "bones": rest_b, "areas": shown}
+        )
+
+
+def _fibre_areas(
+    scene: Scene, drive: Drive,
+    body_m: dict[str, tuple[FloatArray, IntArray]],
+    body_b: dict[str, tuple[FloatArray, IntArray]],
+    ids: dict[str, IntArray],
+    rep: CheckReport,
+    cache: Path | None,
+) -> dict[str, tuple[IntArray, IntArray]]:  # fmt: skip
+    """Per muscle, the fibres' attachment areas the run takes (at rest, as segmented).
+
+    As the run: the areas the scene gives, else where the muscle lies on a bone of its
+    origin's (insertion's) body (`on_bones`, `musclewrap.fibres.areas_on_bones`), else its
+    end caps; each muscle's rule as a note.
+    """
+    from ..contact import Obstacle, Placed
+    from ..fibres import areas_on_bones
+
+    probes: dict[str, Obstacle] = {}
+
+    def probe(name: str) -> Obstacle:
+        if name not in probes:
+            V, F = body_b[name]
+            probes[name] = Obstacle.cached(V, F, cache, name=Obstacle.cache_name(V, F))
+        return probes[name]
+
+    body_of = {b.name: b.body for b in scene.bones}
+    out = {}
+    for spec in scene.muscles:
+        V, F = body_m[spec.name]
+        lines = drive.rest_lines[spec.name]
+        try:
+            given = [
+                attachment_area(scene, drive, spec, k, V, ids[spec.name])
+                for k in ("origin", "insertion")
+            ]
+        except SceneError as exc:
+            rep.add("error", spec.name, str(exc))
+            continue
+        ends = drive.path_ends.get(spec.name, ((), ()))
+        masks, names = [], []
+        for bodies, g in zip(ends, given, strict=True):
+            bones = [b for b in body_of if body_of[b] in bodies and b in body_b]
+            names.append(" or ".join(bones))
+            placed = [
+                Placed(probe(b), drive.rest_between(spec.body, body_of[b]))
+                for b in (bones if g is None else [])
+            ]
+            masks.append(None if g is not None else on_bones(V, F, scene.margin, placed))
+        try:
+            o, i, rules = areas_on_bones(V, lines, masks[0], masks[1])
+        except ValueError as exc:  # no axis: the lines' check says why
+            rep.add("warning", spec.name, f"no fibres' attachment areas: {exc}")
+            continue
+        o = o if given[0] is None else given[0]
+        i = i if given[1] is None else given[1]
+        note = describe_areas(
+            rules, (given[0] is not None, given[1] is not None), (names[0], names[1]),
+            (len(o), len(i)),
+        )  # fmt: skip
+        rep.add("note", spec.name, note)
+        out[spec.name] = (o, i)
+    return out
 
 
 # ---------------------------------------------------------------------------- model, motion

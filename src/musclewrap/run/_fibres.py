@@ -19,23 +19,29 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .._cache import cached_arrays
-from .._typing import FloatArray
+from .._typing import FloatArray, IntArray
 from ..constants import defaults
-from ..fibres import Fibres, fibres_at_rest, keep_inside
-from ..mesh import apply_transform, write_mesh
+from ..contact import Obstacle, Placed
+from ..fibres import Fibres, areas_on_bones, fibres_at_rest, keep_inside
+from ..mesh import apply_transform, mean_edge_length, write_mesh
 from ..output import plot_moment_arms, write_csv
 from ..scene import OUTPUT_COLUMNS, Drive
 from ..solver import DeformationResult, Muscle
 from ._files import FIBRES_CSV, MOMENT_ARMS_CSV, PLOT_MOMENT_ARMS
-from ._records import MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
+from ._records import BoneMesh, MomentArmSettings, MuscleJob, MuscleOutcome, SidePoses
+
+#: a bone's signed-distance probe (`musclewrap.run._work.bone_probe` with the run's cache)
+Probe = Callable[[BoneMesh], Obstacle]
 
 __all__ = [
     "FIBRE_FIELDS",
     "MOMENT_ARM_FIELDS",
     "fibres_of",
     "frame_fibres",
+    "on_bones",
     "write_fibre_outputs",
     "write_frame_fibres",
 ]
@@ -45,26 +51,118 @@ FIBRE_FIELDS = list(OUTPUT_COLUMNS[FIBRES_CSV])
 MOMENT_ARM_FIELDS = list(OUTPUT_COLUMNS[MOMENT_ARMS_CSV])
 
 
-def fibres_of(muscle: Muscle, job: MuscleJob, path: Path | None) -> tuple[Fibres, str | None]:
+def on_bones(
+    V: FloatArray, F: IntArray, margin: float, placed: list[Placed]
+) -> npt.NDArray[np.bool_] | None:
+    """Per vertex at rest, whether it lies on one of the bones ``placed`` (None: none given).
+
+    Within the margin and ``defaults.fibre_area_reach`` of the muscle's mean edge lengths
+    of the bone's surface, or inside it (exact, `Obstacle.query`).
+    """
+    if not placed:
+        return None
+    V = np.asarray(V, dtype=np.float64)
+    within = margin + defaults.fibre_area_reach * mean_edge_length(V, F)
+    on = np.zeros(len(V), dtype=bool)
+    for pl in placed:
+        on[pl.obstacle.query(pl.to_obstacle(V), within)[0]] = True
+    return on
+
+
+def _on_bones(
+    muscle: Muscle, job: MuscleJob, bones: tuple[tuple[str, FloatArray], ...], probe: Probe
+) -> npt.NDArray[np.bool_] | None:
+    """`on_bones` for the job's bones ``bones`` (name, the muscle's frame into the bone's)."""
+    meshes = {b.name: b for b in job.bones}
+    placed = [Placed(probe(meshes[n]), np.asarray(T, dtype=np.float64)) for n, T in bones]
+    return on_bones(muscle.V, muscle.F, job.margin, placed)
+
+
+def describe_areas(
+    rules: tuple[str, str], given: tuple[bool, bool], bones: tuple[str, str], sizes: tuple[int, int]
+) -> str:
+    """Which rule gave each attachment area (the notes of `run` and `check`).
+
+    Per side: its rule, whether the scene gave it, the bones of its body (names joined,
+    "" for none) and its size.
+    """
+    parts = []
+    for side, rule, g, names, n in zip(
+        ("origin", "insertion"), rules, given, bones, sizes, strict=True
+    ):
+        if g:
+            how = "given by the scene"
+        elif rule == "bones":
+            how = f"where it lies on {names}"
+        elif names:
+            how = (
+                f"its end cap, as fewer than {defaults.fibre_area_least} vertices lie on "
+                f"{names} in its half of the muscle"
+            )
+        else:
+            how = "its end cap, as the scene has no bone of its body"
+        parts.append(f"{side}: {how} ({n} vertices)")
+    return "the fibres' attachment areas: " + "; ".join(parts)
+
+
+def _areas_note(job: MuscleJob, rules: tuple[str, str], sizes: tuple[int, int]) -> str:
+    """`describe_areas` for the job's muscle, for the run's notes."""
+    spec = job.fibres
+    assert spec is not None
+    names = [
+        " or ".join(b for b, _ in bones) for bones in (spec.origin_bones, spec.insertion_bones)
+    ]
+    given = (spec.origin is not None, spec.insertion is not None)
+    return f"{job.name}: " + describe_areas(rules, given, (names[0], names[1]), sizes)
+
+
+def fibres_of(
+    muscle: Muscle, job: MuscleJob, path: Path | None, probe: Probe | None = None
+) -> tuple[Fibres | None, str | None]:
     """The muscle's fibres at rest, read from the cache file ``path`` or built (and cached).
+
+    ``probe``: a bone's signed-distance probe (`Obstacle`), for the attachment areas
+    on the bones of the muscle's ends (`musclewrap.fibres.areas_on_bones`); without
+    it, or where the scene gives an area, the end caps or the given areas.
 
     Returns
     -------
-    Fibres or None, and a note: None, or why the muscle has no fibres
+    Fibres or None, and a note: which rule gave each attachment area, or why the
+    muscle has no fibres
     """
     spec = job.fibres
     assert spec is not None
 
     def build() -> dict[str, np.ndarray]:
-        fb = fibres_at_rest(
-            muscle,
-            job.rest_lines,
-            count=spec.count,
-            points=spec.points,
-            voxels=spec.voxels,
-            origin=spec.origin,
-            insertion=spec.insertion,
-        )
+        origin, insertion = spec.origin, spec.insertion
+        rules = ("given" if origin is not None else "ends",
+                 "given" if insertion is not None else "ends")  # fmt: skip
+        why = ""
+        if probe is not None and (origin is None or insertion is None):
+            o, i, found = areas_on_bones(
+                np.asarray(muscle.V, dtype=np.float64),
+                job.rest_lines,
+                None if origin is not None else _on_bones(muscle, job, spec.origin_bones, probe),
+                None if insertion is not None else _on_bones(
+                    muscle, job, spec.insertion_bones, probe
+                ),
+            )  # fmt: skip
+            if origin is None:
+                origin, rules = o, (found[0], rules[1])
+            if insertion is None:
+                insertion, rules = i, (rules[0], found[1])
+        kw = {"count": spec.count, "points": spec.points, "voxels": spec.voxels}
+        try:
+            fb = fibres_at_rest(muscle, job.rest_lines, origin=origin, insertion=insertion, **kw)
+        except ValueError as exc:
+            if "bones" not in rules:
+                raise
+            # the areas on the bones gave no fibres: the end caps (and the areas given)
+            why = str(exc)
+            rules = (rules[0].replace("bones", "ends"), rules[1].replace("bones", "ends"))
+            fb = fibres_at_rest(
+                muscle, job.rest_lines, origin=spec.origin, insertion=spec.insertion, **kw
+            )
         return {
             "points": fb.points,
             "W": fb.W,
@@ -73,12 +171,17 @@ def fibres_of(muscle: Muscle, job: MuscleJob, path: Path | None) -> tuple[Fibres
             "spacing": np.array(fb.spacing),
             "share": fb.share,
             "area": fb.area,
+            "rules": np.array([*rules, why]),
         }
 
     try:
         z = cached_arrays(path, build)
     except ValueError as exc:
         return None, f"{job.name}: no fibres ({exc})"
+    rules = [str(r) for r in z["rules"]]
+    note = _areas_note(job, (rules[0], rules[1]), (len(z["origin"]), len(z["insertion"])))
+    if rules[2]:
+        note += f" (the areas on the bones gave no fibres: {rules[2]})"
     return Fibres(
         points=z["points"],
         W=z["W"],
@@ -87,7 +190,7 @@ def fibres_of(muscle: Muscle, job: MuscleJob, path: Path | None) -> tuple[Fibres
         spacing=float(z["spacing"]),
         share=z["share"],
         area=z["area"],
-    ), None
+    ), note
 
 
 def frame_fibres(

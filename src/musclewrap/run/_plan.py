@@ -76,12 +76,24 @@ def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
         fibres = None
         if scene.fibres is not None:
             f = scene.fibres
+            # the bones of the bodies the lines start and end in, placed at rest
+            ends = drive.path_ends.get(spec.name, ((), ()))
+            on = [
+                tuple(
+                    (b.name, drive.rest_between(spec.body, b.body))
+                    for b in scene.bones
+                    if b.body in bodies
+                )
+                for bodies in ends
+            ]
             fibres = FibreSettings(
                 f.count,
                 f.points,
                 f.voxels,
                 attachment_area(scene, drive, spec, "origin", V, ids),
                 attachment_area(scene, drive, spec, "insertion", V, ids),
+                on[0],
+                on[1],
             )
         ma = drive.moment_arms
         jobs.append(

@@ -20,6 +20,7 @@ import numpy as np
 from .._cache import digest
 from .._typing import FloatArray, IntArray
 from .._version import __version__
+from ..constants import defaults
 from ..mesh import invert_rigid
 from ..scene import CENTRAL, Stencil
 from ..solver import PREPARATION_FORMAT
@@ -42,7 +43,7 @@ __all__ = [
     "fibres_key",
 ]
 
-FIBRES_FORMAT = 2  # of the cached fibres (2: with their shares and areas)
+FIBRES_FORMAT = 3  # of the cached fibres (2: with their shares and areas; 3: rules)
 
 
 def fibres_key(muscle_key: str, job: MuscleJob) -> str:
@@ -52,11 +53,20 @@ def fibres_key(muscle_key: str, job: MuscleJob) -> str:
     areas = [
         np.asarray([-1] if a is None else a, dtype=np.int64) for a in (spec.origin, spec.insertion)
     ]
+    probes = {b.name: b.probe for b in job.bones}
+    on_bones = [
+        f"{side}:{b}:{probes.get(b)}"
+        for side, bones in (("o", spec.origin_bones), ("i", spec.insertion_bones))
+        for b, _ in bones
+    ]
     return digest(
         muscle_key,
         *areas,
         *(np.asarray(lines[p], dtype=np.float64) for p in sorted(lines)),
+        *(np.asarray(T, dtype=np.float64) for _, T in (*spec.origin_bones, *spec.insertion_bones)),
+        "|".join(on_bones),
         f"{spec.count}|{spec.points}|{spec.voxels}|{FIBRES_FORMAT}|{__version__}",
+        f"{job.margin}|{defaults.fibre_area_reach}|{defaults.fibre_area_least}",
     )[:32]
 
 
@@ -72,13 +82,21 @@ class BoneMesh:
 
 @dataclass(frozen=True)
 class FibreSettings:
-    """A muscle's ``[fibres]`` settings and attachment areas (vertex numbers; None: default)."""
+    """A muscle's ``[fibres]`` settings and attachment areas (vertex numbers; None: default).
+
+    ``origin_bones``, ``insertion_bones``: where an area is not given, the scene's bones
+    carried by the body the muscle's lines start (end) in, each with the transform from
+    the muscle's body frame into the bone's at rest (the areas then come from where
+    the muscle lies on them, `musclewrap.fibres.areas_on_bones`).
+    """
 
     count: int
     points: int
     voxels: int
     origin: IntArray | None = None
     insertion: IntArray | None = None
+    origin_bones: tuple[tuple[str, FloatArray], ...] = ()
+    insertion_bones: tuple[tuple[str, FloatArray], ...] = ()
 
 
 @dataclass(frozen=True)

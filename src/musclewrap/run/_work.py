@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -111,6 +112,11 @@ def bone_probe(bone: BoneMesh, cache_dir: str | None) -> Obstacle:
     return _probes[key]
 
 
+def _probe(job: MuscleJob) -> Callable[[BoneMesh], Obstacle]:
+    """The bones' probes with the job's cache (`bone_probe`)."""
+    return lambda bone: bone_probe(bone, job.cache_dir)
+
+
 def _unbound_note(name: str, unbound: dict[str, tuple[float, float, float]]) -> str | None:
     """What of a muscle's lines is not bound to it (`musclewrap.Deformer.unbound`), or None."""
     if not unbound:
@@ -161,7 +167,7 @@ def _fibres(job: MuscleJob, muscle: Muscle) -> tuple[Fibres | None, str | None]:
     key = (job.name, job.run)
     if key not in _fibres_kept:
         _fibres_kept.clear()
-        _fibres_kept[key] = fibres_of(muscle, job, job.fibres_path())
+        _fibres_kept[key] = fibres_of(muscle, job, job.fibres_path(), _probe(job))
     return _fibres_kept[key]  # type: ignore[no-any-return]
 
 
@@ -177,7 +183,7 @@ class Prepare:
         t0 = time.perf_counter()
         muscle, hit, note = _prepare(self.job)
         if self.job.fibres is not None:
-            fibres_of(muscle, self.job, self.job.fibres_path())
+            fibres_of(muscle, self.job, self.job.fibres_path(), _probe(self.job))
         if self.fibres_only:
             return None
         return Prepared(self.job.name, time.perf_counter() - t0, hit, note)

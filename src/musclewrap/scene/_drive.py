@@ -125,6 +125,9 @@ class Drive:
     coordinate_units: dict[str, str] = field(default_factory=dict)
     #: each body's frame to the ground's (the scene's, without a model) at the rest pose
     rest_poses: dict[str, FloatArray] = field(default_factory=dict)
+    #: per muscle, the bodies its paths' first points and last points are fixed in at the
+    #: rest pose (its origin's and insertion's; empty without a model)
+    path_ends: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = field(default_factory=dict)
     #: the model, posable at any coordinates (`drive_scene(keep_poser=True)` only)
     poser: Poser | None = field(default=None, repr=False, compare=False)
 
@@ -531,6 +534,14 @@ def _drive_opensim(
     lines_now, output_transforms = poser.lines_now, poser.output_transforms
 
     rest_lines, rest_ref, _ = lines_now()
+    ends = {p: model.path_point_bodies(p) for m in scene.muscles for p in m.paths}
+    path_ends = {
+        m.name: (
+            tuple(sorted({ends[p][0] for p in m.paths})),
+            tuple(sorted({ends[p][-1] for p in m.paths})),
+        )
+        for m in scene.muscles
+    }
     lines = {m.name: [] for m in scene.muscles}
     refs = {m.name: [] for m in scene.muscles}
     out_T = {b: np.empty((len(pos), 4, 4)) for b in bodies}
@@ -594,6 +605,7 @@ def _drive_opensim(
         coordinate_values=shown_values,
         swept=moving[0] if len(moving) == 1 else None,
         coordinate_units={c: "deg" if model.is_rotational(c) else "mm" for c in shown},
+        path_ends=path_ends,
     )
 
 

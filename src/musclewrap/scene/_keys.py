@@ -86,7 +86,9 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "frame": "Frame this mesh is given in, overriding ``[model] mesh_frame``.",
         "bones": "The bones it is kept out of (default: all of the scene's).",
         "fibre_origin": "The fibres' origin area: vertex indices of the mesh file, or "
-        "landmark points (mesh coordinates; the surface within ``landmark_radius``).",
+        "landmark points (mesh coordinates; the surface within ``landmark_radius``); "
+        "default: where the muscle lies on a bone of its origin's body at rest, else its "
+        "end cap (docs/fibres.md).",
         "fibre_insertion": "The fibres' insertion area, as ``fibre_origin``.",
     },
     "bones.NAME": {
