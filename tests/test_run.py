@@ -61,8 +61,7 @@ def test_fibres_in_a_line_csv_scene(tmp_path):
     # without a model the bodies of the line's ends are not known: the end caps, said so
     # by the run and by check (with the areas in its picture)
     areas = (
-        "the fibres' attachment areas: origin: its end cap, as the scene has no bone of its "
-        "body"
+        "the fibres' attachment areas: origin: its end cap, as the scene has no bone of its body"
     )
     assert any(areas in n for n in s.notes), s.notes
     from musclewrap.run import check_scene
@@ -357,6 +356,8 @@ def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys, collisions):
             assert f"{m}: {areas}origin: where it lies on iliac or sacrum" in said
         assert f"psoas: {areas}origin: its end cap, as fewer than" in said
         assert said.count("insertion: where it lies on femur") >= 4
+        # and that the side poses of their moment arms are solved without contact
+        assert "psoas: the fibres' moment arms come from side poses solved without contact" in said
 
 
 def _moment_arm_series(rows, *fields):

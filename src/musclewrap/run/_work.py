@@ -117,6 +117,23 @@ def _probe(job: MuscleJob) -> Callable[[BoneMesh], Obstacle]:
     return lambda bone: bone_probe(bone, job.cache_dir)
 
 
+def _side_poses_note(job: MuscleJob) -> str | None:
+    """What the poses either side of a frame (the fibres' moment arms) are solved against."""
+    ma = job.moment_arms
+    if ma is None or job.contact is None:
+        return None  # no moment arms; or no contact in the run, none in its side poses either
+    if ma.contact:
+        return (
+            f"{job.name}: the fibres' moment arms come from side poses solved against the bones "
+            "but not the other muscles ([fibres] moment_arm_contact = true)"
+        )
+    return (
+        f"{job.name}: the fibres' moment arms come from side poses solved without contact "
+        "([fibres] moment_arm_contact = false): where the muscle presses on a bone or another "
+        "muscle they are those of a muscle that would pass into it"
+    )
+
+
 def _unbound_note(name: str, unbound: dict[str, tuple[float, float, float]]) -> str | None:
     """What of a muscle's lines is not bound to it (`musclewrap.Deformer.unbound`), or None."""
     if not unbound:
@@ -405,7 +422,8 @@ class _MuscleFrames:
             self.result.fibre_share = [float(x) for x in self.fb.share]
             self.result.fibre_area = [float(x) for x in self.fb.area]
         unbound = _unbound_note(job.name, d.unbound)
-        self.result.note = "; ".join(n for n in (note, unbound, fibre_note) if n) or None
+        sides = _side_poses_note(job) if self.fb is not None else None
+        self.result.note = "; ".join(n for n in (note, unbound, fibre_note, sides) if n) or None
         self.kw: dict[str, Any] = {"method": job.method, "max_iterations": job.max_iterations}
         if self.contact is not None:
             self.kw["margin"] = job.margin
