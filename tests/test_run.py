@@ -52,14 +52,14 @@ def test_fibres_in_a_line_csv_scene(tmp_path):
     import pyvista as pv
 
     sc, toml = _write_demo(tmp_path)
-    toml.write_text(toml.read_text() + "[fibres]\ncount = 20\npoints = 9\n")
+    toml.write_text(toml.read_text() + '[fibres]\ncount = 20\npoints = 9\nattachments = "bones"\n')
     scene = load_scene(toml)
     assert scene.fibres.count == 20 and scene.fibres.moment_arms == ()
     out = tmp_path / "out"
     s = run_scene(scene, out, workers=1, cache_dir=tmp_path / "cache", progress=None)
     assert s.unconverged == 0
-    # without a model the bodies of the line's ends are not known: the end caps, said so
-    # by the run and by check (with the areas in its picture)
+    # on the bones asked for, but without a model the bodies of the line's ends are not
+    # known: the end caps, said so by the run and by check (with the areas in its picture)
     areas = (
         "the fibres' attachment areas: origin: its end cap, as the scene has no bone of its body"
     )
@@ -139,6 +139,36 @@ def test_fibre_attachments_given_as_landmarks_or_vertex_indices(tmp_path):
         run_scene(load_scene(toml), tmp_path / "o3", workers=1, cache_dir=False, progress=None)
     toml.write_text(text.replace(f"{top.tolist()}", "'top'") + "[fibres]\n")
     with pytest.raises(SceneError, match="must list vertex indices of the mesh"):
+        load_scene(toml)
+
+
+@pytest.mark.realdata
+def test_fibre_attachments_on_the_bones_of_the_paths_ends(data_dir, tmp_path):
+    """``[fibres] attachments = "bones"``: where the muscle lies on a bone of its origin's
+    (insertion's) body near its paths' first (last) points; else its end cap, said so.
+    The LHDL iliacus starts on the iliac fossa; the femur it lies on where it crosses the
+    hip is 55 mm from its path's end (no insertion). The psoas's origin (the lumbar spine) is
+    not in the scene, and the pelvic brim it lies on is in its lower half; it inserts on the
+    femur's lesser trochanter, at its mesh's end."""
+    from musclewrap.run import check_scene
+
+    text = (EXAMPLES / "lhdl_hip_sweeps.toml").read_text()
+    text = text.replace("../../shared/data", str(data_dir))
+    keep = text[: text.index("[muscles.gluteus_maximus]")]
+    keep += text[text.index("[muscles.iliacus]") : text.index("[bones.sacrum]")]
+    keep += '[fibres]\ncount = 20\nattachments = "bones"\n'
+    toml = tmp_path / "s.toml"
+    toml.write_text(keep)
+    rep = check_scene(load_scene(toml), cache_dir=tmp_path / "cache")
+    said = {f.subject: f.message for f in rep.findings if "attachment areas" in f.message}
+    assert "origin: where it lies on iliac (" in said["iliacus"], said
+    assert "insertion: its end cap, as fewer than 10 vertices lie on femur" in said["iliacus"]
+    assert "origin: its end cap, as fewer than 10 vertices lie on iliac" in said["psoas"]
+    assert "insertion: where it lies on femur (" in said["psoas"]
+    origin = int(said["iliacus"].split("origin: where it lies on iliac (")[1].split()[0])
+    assert 800 < origin < 1300  # most of its side on the fossa (1,026 as segmented)
+    toml.write_text(keep.replace('attachments = "bones"', 'attachments = "hips"'))
+    with pytest.raises(SceneError, match="attachments must be 'ends' or 'bones'"):
         load_scene(toml)
 
 
@@ -348,14 +378,10 @@ def test_lhdl_hip_sweeps_in_full(data_dir, tmp_path, capsys, collisions):
     said = capsys.readouterr().out
     assert "unconverged frames 0" in said
     if collisions:
-        # the fibres run from where each muscle lies on its bones (issue 48), the psoas from
-        # its top (its origin, the lumbar spine, is not in the scene; the pelvic brim it lies
-        # on is in its lower half)
-        areas = "the fibres' attachment areas: "
-        for m in ("gluteus_maximus", "gluteus_medius", "iliacus"):
-            assert f"{m}: {areas}origin: where it lies on iliac or sacrum" in said
-        assert f"psoas: {areas}origin: its end cap, as fewer than" in said
-        assert said.count("insertion: where it lies on femur") >= 4
+        # the fibres run between the end caps ([fibres] attachments = "ends", the default)
+        areas = "the fibres' attachment areas: origin: its end cap"
+        for m in ("gluteus_maximus", "gluteus_medius", "iliacus", "psoas"):
+            assert f"{m}: {areas}" in said
         # and that the side poses of their moment arms are solved without contact
         assert "psoas: the fibres' moment arms come from side poses solved without contact" in said
 

@@ -2,6 +2,7 @@
 
     python benchmarks/accuracy/bench_moment_arms.py [SCENE] [--steps 0.5,1,2,4] [--repeats 3]
     python benchmarks/accuracy/bench_moment_arms.py SCENE --smoothness [--fibres-of SCENE2]
+        [--attachments ends|bones]
     python benchmarks/accuracy/bench_moment_arms.py SCENE --scan MUSCLE [--about START:STOP:STEP]
         [--span DEG] [--by DEG] [--line-reach X|none] [--fibres-of SCENE2]
 
@@ -363,6 +364,7 @@ def main() -> None:
     p.add_argument("--tables-only", action="store_true", help="skip the timing")
     p.add_argument("--smoothness", action="store_true", help="only item 4")
     p.add_argument("--fibres-of", help="a scene whose [fibres] table to use")
+    p.add_argument("--attachments", choices=("ends", "bones"), help="[fibres] attachments")
     p.add_argument("--scan", metavar="MUSCLE", help="only item 5 (or 6), for this muscle")
     p.add_argument("--about", metavar="START:STOP:STEP", help="item 6: the motion's rows")
     p.add_argument("--span", type=float, default=0.0, help="item 6: degrees of flexion either side")
@@ -378,6 +380,10 @@ def main() -> None:
         scene = dataclasses.replace(scene, fibres=load_scene(Path(a.fibres_of)).fibres)
     if scene.fibres is None or not scene.fibres.moment_arms:
         raise SystemExit(f"{a.scene}: no [fibres] moment_arms")
+    if a.attachments:
+        scene = dataclasses.replace(
+            scene, fibres=dataclasses.replace(scene.fibres, attachments=a.attachments)
+        )
     if a.smoothness:
         smoothness(scene, a.workers)
         return

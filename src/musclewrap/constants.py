@@ -113,6 +113,10 @@ class Defaults:
         (`musclewrap.fibres.areas_on_bones`): a muscle vertex within this many of
         its mean edge lengths of the margin of a bone of the body its lines start
         (end) in, at rest, lies on its origin's (insertion's) bone.
+    fibre_area_end_reach : float
+        Of those, only patches (connected on the mesh) that come within this
+        fraction of a path's length of that path's first (last) point: where the
+        muscle attaches, not a bone it lies on or passes over.
     fibre_area_least : int
         A side with fewer such vertices takes its end cap instead.
     samples_per_line : int
@@ -283,6 +287,7 @@ class Defaults:
     anchor_reach: float = 0.5
     anchor_end_reach: float = 0.15
     fibre_area_reach: float = 1.0
+    fibre_area_end_reach: float = 0.15
     fibre_area_least: int = 10
     samples_per_line: int = 33
     line_reach: float = 1.0

@@ -142,23 +142,29 @@ def attachment_areas(
 
 def areas_on_bones(
     V: FloatArray,
+    F: IntArray,
     lines: Mapping[str, npt.ArrayLike],
     on_origin: npt.ArrayLike | None,
     on_insertion: npt.ArrayLike | None,
     *,
     reach: float = 0.1,
     least: int | None = None,
+    end_reach: float | None = None,
 ) -> tuple[IntArray, IntArray, tuple[str, str]]:
     """The attachment areas where the muscle lies on the bones of its ends' bodies.
 
     ``on_origin``: per vertex, whether it lies on a bone of the body the lines start
     in (at rest; None where the scene has no such bone); ``on_insertion`` the same for
-    the body they end in. The origin's area is the vertices on an origin bone in the
-    half of the muscle on the origin's side (along the axis of `attachment_areas`),
-    the insertion's those on an insertion bone in the other half: a muscle that lies
-    on a bone of its origin's body further on (the psoas over the pelvic brim) does
-    not start there. Where a side has fewer than ``least`` such vertices
-    (``defaults.fibre_area_least``), its end cap (`attachment_areas` with ``reach``).
+    the body they end in. The origin's area is those vertices in the half of the
+    muscle on the origin's side (along the axis of `attachment_areas`), in patches
+    (connected on the mesh ``V, F``) that come within ``end_reach`` of a path's length
+    (``defaults.fibre_area_end_reach``) of that path's first point; the insertion's
+    the same with the other half and the last points. A muscle lies on bones where it
+    does not attach: on a bone of its origin's body further on (the psoas over the
+    pelvic brim: the other half) or over a joint it crosses (the iliacus on the
+    femur's head, 55 mm from where its path ends: far from the end). Where a side
+    keeps fewer than ``least`` vertices (``defaults.fibre_area_least``), its end cap
+    (`attachment_areas` with ``reach``).
 
     Returns
     -------
@@ -166,22 +172,38 @@ def areas_on_bones(
     rules : (str, str)
         Per side, ``"bones"`` or ``"ends"``: which rule gave it.
     """
+    from scipy.sparse.csgraph import connected_components
+
     from ..constants import defaults
+    from ..mesh import vertex_adjacency
 
     least = defaults.fibre_area_least if least is None else least
+    end_reach = defaults.fibre_area_end_reach if end_reach is None else end_reach
     caps = attachment_areas(V, lines, reach)
     paths = [np.asarray(p, dtype=np.float64) for p in lines.values()]
     axis = np.mean([p[-1] for p in paths], axis=0) - np.mean([p[0] for p in paths], axis=0)
     t = V @ (axis / np.linalg.norm(axis))
     half = 0.5 * (float(t.min()) + float(t.max()))
+    length = np.array([np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in paths])
+    A = None
     areas, rules = [], []
-    for cap, on, side in ((caps[0], on_origin, t < half), (caps[1], on_insertion, t > half)):
+    for k, (cap, on, side) in enumerate(
+        ((caps[0], on_origin, t < half), (caps[1], on_insertion, t > half))
+    ):
         area = np.zeros(0, dtype=np.int64)
         if on is not None:
             mask = np.asarray(on, dtype=bool)
             if mask.shape != (len(V),):
                 raise ValueError(f"a mask per vertex is needed ({len(V)}), got {mask.shape}")
-            area = np.flatnonzero(mask & side)
+            c = np.flatnonzero(mask & side)
+            if len(c):
+                A = vertex_adjacency(F, len(V)) if A is None else A
+                _, label = connected_components(A[c][:, c], directed=False)
+                ends = np.array([p[0] if k == 0 else p[-1] for p in paths])
+                # per candidate, its distance to each path's end over that path's length
+                d = np.linalg.norm(V[c][:, None, :] - ends[None], axis=2) / length[None]
+                near = (d <= end_reach).any(axis=1)
+                area = np.sort(c[np.isin(label, np.unique(label[near]))])
         if len(area) >= least:
             areas.append(area)
             rules.append("bones")

@@ -246,6 +246,8 @@ def _fibre_areas(
             probes[name] = Obstacle.cached(V, F, cache, name=Obstacle.cache_name(V, F))
         return probes[name]
 
+    fibres = scene.fibres
+    assert fibres is not None
     body_of = {b.name: b.body for b in scene.bones}
     out = {}
     for spec in scene.muscles:
@@ -260,6 +262,7 @@ def _fibre_areas(
             rep.add("error", spec.name, str(exc))
             continue
         ends = drive.path_ends.get(spec.name, ((), ()))
+        ends = ends if fibres.attachments == "bones" else ((), ())
         masks, names = [], []
         for bodies, g in zip(ends, given, strict=True):
             bones = [b for b in body_of if body_of[b] in bodies and b in body_b]
@@ -270,7 +273,7 @@ def _fibre_areas(
             ]
             masks.append(None if g is not None else on_bones(V, F, scene.margin, placed))
         try:
-            o, i, rules = areas_on_bones(V, lines, masks[0], masks[1])
+            o, i, rules = areas_on_bones(V, F, lines, masks[0], masks[1])
         except ValueError as exc:  # no axis: the lines' check says why
             rep.add("warning", spec.name, f"no fibres' attachment areas: {exc}")
             continue
@@ -278,7 +281,7 @@ def _fibre_areas(
         i = i if given[1] is None else given[1]
         note = describe_areas(
             rules, (given[0] is not None, given[1] is not None), (names[0], names[1]),
-            (len(o), len(i)),
+            (len(o), len(i)), fibres.attachments,
         )  # fmt: skip
         rep.add("note", spec.name, note)
         out[spec.name] = (o, i)

@@ -79,12 +79,16 @@ def _on_bones(
 
 
 def describe_areas(
-    rules: tuple[str, str], given: tuple[bool, bool], bones: tuple[str, str], sizes: tuple[int, int]
+    rules: tuple[str, str],
+    given: tuple[bool, bool],
+    bones: tuple[str, str],
+    sizes: tuple[int, int],
+    attachments: str,
 ) -> str:
     """Which rule gave each attachment area (the notes of `run` and `check`).
 
     Per side: its rule, whether the scene gave it, the bones of its body (names joined,
-    "" for none) and its size.
+    "" for none) and its size; ``attachments`` as ``[fibres]`` says.
     """
     parts = []
     for side, rule, g, names, n in zip(
@@ -94,6 +98,8 @@ def describe_areas(
             how = "given by the scene"
         elif rule == "bones":
             how = f"where it lies on {names}"
+        elif attachments == "ends":
+            how = "its end cap"
         elif names:
             how = (
                 f"its end cap, as fewer than {defaults.fibre_area_least} vertices lie on "
@@ -113,7 +119,9 @@ def _areas_note(job: MuscleJob, rules: tuple[str, str], sizes: tuple[int, int]) 
         " or ".join(b for b, _ in bones) for bones in (spec.origin_bones, spec.insertion_bones)
     ]
     given = (spec.origin is not None, spec.insertion is not None)
-    return f"{job.name}: " + describe_areas(rules, given, (names[0], names[1]), sizes)
+    return f"{job.name}: " + describe_areas(
+        rules, given, (names[0], names[1]), sizes, spec.attachments
+    )
 
 
 def fibres_of(
@@ -138,9 +146,10 @@ def fibres_of(
         rules = ("given" if origin is not None else "ends",
                  "given" if insertion is not None else "ends")  # fmt: skip
         why = ""
-        if probe is not None and (origin is None or insertion is None):
+        if spec.attachments == "bones" and probe is not None and None in (origin, insertion):
             o, i, found = areas_on_bones(
                 np.asarray(muscle.V, dtype=np.float64),
+                np.asarray(muscle.F, dtype=np.int64),
                 job.rest_lines,
                 None if origin is not None else _on_bones(muscle, job, spec.origin_bones, probe),
                 None if insertion is not None else _on_bones(
@@ -178,7 +187,9 @@ def fibres_of(
         z = cached_arrays(path, build)
     except ValueError as exc:
         return None, f"{job.name}: no fibres ({exc})"
-    rules = [str(r) for r in z["rules"]]
+    # the two sides' rules and why the areas on the bones were not used ("": they were)
+    got = [str(r) for r in z.get("rules", ())]
+    rules = (got + ["ends", "ends", ""][len(got) :])[:3]
     note = _areas_note(job, (rules[0], rules[1]), (len(z["origin"]), len(z["insertion"])))
     if rules[2]:
         note += f" (the areas on the bones gave no fibres: {rules[2]})"

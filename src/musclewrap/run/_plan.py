@@ -78,6 +78,7 @@ def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
             f = scene.fibres
             # the bones of the bodies the lines start and end in, placed at rest
             ends = drive.path_ends.get(spec.name, ((), ()))
+            ends = ends if f.attachments == "bones" else ((), ())
             on = [
                 tuple(
                     (b.name, drive.rest_between(spec.body, b.body))
@@ -94,6 +95,7 @@ def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
                 attachment_area(scene, drive, spec, "insertion", V, ids),
                 on[0],
                 on[1],
+                f.attachments,
             )
         ma = drive.moment_arms
         jobs.append(

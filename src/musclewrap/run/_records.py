@@ -66,7 +66,8 @@ def fibres_key(muscle_key: str, job: MuscleJob) -> str:
         *(np.asarray(T, dtype=np.float64) for _, T in (*spec.origin_bones, *spec.insertion_bones)),
         "|".join(on_bones),
         f"{spec.count}|{spec.points}|{spec.voxels}|{FIBRES_FORMAT}|{__version__}",
-        f"{job.margin}|{defaults.fibre_area_reach}|{defaults.fibre_area_least}",
+        f"{spec.attachments}|{job.margin}|{defaults.fibre_area_reach}|"
+        f"{defaults.fibre_area_least}|{defaults.fibre_area_end_reach}",
     )[:32]
 
 
@@ -84,7 +85,8 @@ class BoneMesh:
 class FibreSettings:
     """A muscle's ``[fibres]`` settings and attachment areas (vertex numbers; None: default).
 
-    ``origin_bones``, ``insertion_bones``: where an area is not given, the scene's bones
+    ``attachments``: ``[fibres] attachments``. ``origin_bones``, ``insertion_bones``
+    (with ``"bones"``): where an area is not given, the scene's bones
     carried by the body the muscle's lines start (end) in, each with the transform from
     the muscle's body frame into the bone's at rest (the areas then come from where
     the muscle lies on them, `musclewrap.fibres.areas_on_bones`).
@@ -97,6 +99,7 @@ class FibreSettings:
     insertion: IntArray | None = None
     origin_bones: tuple[tuple[str, FloatArray], ...] = ()
     insertion_bones: tuple[tuple[str, FloatArray], ...] = ()
+    attachments: str = "ends"
 
 
 @dataclass(frozen=True)

@@ -83,7 +83,9 @@ class FibreSpec:
     ``step`` is the central difference's half-width: degrees for a rotational
     coordinate, millimetres for a translational one. ``landmark_radius`` (mesh units):
     a muscle's ``fibre_origin`` or ``fibre_insertion`` given as landmark points is the
-    surface within this distance of them. ``moment_arm_contact``: the
+    surface within this distance of them. ``attachments``: where a muscle's fibres
+    attach where it gives no areas, ``"ends"`` (its end caps) or ``"bones"``
+    (`musclewrap.fibres.areas_on_bones`). ``moment_arm_contact``: the
     poses on either side of a frame are deformed with the bones' contact (False by
     default: the contact's cage step is not smooth in the pose, and its jumps over a
     step of 1 degree dominated the differences on the LHDL sweeps).
@@ -96,6 +98,7 @@ class FibreSpec:
     voxels: int = 60_000
     moment_arm_contact: bool = False
     landmark_radius: float = 10.0
+    attachments: str = "ends"
 
 
 @dataclass(frozen=True)
@@ -653,6 +656,12 @@ def _fibres(raw: dict[str, Any], src: Path, osim: Path | None) -> FibreSpec | No
             raise SceneError(f"{src}: [fibres] landmark_radius must be > 0 (mesh units)")
     if "moment_arm_contact" in t:
         kw["moment_arm_contact"] = _get(t, "moment_arm_contact", bool, "[fibres]", src)
+    if "attachments" in t:
+        kw["attachments"] = _get(t, "attachments", str, "[fibres]", src)
+        if kw["attachments"] not in ("ends", "bones"):
+            raise SceneError(
+                f"{src}: [fibres] attachments must be 'ends' or 'bones', got {kw['attachments']!r}"
+            )
     if "moment_arms" in t:
         ma = t["moment_arms"]
         if not (isinstance(ma, list) and all(isinstance(c, str) and c for c in ma)):

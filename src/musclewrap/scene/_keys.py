@@ -87,8 +87,7 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "bones": "The bones it is kept out of (default: all of the scene's).",
         "fibre_origin": "The fibres' origin area: vertex indices of the mesh file, or "
         "landmark points (mesh coordinates; the surface within ``landmark_radius``); "
-        "default: where the muscle lies on a bone of its origin's body at rest, else its "
-        "end cap (docs/fibres.md).",
+        "default: as ``[fibres] attachments`` says.",
         "fibre_insertion": "The fibres' insertion area, as ``fibre_origin``.",
     },
     "bones.NAME": {
@@ -132,6 +131,9 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "contact (default false).",
         "landmark_radius": "Radius of an attachment area given as landmark points (mesh "
         "units, default 10).",
+        "attachments": "Where the fibres attach where a muscle gives no areas: ``ends`` (its "
+        "end caps along its lines, the default) or ``bones`` (where it lies on a bone of its "
+        "origin's or insertion's body near its paths' ends; docs/fibres.md).",
     },
 }
 
