@@ -2,7 +2,7 @@
 
     python benchmarks/accuracy/bench_moment_arms.py [SCENE] [--steps 0.5,1,2,4] [--repeats 3]
     python benchmarks/accuracy/bench_moment_arms.py SCENE --smoothness [--fibres-of SCENE2]
-        [--attachments ends|bones]
+        [--attachments ends|bones] [--count N]
     python benchmarks/accuracy/bench_moment_arms.py SCENE --scan MUSCLE [--about START:STOP:STEP]
         [--span DEG] [--by DEG] [--line-reach X|none] [--fibres-of SCENE2]
 
@@ -365,6 +365,7 @@ def main() -> None:
     p.add_argument("--smoothness", action="store_true", help="only item 4")
     p.add_argument("--fibres-of", help="a scene whose [fibres] table to use")
     p.add_argument("--attachments", choices=("ends", "bones"), help="[fibres] attachments")
+    p.add_argument("--count", type=int, help="[fibres] count")
     p.add_argument("--scan", metavar="MUSCLE", help="only item 5 (or 6), for this muscle")
     p.add_argument("--about", metavar="START:STOP:STEP", help="item 6: the motion's rows")
     p.add_argument("--span", type=float, default=0.0, help="item 6: degrees of flexion either side")
@@ -384,6 +385,8 @@ def main() -> None:
         scene = dataclasses.replace(
             scene, fibres=dataclasses.replace(scene.fibres, attachments=a.attachments)
         )
+    if a.count:
+        scene = dataclasses.replace(scene, fibres=dataclasses.replace(scene.fibres, count=a.count))
     if a.smoothness:
         smoothness(scene, a.workers)
         return
