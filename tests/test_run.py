@@ -120,9 +120,13 @@ def test_fibre_attachments_given_as_landmarks_or_vertex_indices(tmp_path):
         "[bones.thigh]",
         f"fibre_origin = [[18.0, 0.0, 40.0]]\nfibre_insertion = {top.tolist()}\n[bones.thigh]",
     )
-    toml.write_text(text + "[fibres]\ncount = 10\nlandmark_radius = 12.0\n")
+    # (with the areas on the bones asked for: the scene's own win)
+    toml.write_text(text + '[fibres]\ncount = 10\nlandmark_radius = 12.0\nattachments = "bones"\n')
     out = tmp_path / "out"
-    run_scene(load_scene(toml), out, workers=1, cache_dir=tmp_path / "cache", progress=None)
+    s = run_scene(load_scene(toml), out, workers=1, cache_dir=tmp_path / "cache", progress=None)
+    assert any(
+        "origin: given by the scene" in n and "insertion: given by the scene" in n for n in s.notes
+    ), s.notes
     import pyvista as pv
 
     P = np.asarray(pv.read(out / "fusiform" / "fusiform_fibres_0000.vtp").points).reshape(10, 15, 3)

@@ -146,7 +146,11 @@ def fibres_of(
         rules = ("given" if origin is not None else "ends",
                  "given" if insertion is not None else "ends")  # fmt: skip
         why = ""
-        if spec.attachments == "bones" and probe is not None and None in (origin, insertion):
+        if (
+            spec.attachments == "bones"
+            and probe is not None
+            and (origin is None or insertion is None)
+        ):
             o, i, found = areas_on_bones(
                 np.asarray(muscle.V, dtype=np.float64),
                 np.asarray(muscle.F, dtype=np.int64),
