@@ -243,7 +243,7 @@ def _fibre_areas(
     def probe(name: str) -> Obstacle:
         if name not in probes:
             V, F = body_b[name]
-            probes[name] = Obstacle.cached(V, F, cache, name=Obstacle.cache_name(V, F))
+            probes[name] = Obstacle.cached(V, F, cache)  # the run's probe, where cached
         return probes[name]
 
     fibres = scene.fibres
