@@ -83,40 +83,43 @@ def test_attachment_areas_from_the_lines_and_their_errors():
 
 
 def test_attachment_areas_on_the_bones_of_each_end():
-    """A vertex on a bone of the origin's body counts in the origin's half of the muscle,
-    in a patch that reaches near a path's first point; a side with no such bone, or too
-    few vertices on it, takes its end cap."""
+    """A vertex on a bone of the origin's body counts in the part of the muscle on the
+    origin's side (0.3 of its extent), in a patch that reaches near a path's first point;
+    a side with no such bone, or too few vertices on it, takes its end cap."""
     V, F = capsule(n_around=16, cap_rings=4, segments=20)  # along z, 0..200; line pole to pole
     rest, _ = capsule_scenario("bend")
     caps = attachment_areas(V, rest)
-    # a bone along one side from z = 10 to 150: the origin's area is its part below 100
+    # a bone along one side from z = 10 to 150: the origin's area is its part below 60
     side = (V[:, 0] < -15) & (V[:, 2] > 10) & (V[:, 2] < 150)
     o, i, rules = areas_on_bones(V, F, rest, side, None)
     assert rules == ("bones", "ends")
-    np.testing.assert_array_equal(o, np.flatnonzero(side & (V[:, 2] < 100)))
+    np.testing.assert_array_equal(o, np.flatnonzero(side & (V[:, 2] < 60)))
     np.testing.assert_array_equal(i, caps[1])
-    # a bone from z = 60 to 185 as the insertion's: its part above 100
+    # the muscle's half, where asked
+    o, _, _ = areas_on_bones(V, F, rest, side, None, end_part=0.5)
+    np.testing.assert_array_equal(o, np.flatnonzero(side & (V[:, 2] < 100)))
+    # a bone from z = 60 to 185 as the insertion's: its part above 140
     top = (V[:, 0] < -15) & (V[:, 2] > 60) & (V[:, 2] < 185)
     o, i, rules = areas_on_bones(V, F, rest, None, top)
     assert rules == ("ends", "bones")
-    np.testing.assert_array_equal(i, np.flatnonzero(top & (V[:, 2] > 100)))
+    np.testing.assert_array_equal(i, np.flatnonzero(top & (V[:, 2] > 140)))
     np.testing.assert_array_equal(o, caps[0])
-    # a bone of the origin's body that the muscle lies on only in its other half (the
-    # psoas over the pelvic brim) is no origin: the cap
-    brim = (V[:, 0] < -15) & (V[:, 2] > 120) & (V[:, 2] < 160)
+    # a bone of the origin's body that the muscle lies on only further on (the psoas over
+    # the pelvic brim) is no origin: the cap
+    brim = (V[:, 0] < -15) & (V[:, 2] > 100) & (V[:, 2] < 160)
     o, _, rules = areas_on_bones(V, F, rest, brim, None)
     assert rules[0] == "ends"
     np.testing.assert_array_equal(o, caps[0])
-    # nor one in its own half but far from where the path starts (a joint it passes
-    # over: 60 mm and more from the first point, past 0.15 of the line's 200); beside a
-    # patch that reaches the start, only that one counts
-    over = (V[:, 0] < -15) & (V[:, 2] > 60) & (V[:, 2] < 95)
-    assert areas_on_bones(V, F, rest, over, None)[2][0] == "ends"
+    # nor one near its end but far from where the path starts (a joint it passes over:
+    # 44 mm and more from the first point, past 0.15 of the line's 200); beside a patch
+    # that reaches the start, only that one counts
+    over = (V[:, 0] < -15) & (V[:, 2] > 40) & (V[:, 2] < 58)
+    assert over.sum() >= 3 and areas_on_bones(V, F, rest, over, None, least=3)[2][0] == "ends"
     start = (V[:, 0] > 15) & (V[:, 2] > 10) & (V[:, 2] < 40)
     o, _, rules = areas_on_bones(V, F, rest, over | start, None)
     assert rules[0] == "bones"
     np.testing.assert_array_equal(o, np.flatnonzero(start))
-    assert areas_on_bones(V, F, rest, over, None, end_reach=0.4)[2][0] == "bones"
+    assert areas_on_bones(V, F, rest, over, None, end_reach=0.4, least=3)[2][0] == "bones"
     # too few vertices: the cap; fewer than `least` is the rule
     few = np.zeros(len(V), dtype=bool)
     few[np.flatnonzero(side & (V[:, 2] < 30))[:3]] = True
@@ -134,7 +137,7 @@ def test_fibres_start_along_a_side_attachment_not_at_the_cap():
     rest, _ = capsule_scenario("bend")
     V = m.V
     side = (V[:, 0] < -12) & (V[:, 2] > 10) & (V[:, 2] < 100)
-    o, i, _ = areas_on_bones(V, m.F, rest, side, None)
+    o, i, _ = areas_on_bones(V, m.F, rest, side, None, end_part=0.5)
     fb = fibres_at_rest(m, rest, count=40, voxels=30_000, origin=o, insertion=i)
     capped = fibres_at_rest(m, rest, count=40, voxels=30_000)
     h = 2 * fb.spacing

@@ -113,6 +113,12 @@ class Defaults:
         (`musclewrap.fibres.areas_on_bones`): a muscle vertex within this many of
         its mean edge lengths of the margin of a bone of the body its lines start
         (end) in, at rest, lies on its origin's (insertion's) bone.
+    fibre_area_end_part : float
+        Of those, only vertices in this fraction of the muscle's extent along its
+        lines on that end's side. On the LHDL sweeps 0.5 (its half) took the
+        gluteus maximus's contact with the greater trochanter (0.56-0.71 of its
+        extent) for its insertion: 39 % of its published flexion range covered, 47
+        fibre-frames off; 0.3: 60 % and 31 (BENCHMARKS.md, "Attachment areas").
     fibre_area_end_reach : float
         Of those, only patches (connected on the mesh) that come within this
         fraction of a path's length of that path's first (last) point: where the
@@ -288,6 +294,7 @@ class Defaults:
     anchor_end_reach: float = 0.15
     fibre_area_reach: float = 1.0
     fibre_area_end_reach: float = 0.15
+    fibre_area_end_part: float = 0.3
     fibre_area_least: int = 10
     samples_per_line: int = 33
     line_reach: float = 1.0

@@ -150,18 +150,20 @@ def areas_on_bones(
     reach: float = 0.1,
     least: int | None = None,
     end_reach: float | None = None,
+    end_part: float | None = None,
 ) -> tuple[IntArray, IntArray, tuple[str, str]]:
     """The attachment areas where the muscle lies on the bones of its ends' bodies.
 
     ``on_origin``: per vertex, whether it lies on a bone of the body the lines start
     in (at rest; None where the scene has no such bone); ``on_insertion`` the same for
-    the body they end in. The origin's area is those vertices in the half of the
-    muscle on the origin's side (along the axis of `attachment_areas`), in patches
+    the body they end in. The origin's area is those vertices in the part of the
+    muscle on the origin's side (``end_part`` of its extent along the axis of
+    `attachment_areas`, ``defaults.fibre_area_end_part``), in patches
     (connected on the mesh ``V, F``) that come within ``end_reach`` of a path's length
     (``defaults.fibre_area_end_reach``) of that path's first point; the insertion's
-    the same with the other half and the last points. A muscle lies on bones where it
+    the same with the other end and the last points. A muscle lies on bones where it
     does not attach: on a bone of its origin's body further on (the psoas over the
-    pelvic brim: the other half) or over a joint it crosses (the iliacus on the
+    pelvic brim, 0.65-0.84 of its extent) or over a joint it crosses (the iliacus on the
     femur's head, 55 mm from where its path ends: far from the end). Where a side
     keeps fewer than ``least`` vertices (``defaults.fibre_area_least``), its end cap
     (`attachment_areas` with ``reach``).
@@ -183,12 +185,14 @@ def areas_on_bones(
     paths = [np.asarray(p, dtype=np.float64) for p in lines.values()]
     axis = np.mean([p[-1] for p in paths], axis=0) - np.mean([p[0] for p in paths], axis=0)
     t = V @ (axis / np.linalg.norm(axis))
-    half = 0.5 * (float(t.min()) + float(t.max()))
+    end_part = defaults.fibre_area_end_part if end_part is None else end_part
+    lo, hi = float(t.min()), float(t.max())
+    part = end_part * (hi - lo)
     length = np.array([np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in paths])
     A = None
     areas, rules = [], []
     for k, (cap, on, side) in enumerate(
-        ((caps[0], on_origin, t < half), (caps[1], on_insertion, t > half))
+        ((caps[0], on_origin, t < lo + part), (caps[1], on_insertion, t > hi - part))
     ):
         area = np.zeros(0, dtype=np.int64)
         if on is not None:

@@ -103,7 +103,7 @@ def describe_areas(
         elif names:
             how = (
                 f"its end cap, as fewer than {defaults.fibre_area_least} vertices lie on "
-                f"{names} in its half of the muscle"
+                f"{names} near its end of the muscle"
             )
         else:
             how = "its end cap, as the scene has no bone of its body"

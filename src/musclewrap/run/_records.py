@@ -67,7 +67,8 @@ def fibres_key(muscle_key: str, job: MuscleJob) -> str:
         "|".join(on_bones),
         f"{spec.count}|{spec.points}|{spec.voxels}|{FIBRES_FORMAT}|{__version__}",
         f"{spec.attachments}|{job.margin}|{defaults.fibre_area_reach}|"
-        f"{defaults.fibre_area_least}|{defaults.fibre_area_end_reach}",
+        f"{defaults.fibre_area_least}|{defaults.fibre_area_end_reach}|"
+        f"{defaults.fibre_area_end_part}",
     )[:32]
 
 
