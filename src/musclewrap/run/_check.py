@@ -33,13 +33,14 @@ from ..model import (
 )
 from ..output import draw_check
 from ..scene import UNITS, Drive, MuscleSpec, Scene, drive_scene, load_scene, rest_pose
-from ._fibres import describe_areas, on_bones
+from ._fibres import choose_areas, describe_areas
 from ._read import (
     _read_bone,
     _read_muscle,
     attachment_area,
     check_muscles_apart,
     default_cache_dir,
+    end_bones,
     rest_lines_problem,
 )
 from ._verify import inside_depths, muscle_overlaps
@@ -231,54 +232,44 @@ def _fibre_areas(
 ) -> dict[str, tuple[IntArray, IntArray]]:  # fmt: skip
     """Per muscle, the fibres' attachment areas the run takes (at rest, as segmented).
 
-    As the run: the areas the scene gives, else where the muscle lies on a bone of its
-    origin's (insertion's) body (`on_bones`, `musclewrap.fibres.areas_on_bones`), else its
-    end caps; each muscle's rule as a note.
+    As the run (`choose_areas`, on the bones of `end_bones`); each muscle's rule as a
+    note.
     """
     from ..contact import Obstacle, Placed
-    from ..fibres import areas_on_bones
 
     probes: dict[str, Obstacle] = {}
 
     def probe(name: str) -> Obstacle:
         if name not in probes:
-            V, F = body_b[name]
-            probes[name] = Obstacle.cached(V, F, cache)  # the run's probe, where cached
+            probes[name] = Obstacle.cached(*body_b[name], cache)  # the run's, where cached
         return probes[name]
 
     fibres = scene.fibres
     assert fibres is not None
-    body_of = {b.name: b.body for b in scene.bones}
     out = {}
     for spec in scene.muscles:
         V, F = body_m[spec.name]
-        lines = drive.rest_lines[spec.name]
         try:
-            given = [
+            given = tuple(
                 attachment_area(scene, drive, spec, k, V, ids[spec.name])
                 for k in ("origin", "insertion")
-            ]
+            )
         except SceneError as exc:
             rep.add("error", spec.name, str(exc))
             continue
-        ends = drive.path_ends.get(spec.name, ((), ()))
-        ends = ends if fibres.attachments == "bones" else ((), ())
-        masks, names = [], []
-        for bodies, g in zip(ends, given, strict=True):
-            bones = [b for b in body_of if body_of[b] in bodies and b in body_b]
-            names.append(" or ".join(bones))
-            placed = [
-                Placed(probe(b), drive.rest_between(spec.body, body_of[b]))
-                for b in (bones if g is None else [])
-            ]
-            masks.append(None if g is not None else on_bones(V, F, scene.margin, placed))
+        ends = end_bones(scene, drive, spec)
+        placed = tuple(
+            [Placed(probe(n), T) for n, T in bones if n in body_b] if g is None else []
+            for bones, g in zip(ends, given, strict=True)
+        )
         try:
-            o, i, rules = areas_on_bones(V, F, lines, masks[0], masks[1])
+            o, i, rules = choose_areas(
+                V, F, drive.rest_lines[spec.name], scene.margin, given, placed
+            )
         except ValueError as exc:  # no axis: the lines' check says why
             rep.add("warning", spec.name, f"no fibres' attachment areas: {exc}")
             continue
-        o = o if given[0] is None else given[0]
-        i = i if given[1] is None else given[1]
+        names = tuple(" or ".join(n for n, _ in bones if n in body_b) for bones in ends)
         note = describe_areas(
             rules, (given[0] is not None, given[1] is not None), (names[0], names[1]),
             (len(o), len(i)), fibres.attachments,

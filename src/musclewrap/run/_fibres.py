@@ -14,7 +14,7 @@ model's path and no spike. The main process writes the rows
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +52,7 @@ MOMENT_ARM_FIELDS = list(OUTPUT_COLUMNS[MOMENT_ARMS_CSV])
 
 
 def on_bones(
-    V: FloatArray, F: IntArray, margin: float, placed: list[Placed]
+    V: FloatArray, F: IntArray, margin: float, placed: Sequence[Placed]
 ) -> npt.NDArray[np.bool_] | None:
     """Per vertex at rest, whether it lies on one of the bones ``placed`` (None: none given).
 
@@ -69,13 +69,32 @@ def on_bones(
     return on
 
 
-def _on_bones(
-    muscle: Muscle, job: MuscleJob, bones: tuple[tuple[str, FloatArray], ...], probe: Probe
-) -> npt.NDArray[np.bool_] | None:
-    """`on_bones` for the job's bones ``bones`` (name, the muscle's frame into the bone's)."""
-    meshes = {b.name: b for b in job.bones}
-    placed = [Placed(probe(meshes[n]), np.asarray(T, dtype=np.float64)) for n, T in bones]
-    return on_bones(muscle.V, muscle.F, job.margin, placed)
+def choose_areas(
+    V: FloatArray,
+    F: IntArray,
+    lines: Mapping[str, npt.ArrayLike],
+    margin: float,
+    given: Sequence[IntArray | None],
+    placed: Sequence[Sequence[Placed]],
+) -> tuple[IntArray, IntArray, tuple[str, str]]:
+    """The fibres' attachment areas of a muscle at rest ``V, F``, and per side its rule.
+
+    Per side (origin, insertion): the area the scene gives (``"given"``), else where the
+    muscle lies on the bones ``placed`` on that side (`on_bones`,
+    `musclewrap.fibres.areas_on_bones`: ``"bones"``), else its end cap (``"ends"``).
+    What the run and `check` both take.
+    """
+    masks = [
+        None if g is not None else on_bones(V, F, margin, p)
+        for g, p in zip(given, placed, strict=True)
+    ]
+    o, i, rules = areas_on_bones(
+        np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64), lines, *masks
+    )
+    got = [
+        (a, r) if g is None else (g, "given") for g, a, r in zip(given, (o, i), rules, strict=True)
+    ]
+    return got[0][0], got[1][0], (got[0][1], got[1][1])
 
 
 def describe_areas(
@@ -142,28 +161,17 @@ def fibres_of(
     assert spec is not None
 
     def build() -> dict[str, np.ndarray]:
-        origin, insertion = spec.origin, spec.insertion
-        rules = ("given" if origin is not None else "ends",
-                 "given" if insertion is not None else "ends")  # fmt: skip
+        meshes = {b.name: b for b in job.bones}
+        placed = tuple(
+            [Placed(probe(meshes[n]), np.asarray(T, dtype=np.float64)) for n, T in bones]
+            if probe is not None
+            else []
+            for bones in (spec.origin_bones, spec.insertion_bones)
+        )
+        origin, insertion, rules = choose_areas(
+            muscle.V, muscle.F, job.rest_lines, job.margin, (spec.origin, spec.insertion), placed
+        )
         why = ""
-        if (
-            spec.attachments == "bones"
-            and probe is not None
-            and (origin is None or insertion is None)
-        ):
-            o, i, found = areas_on_bones(
-                np.asarray(muscle.V, dtype=np.float64),
-                np.asarray(muscle.F, dtype=np.int64),
-                job.rest_lines,
-                None if origin is not None else _on_bones(muscle, job, spec.origin_bones, probe),
-                None if insertion is not None else _on_bones(
-                    muscle, job, spec.insertion_bones, probe
-                ),
-            )  # fmt: skip
-            if origin is None:
-                origin, rules = o, (found[0], rules[1])
-            if insertion is None:
-                insertion, rules = i, (rules[0], found[1])
         kw = {"count": spec.count, "points": spec.points, "voxels": spec.voxels}
         try:
             fb = fibres_at_rest(muscle, job.rest_lines, origin=origin, insertion=insertion, **kw)

@@ -32,7 +32,7 @@ import numpy as np
 
 from .._runs import contiguous_runs
 from .._typing import FloatArray, IntArray
-from ._read import Inputs, attachment_area
+from ._read import Inputs, attachment_area, end_bones
 from ._records import (
     FibreSettings,
     FrameSpan,
@@ -76,17 +76,7 @@ def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
         fibres = None
         if scene.fibres is not None:
             f = scene.fibres
-            # the bones of the bodies the lines start and end in, placed at rest
-            ends = drive.path_ends.get(spec.name, ((), ()))
-            ends = ends if f.attachments == "bones" else ((), ())
-            on = [
-                tuple(
-                    (b.name, drive.rest_between(spec.body, b.body))
-                    for b in scene.bones
-                    if b.body in bodies
-                )
-                for bodies in ends
-            ]
+            on = end_bones(scene, drive, spec)
             fibres = FibreSettings(
                 f.count,
                 f.points,

@@ -767,6 +767,27 @@ def rest_lines_problem(scene: Scene, spec: MuscleSpec, V: FloatArray, lines: Any
     )
 
 
+def end_bones(
+    scene: Scene, drive: Drive, spec: MuscleSpec
+) -> tuple[tuple[tuple[str, FloatArray], ...], tuple[tuple[str, FloatArray], ...]]:
+    """The bones the fibres' areas may lie on: per end (origin, insertion) of the muscle.
+
+    With ``[fibres] attachments = "bones"``, each bone of the scene carried by a body its
+    paths' first (last) points are fixed in, with the transform from the muscle's body
+    frame into the bone's at rest; none otherwise.
+    """
+    if scene.fibres is None or scene.fibres.attachments != "bones":
+        return (), ()
+    ends = drive.path_ends.get(spec.name, ((), ()))
+    origin, insertion = (
+        tuple(
+            (b.name, drive.rest_between(spec.body, b.body)) for b in scene.bones if b.body in bodies
+        )
+        for bodies in ends
+    )
+    return origin, insertion
+
+
 def attachment_area(
     scene: Scene, drive: Drive, spec: MuscleSpec, key: str, V: FloatArray, input_id: IntArray
 ) -> IntArray | None:
