@@ -90,6 +90,7 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
          f"({_A2}, {_A2}, {_I2}, int64, float64, float64, float64, float64, int64, int64, "
          f"int64, int64, {_I1}, {_I1}, {_I1})"),
         ("mesh._geometry", "_in_box_kernel", f"({_A2}, {_A1}, {_A1}, {_I1})"),
+        ("mesh._geometry", "_scatter_kernel", f"({_A2},)"),
         ("mesh._geometry", "_projected_box_kernel", f"({_A2}, {_A2})"),
         ("mesh._geometry", "_in_oriented_box_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_I1})"),
         # the fine finish's spread of a push over the rings round it

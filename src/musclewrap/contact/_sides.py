@@ -170,7 +170,12 @@ def passed_through(
     it) and its outward direction, in the obstacle's frame.
     """
     rows = reference.approaching(b, P, reach, thickness)
-    rows = rows[~np.isin(rows, handled)]
+    if len(rows) and len(handled):
+        # a mask, not np.isin (which sorts both): the vertices number thousands, both sets
+        # hundreds to thousands, several times a pose
+        seen = np.zeros(len(P), dtype=bool)
+        seen[handled] = True
+        rows = rows[~seen[rows]]
     if not len(rows):
         return rows, np.zeros(0), np.zeros((0, 3))
     Q = np.ascontiguousarray(pl.to_obstacle(P[rows]))

@@ -123,12 +123,36 @@ def oriented_box(P: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     this one: `in_oriented_box` then finds few points of another muscle in it.
     """
     P = np.ascontiguousarray(P, dtype=np.float64)
-    D = P - P.mean(axis=0)
-    _, R = np.linalg.eigh(D.T @ D)
+    # the scatter matrix in one compiled pass (numpy's mean over axis 0 of an (n, 3) array
+    # and the centred copy took 0.3 ms of 0.32 for 7,500 points, several times a round)
+    _, R = np.linalg.eigh(_scatter_kernel(P))
     R = np.ascontiguousarray(R)
     lo, hi = _projected_box_kernel(P, R)
     pad = 1e-9 * float(np.max(hi - lo))
     return R, lo - pad, hi + pad
+
+
+@numba.njit(cache=True)
+def _scatter_kernel(P):  # noqa: ANN001, ANN202 # pragma: no cover
+    # sum over the points of (p - mean)(p - mean)^T, the mean taken first
+    n = P.shape[0]
+    c = np.zeros(3)
+    for i in range(n):
+        for a in range(3):
+            c[a] += P[i, a]
+    for a in range(3):
+        c[a] /= max(n, 1)
+    S = np.zeros((3, 3))
+    for i in range(n):
+        d0, d1, d2 = P[i, 0] - c[0], P[i, 1] - c[1], P[i, 2] - c[2]
+        S[0, 0] += d0 * d0
+        S[0, 1] += d0 * d1
+        S[0, 2] += d0 * d2
+        S[1, 1] += d1 * d1
+        S[1, 2] += d1 * d2
+        S[2, 2] += d2 * d2
+    S[1, 0], S[2, 0], S[2, 1] = S[0, 1], S[0, 2], S[1, 2]
+    return S
 
 
 @numba.njit(cache=True)
