@@ -216,6 +216,13 @@ class Defaults:
     muscle_share : float
         The share of its depth a vertex inside another muscle is taken out by in
         a round (the other muscle's vertices inside it take theirs).
+    muscle_joint : bool
+        Muscles that overlap each other in a round take one step of their cages
+        together (`musclewrap.solver._group.joint_round`: each overlap one condition on
+        both, by its whole depth), not a step each with its share. Off: on the 19-muscle
+        leg it lowers the largest shape change from 0.77 to 0.49, but its dual system is
+        dense in the thousands of conditions of a large group and costs 1.4-1.6x the
+        rounds' time (BENCHMARKS.md, "Muscles stepped together").
     muscle_overlap_depth : float
         The rounds stop once no vertex is deeper than this many of its muscle's
         mean edge lengths inside another muscle (or after ``muscle_rounds``); a
@@ -319,6 +326,7 @@ class Defaults:
     contact_points_per_cage_vertex: int = 3
     muscle_rounds: int = 30
     muscle_share: float = 0.5
+    muscle_joint: bool = False
     muscle_overlap_depth: float = 0.05
     muscle_fine_depth: float = 0.25
     muscle_facing_reach: float = 15.0

@@ -250,23 +250,49 @@ class ContactSteps:
         None where it moves nothing or the volume cannot be restored along ``-H^-1 g``.
         """
         mu = self.muscle
-        c = mean_rows(x)
-        g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
-        Hg = self._Hinv @ g
+        g, Hg = self._volume_direction(x)
         dx = cage_push(
             mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points
         )
+        need = float(max(-gap.min(initial=0.0), 0.0))
+        if points is not None:
+            need = max(need, float(-points[1].min()))
+        return self._end_step(x, V, dx, Hg, idx, need, None if points is None else points[0])
+
+    def _volume_direction(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The volume's gradient in cage space at ``x`` (on the proxy) and ``H^-1`` times it."""
+        mu = self.muscle
+        c = mean_rows(x)
+        g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
+        return g, self._Hinv @ g
+
+    def _end_step(
+        self,
+        x: FloatArray,
+        V: FloatArray,
+        dx: FloatArray,
+        Hg: FloatArray,
+        idx: IntArray,
+        need: float,
+        rows: FloatArray | None = None,
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """A cage step ``dx`` taken: its reach limited, ended on the exact fine volume.
+
+        ``idx``: the fine vertices its conditions were on, ``rows``: rows of
+        coordinates of the other points they were on (or None); ``need``: the
+        furthest any of them had to go. None where it moves nothing or the volume
+        cannot be restored along ``-H^-1 g``.
+        """
+        mu = self.muscle
         if not np.abs(dx).max() > 0:
             return None
         # no vertex near the contact moves much further than the deepest one must: where
         # the conditions conflict (a muscle squeezed between two bones) the least-energy
         # step can be several times longer, and the fine finish does better there
-        need = float(max(-gap.min(initial=0.0), 0.0))
         D = rows_dot(mu.W, np.hstack([dx, Hg]))
         moves = [np.linalg.norm(D[idx, :3], axis=1).max(initial=0.0)]
-        if points is not None:
-            need = max(need, float(-points[1].min()))
-            moves.append(np.linalg.norm(points[0] @ dx, axis=1).max())
+        if rows is not None:
+            moves.append(np.linalg.norm(rows @ dx, axis=1).max())
         longest = float(max(moves))
         if need > 0 and longest > defaults.contact_cage_reach * need:
             scale = defaults.contact_cage_reach * need / longest

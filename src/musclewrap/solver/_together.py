@@ -25,6 +25,7 @@ from .._typing import FloatArray, IntArray
 from ..constants import defaults
 from ..contact import (
     Near,
+    Placed,
     every_pair,
     facing_pairs,
     meetings,
@@ -34,6 +35,7 @@ from ..contact import (
 )
 from ..mesh import apply_transform
 from ._deformer import Deformer
+from ._group import joint_round, overlap_groups
 from ._result import DeformationResult
 
 __all__ = ["deform_together", "facing_at_rest", "meet"]
@@ -41,6 +43,13 @@ __all__ = ["deform_together", "facing_at_rest", "meet"]
 
 def _apply(T: FloatArray | None, P: FloatArray) -> FloatArray:
     return P if T is None else apply_transform(T, P)
+
+
+def _placed(obstacles: Sequence[Any] | None) -> list[Placed] | None:
+    """Obstacles as `Placed` (a bare `Obstacle` in the muscle's frame)."""
+    if not obstacles:
+        return None
+    return [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
 
 
 def facing_at_rest(
@@ -107,13 +116,15 @@ def meet(
         # another's vertex stands inside it, its surface gives the other share (a muscle
         # held by a bone cannot take its own; where only one surface has vertices inside
         # the other, both still move)
-        met = meetings(overlaps(surf, pairs, facing, memo), defaults.muscle_share)
+        found = overlaps(surf, pairs, facing, memo)
+        met = meetings(found, defaults.muscle_share)
         # per muscle the deepest of its vertices in another or another's in it, in its edges
         worst = {n: max(m.depth, m.given) / edge[n] for n, m in met.items()}
         if max(worst.values()) <= defaults.muscle_overlap_depth:
             break  # all out, to the tolerance
         rounds += 1
         new = {}
+        cage = []  # the muscles that take a step of their cage this round
         for n in live:
             d, m = deformers[n], met[n]
             if worst[n] <= defaults.muscle_overlap_depth:
@@ -129,17 +140,33 @@ def meet(
                 if Vn is not None:
                     new[n] = (state[n][0], Vn)
                     continue
-            points = None
-            if len(m.faces):
-                points = (d.surface_rows(m.at, m.faces, surf[n][0]), m.give, m.back)
+            cage.append(n)
             obs = obstacles.get(n)
             if obs and n not in nears:
                 # the pose's bounds where its solve kept them (they hold wherever the
                 # vertices have moved since)
                 pose = results[n].pose
                 nears[n] = Near(state[n][1], obs, margin) if pose is None else pose.near
+        groups = overlap_groups(cage, found) if defaults.muscle_joint else [[n] for n in cage]
+        for group in groups:
+            if len(group) > 1:
+                # overlapping each other: one step together (an overlap one condition on
+                # both), not a step each with its share
+                new.update(
+                    joint_round(
+                        deformers, state, surf, found, group, frames=frames,
+                        obstacles={n: _placed(obstacles.get(n)) for n in group},
+                        margin=margin, sides=sides, nears=nears,
+                    )
+                )  # fmt: skip
+                continue
+            n = group[0]
+            d, m = deformers[n], met[n].rotated(frames.get(n))
+            points = None
+            if len(m.faces):
+                points = (d.surface_rows(m.at, m.faces, surf[n][0]), m.give, m.back)
             new[n] = d.contact_round(
-                *state[n], m.rows, m.need, m.out, obstacles=obs, margin=margin,
+                *state[n], m.rows, m.need, m.out, obstacles=obstacles.get(n), margin=margin,
                 sides=sides.get(n), near=nears.get(n), points=points,
             )  # fmt: skip
         for n, (x, V) in new.items():

@@ -1,0 +1,84 @@
+"""Muscles stepped together against a step each: the rounds, what they leave, what they cost.
+
+    python benchmarks/accuracy/bench_joint.py [SCENE] [--frames 0:211:50] [--modes each,joint]
+
+Runs the scene warm in one process (``--workers 1``, one BLAS and Numba thread, no GIF),
+once per mode in turns in one sitting: ``each`` (`defaults.muscle_joint` off, a step of its
+cage per muscle with its share of every overlap) and ``joint`` (on: the muscles that
+overlap in a round step together, `musclewrap.solver._group.joint_round`). Prints per
+mode the wall time and, from its report.csv, the rounds a frame (median, most, sum), and
+the largest muscle-in-muscle depth, shape change, bone vertex in a muscle, volume error
+and ``skeleton_fit_free``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: report.csv columns printed (largest over the run)
+COLUMNS = (
+    "muscle_overlap_max",
+    "shape_change_max",
+    "bone_inside_depth_max",
+    "relative_volume_error",
+    "skeleton_fit_free",
+)
+
+
+def _column(rows: list[dict[str, str]], key: str) -> np.ndarray:
+    return np.array([float(r[key]) for r in rows if r.get(key) not in (None, "", "nan")])
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "gait2392_hip_thigh.toml"))
+    p.add_argument("--frames", default="0:211:50")
+    p.add_argument("--modes", default="each,joint")
+    a = p.parse_args()
+    import numba
+    from threadpoolctl import threadpool_limits
+
+    from musclewrap.constants import defaults
+    from musclewrap.scene import load_scene, run_scene
+
+    threadpool_limits(1)
+    numba.set_num_threads(1)
+    scene = dataclasses.replace(load_scene(a.scene), paper_frames=0)
+    kept = defaults.muscle_joint
+    with tempfile.TemporaryDirectory() as tmp:
+        kw = dict(frames=a.frames, workers=1, render=False, progress=None,
+                  cache_dir=Path(tmp) / "cache")  # fmt: skip
+        run_scene(scene, Path(tmp) / "warm", **kw)
+        print(f"{scene.name}: frames {a.frames}, one process, warm")
+        try:
+            for mode in a.modes.split(","):
+                object.__setattr__(defaults, "muscle_joint", mode == "joint")
+                out = Path(tmp) / mode
+                t0 = time.perf_counter()
+                run_scene(scene, out, **kw)
+                wall = time.perf_counter() - t0
+                with open(out / "report.csv", newline="") as fh:
+                    rows = list(csv.DictReader(fh))
+                rounds = _column(rows, "muscle_rounds")
+                ok = sum(r["converged"] in ("True", "true", "1") for r in rows)
+                figures = ", ".join(f"{k} {_column(rows, k).max():.3g}" for k in COLUMNS)
+                print(
+                    f"  {mode:<5} {wall:6.1f} s, {ok} of {len(rows)} converged, rounds a frame "
+                    f"median {np.median(rounds):.0f}, most {rounds.max():.0f}, "
+                    f"sum {rounds.sum():.0f}; {figures}"
+                )
+        finally:
+            object.__setattr__(defaults, "muscle_joint", kept)
+
+
+if __name__ == "__main__":
+    main()
