@@ -12,6 +12,11 @@ cProfile slows the Python parts more than the compiled ones: read it for where, 
 ``--phases``: no cProfile; the timed run with the contact's phases timed by the clock
 (ms per muscle-frame, the pose's solve beside them), then the same frames with
 ``--no-collisions``: what the contact's own work costs a muscle-frame, measured as it runs.
+
+``--candidates``: no cProfile; per muscle and bone, how many of its vertices each cage step
+(after the solve, and in the rounds) takes as candidates (within ``defaults.contact_band`` of the bone's margin)
+and how many of those are too near (median and most over the steps): how large the contact
+is that the steps work on.
 """
 
 from __future__ import annotations
@@ -108,6 +113,53 @@ def phases(scene, frames: str) -> None:  # noqa: ANN001
     print(f"  {total:<42} {1e3 * own / n:7.2f} ms a muscle-frame")
 
 
+def candidates(scene, frames: str) -> None:  # noqa: ANN001
+    """Per muscle and bone, the cage steps' candidates and those too near (median, most)."""
+    import numpy as np
+
+    from musclewrap.scene import run_scene
+    from musclewrap.solver import _contact
+
+    seen: dict[tuple[str, str], list[tuple[int, int]]] = collections.defaultdict(list)
+    find, cls = _contact.contact_candidates, _contact.ContactSteps
+    kept = {k: getattr(cls, k) for k in ("_cage_contact", "contact_round")}
+    at = [""]  # the muscle whose steps these are (its mesh's name)
+
+    def named(f):  # noqa: ANN001, ANN202
+        def call(self, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
+            at[0] = Path(self.muscle.source).stem
+            return f(self, *args, **kw)
+
+        return call
+
+    def counted(P, placed, margin, band, near, sides=None):  # noqa: ANN001, ANN202
+        for b, pl in enumerate(placed):
+            r = near.within(b, P, band)
+            Q = pl.to_obstacle(P[r])
+            idx, phi, _ = pl.obstacle.interpolate(Q, margin + band) if len(r) else (r, r, r)
+            gap = phi - near.allowed[b][r[idx]]
+            seen[at[0], pl.name].append((int((gap < band).sum()), int((gap < 0).sum())))
+        return find(P, placed, margin, band, near, sides)
+
+    _contact.contact_candidates = counted
+    for k, f in kept.items():
+        setattr(cls, k, named(f))
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            run_scene(scene, Path(tmp) / "out", frames=frames, workers=1, render=False,
+                      progress=None, cache_dir=Path(tmp) / "cache")  # fmt: skip
+    finally:
+        _contact.contact_candidates = find
+        for k, f in kept.items():
+            setattr(cls, k, f)
+    print(f"{scene.name}: frames {frames}; per cage step, vertices within the band / too near")
+    for (name, bone), got in sorted(seen.items()):
+        a = np.array(got)
+        print(f"  {name:<28} {bone:<12} {len(a):4d} steps, median "
+              f"{np.median(a[:, 0]):6.0f} / {np.median(a[:, 1]):4.0f}, most "
+              f"{a[:, 0].max():6d} / {a[:, 1].max():4d}")  # fmt: skip
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
@@ -116,6 +168,7 @@ def main() -> None:
     p.add_argument("--no-muscles", action="store_true")
     p.add_argument("--top", type=int, default=40)
     p.add_argument("--phases", action="store_true")
+    p.add_argument("--candidates", action="store_true")
     a = p.parse_args()
     import numba
     from threadpoolctl import threadpool_limits
@@ -133,6 +186,9 @@ def main() -> None:
         scene = dataclasses.replace(scene, muscle_collisions=False)
     if a.phases:
         phases(scene, a.frames)
+        return
+    if a.candidates:
+        candidates(scene, a.frames)
         return
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "cache"

@@ -221,8 +221,9 @@ class Defaults:
         together (`musclewrap.solver._group.joint_round`: each overlap one condition on
         both, by its whole depth), not a step each with its share. Off: on the 19-muscle
         leg it lowers the largest shape change from 0.77 to 0.49, but its dual system is
-        dense in the thousands of conditions of a large group and costs 1.4-1.6x the
-        rounds' time (BENCHMARKS.md, "Muscles stepped together").
+        dense in the thousands of conditions of a large group: the run takes 1.35-1.62x
+        as long on the 18- and 19-muscle scenes (BENCHMARKS.md, "Muscles stepped
+        together").
     muscle_overlap_depth : float
         The rounds stop once no vertex is deeper than this many of its muscle's
         mean edge lengths inside another muscle (or after ``muscle_rounds``); a
