@@ -541,11 +541,9 @@ def test_gait2392_thigh_muscles_stay_apart_whatever_their_order(data_dir, tmp_pa
         assert r["muscle_in_muscle"] <= 0.5, r
         assert r["muscle_in_bone"] <= 0.5, r
         assert r["bone_in_muscle"] <= 1.0, r
-    # the files' volumes, read back, the same on every frame (the check's reference is the
-    # mesh as read, before the scene's registration scales it)
-    for m in scene.muscles:
-        v = [1.0 + r["relative_volume_error"] for r in rows if r["muscle"] == m.name]
-        assert max(v) / min(v) - 1.0 <= 1e-9, (m.name, v)
+        # the files' volumes, read back, against the mesh as the run placed it (the
+        # registration scales it by about 1.18: the volume by its cube)
+        assert abs(r["relative_volume_error"]) <= 1e-9, r
     backwards = dataclasses.replace(scene, muscles=tuple(reversed(scene.muscles)))
     run_scene(
         backwards, tmp_path / "b", frames=frames, workers=1, cache_dir=tmp_path / "c",

@@ -148,10 +148,11 @@ def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[di
     rest_volume = {}
     for m in scene.muscles:
         # the mesh as the run cleaned it (a repair changes its volume by up to 1e-6), read
-        # again here: the contact's push-out at rest keeps the volume exactly
+        # again here: the contact's push-out at rest keeps the volume exactly; placed as
+        # the run places it (a registration scales it: the volume by the scale cubed)
         V, F = read_mesh(m.mesh)
         V, F, _ = clean_mesh(V, F, source=str(m.mesh), repair=m.repair)
-        rest_volume[m.name] = abs(volume(V, F))
+        rest_volume[m.name] = abs(volume(V, F) * np.linalg.det(drive.to_body[m.name][:3, :3]))
     rows = []
     for k, frame in enumerate(drive.frames):
         placed = {
