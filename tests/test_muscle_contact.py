@@ -198,20 +198,28 @@ def test_nudge_moves_the_pushed_vertices_exactly_and_keeps_the_volume():
     assert far.max() <= 1e-2 * edge and far.min() >= 0.5 * far.max()
 
 
-def test_three_capsules_in_a_row():
+def _apart(res, ds, depth):
+    """Each result converged, its volume exact, its deepest vertex in another within ``depth``
+    mean edges (the exact check of every surface); returns the exact depths and the edge."""
     from musclewrap.mesh import mean_edge_length, volume
+
+    after = muscle_overlaps({n: (r.V, ds[n].muscle.F) for n, r in res.items()})
+    edge = mean_edge_length(ds["a"].muscle.V, ds["a"].muscle.F)
+    for n, r in res.items():
+        assert r.converged, r.reason
+        assert abs(volume(r.V, ds[n].muscle.F) / ds[n].muscle.volume_rest - 1) <= 1e-12
+        assert after[n][1] <= depth * edge + 1e-9
+    return after, edge
+
+
+def test_three_capsules_in_a_row():
     from musclewrap.solver import deform_together
 
     ds = _capsules({"a": 0.0, "b": 24.0, "c": 48.0})
     # the outer two pushed in by 8 each (4 into b): b is pressed from both sides
     lines = {"a": _axis(8.0), "b": _axis(24.0), "c": _axis(40.0)}
     res = deform_together(ds, lines)
-    after = muscle_overlaps({n: (r.V, ds[n].muscle.F) for n, r in res.items()})
-    edge = mean_edge_length(ds["a"].muscle.V, ds["a"].muscle.F)
-    for n, r in res.items():
-        assert r.converged, r.reason
-        assert abs(volume(r.V, ds[n].muscle.F) / ds[n].muscle.volume_rest - 1) <= 1e-12
-        assert after[n][1] <= 0.05 * edge + 1e-9
+    _apart(res, ds, 0.05)
     # each side gives half: a and c end 2 short of their lines' push, b is squeezed by 2 from
     # either side (its faces at 16 and 32) and keeps its volume by growing across
     assert res["a"].V[:, 0].max() == pytest.approx(16.0, abs=0.5)
@@ -248,18 +256,13 @@ def joint_steps():
 
 
 def test_stepped_together_two_capsules_meet_between_whatever_their_order(pair, joint_steps):
-    from musclewrap.mesh import mean_edge_length, volume
     from musclewrap.solver import deform_together
 
     lines = {"a": _axis(4.0), "b": _axis(20.0)}
     res = deform_together(pair, lines)
     back = deform_together(dict(reversed(list(pair.items()))), dict(reversed(list(lines.items()))))
-    after = muscle_overlaps({n: (r.V, pair[n].muscle.F) for n, r in res.items()})
-    edge = mean_edge_length(pair["a"].muscle.V, pair["a"].muscle.F)
+    _, edge = _apart(res, pair, 0.05)
     for n, r in res.items():
-        assert r.converged, r.reason
-        assert abs(volume(r.V, pair[n].muscle.F) / pair[n].muscle.volume_rest - 1) <= 1e-12
-        assert after[n][1] <= 0.05 * edge + 1e-9
         assert 1 <= r.muscle_rounds <= 12
         assert np.array_equal(r.V, back[n].V)
     # the same energies either side: they meet half way, at x = 12
@@ -270,7 +273,6 @@ def test_stepped_together_two_capsules_meet_between_whatever_their_order(pair, j
 def test_a_muscle_held_by_a_bone_leaves_the_other_to_give_way(joint_steps):
     """Stepped together, the muscle a bone holds stays out of it; the other takes the overlap."""
     from musclewrap.contact import Obstacle
-    from musclewrap.mesh import mean_edge_length, volume
     from musclewrap.solver import deform_together
     from test_contact import _box
 
@@ -279,14 +281,10 @@ def test_a_muscle_held_by_a_bone_leaves_the_other_to_give_way(joint_steps):
     wall = Obstacle(*_box([-400.0, -300, -300], [-11.0, 300, 500]))
     lines = {"a": _axis(-3.0), "b": _axis(14.0)}
     res = deform_together(ds, lines, obstacles={"a": [wall]})
-    after = muscle_overlaps({n: (r.V, ds[n].muscle.F) for n, r in res.items()})
-    edge = mean_edge_length(ds["a"].muscle.V, ds["a"].muscle.F)
+    # the rounds stop on the depth behind the faces that face the other at rest (0.05
+    # edges); the whole surface's, exact, is a little more here
+    after, edge = _apart(res, ds, 0.1)
     for n, r in res.items():
-        assert r.converged, r.reason
-        assert abs(volume(r.V, ds[n].muscle.F) / ds[n].muscle.volume_rest - 1) <= 1e-12
-        # the rounds stop on the depth behind the faces that face the other at rest (0.05
-        # edges); the whole surface's, exact, is a little more here
-        assert after[n][1] <= 0.1 * edge
         assert r.muscle_overlap == pytest.approx(after[n][1], abs=1e-9)
         assert ds[n].muscle.shape_change(r.V).max() <= 0.5
     assert res["a"].V[:, 0].min() >= -11.0 - 0.1 * edge  # out of the wall, to the slack

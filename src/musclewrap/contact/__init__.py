@@ -40,7 +40,7 @@ from ._muscles import (
 )
 from ._near import Near
 from ._obstacle import Obstacle, bone_surface, pseudo_normals, signed_from_closest
-from ._placed import Placed
+from ._placed import Placed, as_placed
 from ._rest import anchors_at_rest, attachment_patches, kept_allowance, rest_push_out
 from ._sides import SideReference, on_their_side, passed_through
 
@@ -57,6 +57,7 @@ __all__ = [
     "SideReference",
     "anchors_at_rest",
     "apart_at_rest",
+    "as_placed",
     "attachment_patches",
     "bone_surface",
     "bone_vertices_inside",

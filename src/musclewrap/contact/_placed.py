@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -10,7 +12,7 @@ from .._typing import FloatArray
 from ..mesh import apply_transform
 from ._obstacle import Obstacle
 
-__all__ = ["Placed"]
+__all__ = ["Placed", "as_placed"]
 
 
 @dataclass(frozen=True)
@@ -56,3 +58,10 @@ class Placed:
             return P
         R = self.T[:3, :3]
         return P @ R if direction else (P - self.T[:3, 3]) @ R
+
+
+def as_placed(obstacles: Sequence[Any] | None) -> list[Placed] | None:
+    """Obstacles as `Placed` (a bare `Obstacle`: in the muscle's frame); None where there are none."""
+    if not obstacles:
+        return None
+    return [o if isinstance(o, Placed) else Placed(o) for o in obstacles]

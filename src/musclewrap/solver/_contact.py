@@ -27,6 +27,7 @@ from ..contact import (
     Obstacle,
     Placed,
     SideReference,
+    as_placed,
     bone_vertices_inside,
     contact_candidates,
     push_out,
@@ -84,7 +85,7 @@ class ContactSteps:
         slack = tol.contact * edge
         idx, gap, N = rows, slack - np.asarray(need, dtype=np.float64), out
         if obstacles:
-            placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
+            placed = as_placed(obstacles)
             near = Near(V, placed, margin) if near is None else near
             bi, bg, bn = contact_candidates(
                 V, placed, margin, defaults.contact_band * edge, near, sides
@@ -125,7 +126,7 @@ class ContactSteps:
                 cur, s_cur, d_L = pose.targets
             ok, reason, contact = result.converged, result.reason, None
             if obstacles and np.isfinite(V).all():
-                placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
+                placed = as_placed(obstacles)
                 # the pose's bounds (they hold wherever the vertices have moved since), and
                 # the bones inside the muscle where it has not moved since they were found
                 near = Near(V, placed, margin) if pose is None else pose.near

@@ -31,6 +31,7 @@ from ..contact import (
     Obstacle,
     Placed,
     SideReference,
+    as_placed,
     rings,
 )
 from ..coordinates import mean_value_coordinates, rows_dot
@@ -493,7 +494,7 @@ class Deformer(ContactSteps, PaperSteps):
                 )
             contact = None
             if obstacles and np.isfinite(V).all():
-                placed = [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
+                placed = as_placed(obstacles)
                 near = Near(V, placed, margin)
                 x, V, before, inside = self._cage_contact(x, V, placed, margin, near, sides)
             if obstacles and np.isfinite(V).all() and finish:

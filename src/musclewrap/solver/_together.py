@@ -25,7 +25,7 @@ from .._typing import FloatArray, IntArray
 from ..constants import defaults
 from ..contact import (
     Near,
-    Placed,
+    as_placed,
     every_pair,
     facing_pairs,
     meetings,
@@ -43,13 +43,6 @@ __all__ = ["deform_together", "facing_at_rest", "meet"]
 
 def _apply(T: FloatArray | None, P: FloatArray) -> FloatArray:
     return P if T is None else apply_transform(T, P)
-
-
-def _placed(obstacles: Sequence[Any] | None) -> list[Placed] | None:
-    """Obstacles as `Placed` (a bare `Obstacle` in the muscle's frame)."""
-    if not obstacles:
-        return None
-    return [o if isinstance(o, Placed) else Placed(o) for o in obstacles]
 
 
 def facing_at_rest(
@@ -155,7 +148,7 @@ def meet(
                 new.update(
                     joint_round(
                         deformers, state, surf, found, group, frames=frames,
-                        obstacles={n: _placed(obstacles.get(n)) for n in group},
+                        obstacles={n: as_placed(obstacles.get(n)) for n in group},
                         margin=margin, sides=sides, nears=nears,
                     )
                 )  # fmt: skip
