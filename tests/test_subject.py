@@ -360,14 +360,20 @@ def test_init_on_a_renamed_folder_writes_the_same_scene(data_dir, tmp_path, styl
     assert _mapping(load_scene(b.scene)) == vhf_mapping
 
 
-def test_init_stops_where_no_placement_puts_the_muscles_on_their_paths(data_dir, tmp_path):
-    """Issue 47: another subject's meshes whose cartilages' names say nothing cannot be
-    registered; init says what it found and needs, and writes no scene a metre off."""
-    folder = tmp_path / "meshes"
+def _no_knee(data_dir: Path, folder: Path) -> None:
+    """The VHF folder without its distal femur's cartilage, the hip's named nothing."""
     folder.mkdir()
     for i, f in enumerate(sorted((data_dir / "vhf").glob("*.stl"))):
-        name = f"scan_{i:02d}.stl" if "Cartilage" in f.name else f.name
-        (folder / name).symlink_to(f)
+        if "FemurDistal" not in f.name:
+            (folder / (f"scan_{i:02d}.stl" if "Cartilage" in f.name else f.name)).symlink_to(f)
+
+
+def test_init_stops_where_no_placement_puts_the_muscles_on_their_paths(data_dir, tmp_path):
+    """Issue 47: another subject's meshes with a hip's cartilage but nothing for the knee
+    cannot be registered; init says what it found and needs, and writes no scene a metre
+    off."""
+    folder = tmp_path / "meshes"
+    _no_knee(data_dir, folder)
     out = tmp_path / "s.toml"
     with pytest.raises(SceneError, match="no placement puts the muscles on their paths") as e:
         init_scene(
@@ -449,8 +455,8 @@ def test_init_refuses_with_what_to_do_and_writes_nothing(data_dir, tmp_path, cap
             (folder / f"scan_{i:04d}.stl").symlink_to(f)
         says = ["no mesh of the folder could be matched", "Name each mesh by its muscle"]
     elif case == "no registration":
-        for i, f in enumerate(vhf):
-            (folder / (f"scan_{i:02d}.stl" if "Cartilage" in f.name else f.name)).symlink_to(f)
+        folder.rmdir()
+        _no_knee(data_dir, folder)
         says = ["no placement puts the muscles on their paths", "femoral head's cartilage"]
     else:  # the VHF folder with two LHDL muscles (another subject's CT frame) among them
         for f in vhf:
@@ -489,6 +495,80 @@ def test_init_takes_an_unnamed_spherical_cap_for_the_hip(data_dir, tmp_path):
     assert r.muscles == a.muscles
     rep = check_scene(sc)
     assert rep.ok, [str(f) for f in rep.errors]
+
+
+def _segments(data_dir: Path, folder: Path, named: tuple[str, ...]) -> dict[str, Path]:
+    """The VHF folder as a segmentation tool writes it: Segment_N.stl, but for ``named``."""
+    folder.mkdir()
+    out = {}
+    for i, f in enumerate(sorted((data_dir / "vhf").glob("*.stl"))):
+        name = f.name if any(n in f.name for n in named) else f"Segment_{i + 1}.stl"
+        (folder / name).symlink_to(f)
+        out[name] = f
+    return out
+
+
+def test_init_places_meshes_no_name_places_by_their_shape_and_place(
+    data_dir, tmp_path, vhf_mapping
+):
+    """Issue 47: the VHF folder with only three muscles named (the others, the bones and
+    the cartilages Segment_N.stl): the hip's cartilage by its shape, the knee's by its
+    shape and place, the tibia where the model's tibia lies, and each muscle by the paths
+    that run along it, one muscle per mesh; every guess said in the scene, and the scene
+    the named folder's."""
+    folder = tmp_path / "segments"
+    files = _segments(data_dir, folder, ("GluteusMaximus", "RectusFemoris", "AdductorMagnus"))
+    r = init_scene(data_dir / _GAIT, folder, tmp_path / "s.toml", motion=data_dir / _WALK)
+    got = _mapping(load_scene(r.scene))
+    want = vhf_mapping
+    right = {k: v for k, v in want["muscles"].items() if not k.endswith("_left")}
+    assert got["muscles"] == right
+    assert got["registration"][0] == want["registration"][0]
+    # the landmarks: the roundest cap (the acetabulum's) for the hip, the distal shell for the knee
+    marks = {name: mesh.name for name, _, _, mesh in got["registration"][1]}  # resolved
+    assert "FemurDistal" in marks["knee"] and "Cartilage" in marks["hip"]
+    assert got["bones"]["tibia"] == want["bones"]["tibia"]
+    text = r.text
+    assert text.count("by its place, not its name: its paths' nearest quarter") == len(right) - 3
+    assert "the femur distal by its shape and place: a thin shell" in text
+    assert "the tibia by its shape and place: a closed solid" in text
+    said = {u.split(":")[0]: u for u in r.unplaced}
+    patella = next(n for n, f in files.items() if "Patella" in f.name)
+    assert "by its shape a closed solid" in said[patella] and "name it" in said[patella]
+    left = next(n for n, f in files.items() if "Left" in f.name)
+    assert "along it runs no path of the model" in said[left]
+    head = next(n for n, f in files.items() if "FemurHead" in f.name)
+    assert "by its shape a thin shell" in said[head]
+    rep = check_scene(load_scene(r.scene))
+    assert rep.ok, [str(f) for f in rep.errors]
+
+
+def test_init_lets_shape_and_place_overrule_a_name(data_dir, tmp_path, vhf_mapping):
+    """Issue 47: where the name and the shape disagree the shape decides: a cartilage named
+    like a muscle is no muscle; two muscles whose names were swapped get the paths that run
+    along them, and the scene says the name was overruled."""
+    folder = tmp_path / "swapped"
+    folder.mkdir()
+    swap = {"Gracilis": "Sartorius", "Sartorius": "Gracilis"}
+    for f in sorted((data_dir / "vhf").glob("*.stl")):
+        name = f.name
+        for a, b in swap.items():
+            if f"_{a}_" in f.name:
+                name = f.name.replace(a, b)
+        if "FemurHead" in f.name:
+            name = "R_Gluteus_Medius_2.stl"  # a cartilage named like a muscle
+        (folder / name).symlink_to(f)
+    r = init_scene(data_dir / _GAIT, folder, tmp_path / "s.toml", motion=data_dir / _WALK)
+    got = _mapping(load_scene(r.scene))
+    for n in ("gracilis", "sartorius"):
+        assert got["muscles"][n][:2] == vhf_mapping["muscles"][n][:2]
+        assert got["muscles"][n][2] == vhf_mapping["muscles"][n][2]
+    assert r.text.count("but by its place") == 2
+    assert any(
+        u.startswith("R_Gluteus_Medius_2.stl") and "by its shape a thin shell" in u
+        for u in r.unplaced
+    )
+    assert "gluteus_medius_2" not in got["muscles"]
 
 
 def test_init_lists_what_it_cannot_place(data_dir, tmp_path):

@@ -277,7 +277,8 @@ class Defaults:
         distance a quarter of their length is within): the meshes are not where the
         model's paths run, and a scene would place them there. The VHF folder on
         gait2392 (registered) and on Rajagopal 2016, and the LHDL meshes on their model,
-        give at most 0.0006; the VHF folder whose cartilages' names say nothing, 3.4
+        give at most 0.0006; the VHF folder whose hip cartilages' names say nothing and
+        without the knee's, 3.4
         (``python benchmarks/tuning/bench_shapes.py --placements``).
     init_cap_rms : float
         `musclewrap.subject.init_scene`: a mesh no name places is the hip's cartilage
@@ -288,6 +289,33 @@ class Defaults:
         the iliacus 0.099, the gracilis 0.104: spread <= 0.04); of the meshes spread
         0.15 or more the nearest fits to 0.144 (the distal femur's cartilage)
         (``python benchmarks/tuning/bench_shapes.py``).
+    init_shell : float
+        `musclewrap.subject.init_scene`: a closed mesh whose mean thickness (4 V / A) is
+        under this fraction of its width (its second principal extent) is a thin shell,
+        never a muscle, whatever its name says. The VHF cartilages measure 0.053-0.085;
+        the thinnest other shared meshes are the LHDL iliac bone (0.139) and sacrum
+        (0.156), and the thinnest muscle the LHDL iliacus (0.168)
+        (``python benchmarks/tuning/bench_shapes.py``).
+    init_bone_place : float
+        `musclewrap.subject.init_scene` takes a closed solid no name places for the
+        model's bone of a body when the mean distance between the two (each's vertices
+        to the other's, the larger) is under this fraction of its diagonal. The VHF
+        tibia on gait2392's and Rajagopal 2016's tibia (registered): 0.031 and 0.044; the
+        nearest muscle to a model bone, the sartorius on the femur: 0.108-0.110; the VHF
+        patella on Rajagopal's, 0.141, is not taken
+        (``python benchmarks/tuning/bench_shapes.py --places``).
+    init_place_tie : float
+        `musclewrap.subject.init_scene` takes a mesh no name places for the muscle whose
+        paths run along it (the one-to-one assignment of such meshes to the paths no
+        named mesh took), unless the best assignment that gives it another muscle (or
+        none) costs less than this many of its mean thicknesses more: then it fits two
+        alike and is placed nowhere, said. The VHF folder with all but three muscles
+        named Segment_N.stl: on gait2392 each of 16 is taken for its own muscle, margins
+        0.026-0.94; on Rajagopal 2016 14 of 15, margins 0.010-0.86, and the
+        semitendinosus is taken for the biceps femoris long head (margin 0.18): place
+        cannot tell apart neighbours whose paths run alike, names can. At 0.05, four of
+        the right ones (margins 0.010-0.033) would be left unplaced
+        (``python benchmarks/tuning/bench_shapes.py --places``).
     """
 
     cage_size: int = 300
@@ -342,6 +370,9 @@ class Defaults:
     init_alike_deg: float = 15.0
     init_far: float = 0.25
     init_cap_rms: float = 0.08
+    init_shell: float = 0.11
+    init_bone_place: float = 0.06
+    init_place_tie: float = 0.01
 
 
 tol = Tolerances()

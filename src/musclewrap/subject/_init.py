@@ -1,14 +1,17 @@
 """``musclewrap init``: a scene from an OpenSim model and a folder of meshes.
 
 Each mesh is classified (muscle, bone or landmark) by its file name (`musclewrap.model._names`) and its
-shape; each muscle is matched to the model's paths by anatomical name, each bone to its
-body. Then the placement that makes the paths run through their muscles at rest is
-chosen among: the meshes in their bodies' frames (at the pose where the scene's bodies
-coincide, a model built in its scan's frame, else the default pose), in the model's
-ground frame, or in another subject's frame placed by the landmarks found (femoral head
--> hip centre, distal femur -> knee) with each of the 24 turns of the axes. Every guess
-is written into the scene as a comment with how sure it is; what could not be placed is
-listed, never dropped silently.
+shape (open, a thin shell, or a closed solid: a muscle is the last); each muscle is matched
+to the model's paths by anatomical name, each bone to its body. Then the placement that
+makes the paths run through their muscles at rest is chosen among: the meshes in their
+bodies' frames (at the pose where the scene's bodies coincide, a model built in its scan's
+frame, else the default pose), in the model's ground frame, or in another subject's frame
+placed by the landmarks found (femoral head -> hip centre, distal femur -> knee; by name,
+else by shape and place) with each of the 24 turns of the axes. Where names fail, the
+place decides: a solid lying where a model bone lies is that bone, and the meshes whose
+names say nothing (or whose named paths do not run along them) take the muscles whose
+paths do, one muscle per mesh. Every guess is written into the scene as a comment with
+how sure it is; what could not be placed is listed, never dropped silently.
 """
 
 from __future__ import annotations
@@ -26,7 +29,14 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..constants import defaults
 from ..errors import SceneError
-from ..mesh import apply_transform, atomic_path, check_mesh, read_mesh, tidy_mesh
+from ..mesh import (
+    apply_transform,
+    atomic_path,
+    check_mesh,
+    mean_thickness,
+    read_mesh,
+    tidy_mesh,
+)
 from ..model import (
     BONES,
     GROUPS,
@@ -81,10 +91,28 @@ class MeshInfo:
     F: IntArray
     closed: bool
     why: str = ""
+    #: mean thickness (4 V / A; nan when open) and the second principal extent
+    thickness: float = float("nan")
+    width: float = float("nan")
+    #: a tie of names (the entries the name fits alike): where its place may decide
+    alike: tuple[str, ...] = ()
 
     @property
     def stem(self) -> str:
         return self.path.name.rsplit(".", 1)[0]
+
+    @property
+    def shape(self) -> str:
+        """Open, shell (closed, thinner than ``defaults.init_shell`` of its width) or solid."""
+        if not self.closed:
+            return "open"
+        return "shell" if self.thickness < defaults.init_shell * self.width else "solid"
+
+    def shape_said(self) -> str:
+        return (
+            f"its mean thickness (4 V / A) {self.thickness:.3g} is "
+            f"{self.thickness / self.width:.2g} of its width {self.width:.3g}"
+        )
 
 
 def survey(folder: Path) -> list[MeshInfo]:
@@ -99,6 +127,11 @@ def survey(folder: Path) -> list[MeshInfo]:
         V, F, _ = tidy_mesh(*read_mesh(p))
         chk = check_mesh(V, F)
         closed = chk.boundary_edges == 0
+        thick = float(mean_thickness(V, F)) if closed and len(F) else float("nan")
+        X = V - V.mean(axis=0)
+        width = (
+            float(np.ptp(X @ np.linalg.svd(X, full_matrices=False)[2][1])) if len(V) > 2 else 0.0
+        )
         stem = p.name.rsplit(".", 1)[0]
         words, side = mesh_name_tokens(stem)
         m, b, g = match_muscle(stem), match_bone(stem), match_group(stem)
@@ -111,8 +144,11 @@ def survey(folder: Path) -> list[MeshInfo]:
         elif b is not None:
             match = b[0]
             kind = "landmark" if b[1] else "bone"
+        tied: tuple[str, ...] = ()
         if match is not None and match.others:
-            # a tie (or a misspelling one letter from another entry): said, not chosen
+            # a tie (or a misspelling one letter from another entry): said, not chosen (a
+            # muscle's place may choose: `_muscles_by_place`)
+            tied = (match.name, *match.others) if kind == "muscle" else ()
             alike = " or the ".join(o.replace("_", " ") for o in match.others)
             kind, match, why = (
                 None,
@@ -135,7 +171,17 @@ def survey(folder: Path) -> list[MeshInfo]:
                 None,
                 f"named like a muscle ({m.name}) but not closed ({chk.boundary_edges} boundary edges)",
             )
-        out.append(MeshInfo(p, kind, match, side, V, F, closed, why))
+        mi = MeshInfo(p, kind, match, side, V, F, closed, why, thick, width, tied)
+        if kind == "muscle" and mi.shape == "shell":
+            # the shape decides: a muscle is no thin shell (a cartilage, a fascia's sheet)
+            mi.kind, mi.why = (
+                None,
+                f"named like a muscle ({m.name}) but by its shape a thin shell, as a cartilage "
+                f"is: {mi.shape_said()} (a muscle's is more than {defaults.init_shell:g})",
+            )
+        elif kind is None and mi.shape == "shell" and not tied:
+            mi.why += f"; by its shape a thin shell ({mi.shape_said()}): a cartilage? name it"
+        out.append(mi)
     _caps_by_shape(out)
     return out
 
@@ -178,6 +224,11 @@ def _caps_by_shape(meshes: list[MeshInfo]) -> None:
         f"by its shape: a spherical cap of radius {r:.3g} (rms {rms:.2g}), the roundest mesh "
         "no name placed, taken for the hip's cartilage",
     )
+
+
+def _unrecognised(meshes: list[MeshInfo]) -> list[str]:
+    """What the scene lists as not placed for the meshes taken for nothing, and why."""
+    return [f"{mi.path.name}: {mi.why}" for mi in meshes if mi.kind is None]
 
 
 def _rank(match: NameMatch) -> tuple[bool, int]:
@@ -277,16 +328,34 @@ def init_scene(
     out = Path(out)
     model = OpenSimModel(osim)
     meshes = survey(Path(mesh_dir))
-    unplaced = [f"{mi.path.name}: {mi.why}" for mi in meshes if mi.kind is None]
+    unmatched: list[str] = []  # recognised, but with no path or body in the model
     sides = [mi.side for mi in meshes if mi.kind == "muscle" and mi.side]
     main_side = max(set(sides), key=sides.count) if sides else "r"
     found_notes: list[str] = []
-    muscles = _muscles_to_paths(model, meshes, main_side, unplaced, mesh_dir, found_notes)
-    bones = _bones_to_bodies(model, meshes, main_side, unplaced)
-    from_model = _model_bones(model, muscles, bones, main_side, found_notes) if model_bones else []
+    muscles = _muscles_to_paths(model, meshes, main_side, unmatched, mesh_dir, found_notes)
+    bones = _bones_to_bodies(model, meshes, main_side, unmatched)
     mesh_unit, s, units_note = _mesh_unit(model, muscles, say)
     driven = _driven(model, muscles, bones, motion)
     best, place_note = _placement(model, meshes, muscles, driven, s, main_side, mesh_unit, say)
+    bones += _bones_to_bodies(
+        model,
+        [
+            mi
+            for _, mi, _, _ in best.landmarks
+            if mi.match and mi.match.how.startswith("by its shape and")
+        ],
+        main_side,
+        unmatched,
+    )
+    for mi, name, body in _bones_by_place(model, meshes, best, s, main_side):
+        while name in {n for _, n, _ in bones}:
+            name += "_2"  # a bone the folder has under its name too
+        bones.append((mi, name, body))
+    if _muscles_by_place(model, meshes, muscles, best, s, main_side, mesh_unit, say):
+        driven = _driven(model, muscles, bones, motion)  # new muscles, perhaps new bodies
+    unplaced = _unrecognised(meshes) + unmatched
+    _refuse_mixed(best, {m.info.path.name: m.fit for m in muscles}, mesh_unit)  # type: ignore[misc]
+    from_model = _model_bones(model, muscles, bones, main_side, found_notes) if model_bones else []
     coords = driven.coords
     written = None
     if motion is None:
@@ -370,6 +439,7 @@ def _muscles_to_paths(
                 + f"): it follows the paths of all of them ({', '.join(paths)})"
             )
     if not muscles:
+        unplaced = _unrecognised(meshes) + unplaced
         raise SceneError(
             f"{mesh_dir}: no mesh of the folder could be matched to a muscle path of "
             f"{model.path.name}, so no scene was written"
@@ -567,8 +637,18 @@ def _placement(
     k, alike, other = _choose(candidates, scores)
     best, best_fits = candidates[k], fits_by[k]
     say(f"placement: {best.describe()} (score {scores[k]:.3g} {mesh_unit})")
+    tried = {id(mi) for c in candidates for _, mi, *_ in c.landmarks if mi.kind is None}
+    for _, mi, _, _ in best.landmarks:
+        if mi.kind is None:  # the knee's shell that no name placed: its shape and place
+            mi.kind, mi.why = "landmark", ""
+            mi.match = NameMatch(
+                "femur_distal",
+                1.0,
+                f"by its shape and place: a thin shell ({mi.shape_said()}) that no name "
+                "placed, as far from the hip as the model's knee; its centroid, taken for the "
+                f"knee, puts the muscles on their paths best of the {len(tried)} such shells",
+            )
     _refuse_far(meshes, candidates, fits_by, k, mesh_unit)
-    _refuse_mixed(best, best_fits, mesh_unit)
     place_note = (
         f"placement: {best.describe()}: the median muscle's paths come within "
         f"{np.median([f.near for f in best_fits.values()]):.3g} {mesh_unit} of it for a quarter of "
@@ -645,7 +725,8 @@ def _refuse_far(
         + "The meshes look like another subject's, in its own frame: a registration needs "
         "the femoral head's cartilage (or the acetabulum's) for the hip centre and the distal "
         "femur's cartilage for the knee, named so (e.g. R_FemoralHead_Cartilage.stl, "
-        "R_FemurDistal_Cartilage.stl)"
+        "R_FemurDistal_Cartilage.stl) or, unnamed, a thin shell as far from the hip as the "
+        "knee, or a whole femur named so"
         + (f"; not recognised by name: {', '.join(unknown)}" if unknown else "")
         + "."
     )
@@ -669,6 +750,296 @@ def _refuse_mixed(best: _Placement, fits: dict[str, LineFit], mesh_unit: str) ->
         + ". A folder of two subjects' meshes, or of meshes exported in two frames? Give init "
         "one subject's meshes in one frame (a folder each), or move the others out."
     )
+
+
+def _bones_by_place(
+    model: OpenSimModel, meshes: list[MeshInfo], best: _Placement, s: float, main_side: str
+) -> list[tuple[MeshInfo, str, str]]:
+    """Closed solids no name places that lie where a bone of the model lies: that bone.
+
+    Each is compared with the model's own meshes of each body (`body_meshes`; the main
+    side's bodies and those of no side), placed as ``best`` places the meshes: the mean
+    distance from its vertices to the body's and from the body's to its, the larger,
+    over its diagonal. Under ``defaults.init_bone_place`` it is that body's bone, unless
+    another body's is too (then it is said, not chosen). ``(mesh, scene name, body)``
+    for each; nothing where the model's meshes are not on disk.
+    """
+    weighed = [
+        mi
+        for mi in meshes
+        if mi.kind is None and mi.shape == "solid" and mi.why.startswith("its name")
+        and "fits the" not in mi.why
+    ]  # fmt: skip
+    if not weighed:
+        return []
+    points = _model_bone_points(model, best, s, main_side)
+    out = []
+    limit = defaults.init_bone_place
+    for mi in weighed:
+        score = _bone_scores(mi, points)
+        near = sorted(score, key=score.__getitem__)
+        if not near or score[near[0]] >= limit:
+            continue
+        if len(near) > 1 and score[near[1]] < limit:
+            mi.why += (
+                f"; by its place the model's bone of {near[0]} or of {near[1]} alike "
+                f"({score[near[0]]:.2g}, {score[near[1]]:.2g} of its size apart): name it"
+            )
+            continue
+        body, file = near[0], points[near[0]][1]
+        found = match_bone(file) or match_bone(body)
+        name = found[0].name if found is not None else body
+        mi.kind, mi.why = "bone", ""
+        mi.match = NameMatch(
+            name,
+            round(1.0 - score[body] / limit, 3),
+            f"by its shape and place: a closed solid ({mi.shape_said()}) that no name placed, "
+            f"lying where the model's {file} of {body} lies (the two {score[body]:.2g} of its "
+            f"size apart on average, the next body's {score[near[1]]:.2g})"
+            if len(near) > 1
+            else f"by its shape and place: lying where the model's {file} of {body} lies",
+        )
+        out.append((mi, name, body))
+    return out
+
+
+def _model_bone_points(
+    model: OpenSimModel, best: _Placement, s: float, main_side: str
+) -> dict[str, tuple[FloatArray, str]]:
+    """The model's own meshes' vertices per body, where ``best`` puts the folder's meshes.
+
+    ``body -> (points in mesh coordinates, its first mesh's file stem)`` for the main
+    side's bodies and those of no side; empty where the model's meshes are not on disk
+    or its file is one only OpenSim reads.
+    """
+    from ..model import body_meshes, model_geometry
+
+    model.set_pose(best.rest)
+    points: dict[str, tuple[FloatArray, str]] = {}
+    for body in model.body_names:
+        if mesh_name_tokens(body)[1] not in (None, main_side):
+            continue
+        parts, first = [], ""
+        try:
+            files = body_meshes(model.path, body)
+        except ValueError:
+            return {}
+        for file, _ in files:
+            if mesh_name_tokens(Path(file).stem)[1] not in (None, main_side):
+                continue  # the other side's half of a body (l_pelvis.vtp)
+            try:
+                g = model_geometry(model.path, body, file)
+                parts.append(read_mesh(g.path)[0] * np.asarray(g.scale))
+            except (ValueError, SceneError):
+                continue
+            first = first or Path(file).stem
+        if not parts:
+            continue
+        P = np.vstack(parts)
+        if best.kind != "body":
+            P = apply_transform(model.transform(body, "ground"), P)
+        P = P * s
+        if best.T is not None:
+            P = apply_transform(np.linalg.inv(best.T), P)
+        points[body] = (P, first)
+    return points
+
+
+def _bone_scores(mi: MeshInfo, points: dict[str, tuple[FloatArray, str]]) -> dict[str, float]:
+    """Per body, how far the mesh and the model's bone lie apart, over the mesh's diagonal.
+
+    The mean distance from the mesh's vertices to the bone's and from the bone's to its,
+    the larger: small only where the two are the same bone.
+    """
+    from scipy.spatial import cKDTree
+
+    tree, diag = cKDTree(mi.V), float(np.linalg.norm(np.ptp(mi.V, axis=0)))
+    out = {}
+    for body, (P, _) in points.items():
+        d1 = float(cKDTree(P).query(mi.V)[0].mean())
+        d2 = float(tree.query(P)[0].mean())
+        out[body] = max(d1, d2) / diag
+    return out
+
+
+def _muscles_by_place(
+    model: OpenSimModel,
+    meshes: list[MeshInfo],
+    muscles: list[_Muscle],
+    best: _Placement,
+    s: float,
+    main_side: str,
+    mesh_unit: str,
+    say: Callable[[str], None],
+) -> bool:
+    """Where names fail, the muscle whose paths run along the mesh: its place decides.
+
+    The meshes weighed: those no name places (the name says nothing, or fits two
+    muscles alike) that are closed solids and no bone (`_bones_by_place`), and the named
+    muscles whose paths do not run along them (further than
+    ``defaults.check_far_thicknesses`` of their mean thickness, what `musclewrap check`
+    refuses). A mesh may take any muscle of the model that no other mesh took by name,
+    if that muscle's paths come within ``defaults.check_far_thicknesses`` of its mean
+    thickness (4 V / A) for a quarter of their length; it costs that distance plus a
+    tenth of the paths' mean distance outside it (the placement's score), in its
+    thicknesses, and taking none costs one. The meshes get the muscles of the least
+    total (a one-to-one assignment: a neighbour's path that passes through a muscle goes
+    to its own muscle). A mesh is taken for its muscle unless the best assignment that
+    gives it another costs less than ``defaults.init_place_tie`` more (then it fits two
+    alike, and is placed nowhere); the scene's comment says the next best either way.
+    Updates ``meshes`` and ``muscles``; True when anything changed.
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    by_anatomy = _paths_by_anatomy(model)
+    far = defaults.check_far_thicknesses
+    single = [m for m in muscles if m.info.match is not None and m.info.match.name in _ANATOMY]
+    contested = [m for m in single if m.fit is not None and m.fit.near > far * m.info.thickness]
+    # the named muscles whose paths run along a contested mesh: the names that may move
+    anyside = {(n, m.side) for m in contested for n in _ANATOMY if (n, m.side) in by_anatomy}
+    along = _feasible(model, best, s, contested, anyside, by_anatomy)
+    holders = [
+        m for m in single
+        if m not in contested and any((m.info.match.name, m.side) in a for a in along.values())  # type: ignore[union-attr]
+    ]  # fmt: skip
+    moving = contested + holders
+    taken = {n for m in muscles if m not in moving for n in _PARTS[m.info.match.name]}  # type: ignore[union-attr]
+    released = {(m.info.match.name, m.side) for m in contested}  # type: ignore[union-attr]
+    weighed = [
+        mi
+        for mi in meshes
+        if mi.kind is None
+        and mi.shape == "solid"
+        and (mi.alike or (mi.why.startswith("its name") and "fits the" not in mi.why))
+    ] + [m.info for m in moving]
+
+    def options(mi: MeshInfo) -> list[tuple[str, str]]:
+        held = next((m for m in holders if m.info is mi), None)
+        if held is not None:  # its own name, or one a contested mesh gave up
+            return sorted({(held.info.match.name, held.side)} | released)  # type: ignore[union-attr]
+        sd = mi.side or main_side
+        names = [n for n in mi.alike if n in _ANATOMY] if mi.alike else sorted(_ANATOMY)
+        return [(n, sd) for n in names if n not in taken and (n, sd) in by_anatomy]
+
+    cols = sorted({o for mi in weighed for o in options(mi)})
+    if not weighed or not cols:
+        return False
+    n, big = len(cols), 1e6
+    # a column per muscle, then one per mesh for "none of them" (cost 1)
+    cost = np.full((len(weighed), n + len(weighed)), big)
+    cost[:, n:][np.diag_indices(len(weighed))] = 1.0
+    fits: dict[tuple[int, int], LineFit] = {}
+    for i, mi in enumerate(weighed):
+        opts = options(mi)
+        lines = [
+            _lines_in(model, best, _muscle_on(model, mi, a, sd, by_anatomy), s) for a, sd in opts
+        ]
+        for o, f in zip(opts, line_fits(mi.V, mi.F, lines), strict=True):
+            j = cols.index(o)
+            fits[i, j] = f
+            if f.near <= far * mi.thickness:
+                cost[i, j] = (f.near + 0.1 * f.mean) / mi.thickness
+    rows, picked = linear_sum_assignment(cost)
+    total = float(cost[rows, picked].sum())
+    changed = False
+    for i, j in zip(rows.tolist(), picked.tolist(), strict=True):
+        mi = weighed[i]
+        named = next((m for m in moving if m.info is mi), None)
+        if j >= n:  # none: no free path runs along it
+            if named is None and any(k[0] == i for k in fits):
+                k0, f0 = min(
+                    ((k, f) for k, f in fits.items() if k[0] == i), key=lambda kf: kf[1].near
+                )
+                mi.why += (
+                    f"; by its shape a closed solid ({mi.shape_said()}) and no bone of the model "
+                    "where it lies, and along it runs no path of the model that no other mesh took "
+                    f"(the nearest, the {cols[k0[1]][0].replace('_', ' ')}'s, come within "
+                    f"{f0.near:.3g} {mesh_unit} for a quarter of their length, "
+                    f"{f0.near / mi.thickness:.2g} of its mean thickness; {far:g} taken): "
+                    "a muscle the model lacks, or a bone? name it"
+                )
+            continue
+        name, sd = cols[j]
+        what = name.replace("_", " ")
+        if named is not None and named.info.match.name == name:  # type: ignore[union-attr]
+            continue  # its place agrees with its name after all
+        banned = cost.copy()
+        banned[i, j] = big
+        r2, c2 = linear_sum_assignment(banned)
+        margin = float(banned[r2, c2].sum()) - total
+        k2 = int(c2[list(r2).index(i)])
+        nxt = f"it the {cols[k2][0].replace('_', ' ')}" if k2 < n else "it in none"
+        if margin < defaults.init_place_tie:
+            if named is None:
+                mi.why += (
+                    f"; by its place it fits the {what} or {nxt.removeprefix('it ')} alike (the "
+                    f"next best assignment costs {margin:.2g} of its mean thickness more): name it"
+                )
+            continue
+        fit = fits[i, j]
+        how = (
+            f"by its place, not its name: its paths' nearest quarter within "
+            f"{fit.near / mi.thickness:.2g} of its mean thickness; the next best assignment, "
+            f"{nxt}, costs {margin:.2g} thicknesses more (name the file to be sure)"
+        )
+        if named is not None:
+            gap = named.fit.near / mi.thickness  # type: ignore[union-attr]
+            how = (
+                f"named the {named.info.match.name.replace('_', ' ')} ({named.info.match.how})"  # type: ignore[union-attr]
+                + (
+                    f", whose paths run {gap:.2g} of its mean thickness from it at best,"
+                    if gap > far
+                    else " (a mesh whose name its place rejects takes that muscle),"
+                )
+                + f" but {how}"
+            )
+            muscles.remove(named)
+        mi.kind, mi.why = "muscle", ""
+        mi.match = NameMatch(name, round(max(0.0, 1.0 - float(cost[i, j])), 3), how, "")
+        m = _muscle_on(model, mi, name, sd, by_anatomy)
+        m.fit = fit
+        if sd != main_side:
+            m.name = f"{name}_{'left' if sd == 'l' else 'right'}"
+        muscles.append(m)
+        say(f"{mi.path.name}: the {what}, {how}")
+        changed = True
+    return changed
+
+
+def _feasible(
+    model: OpenSimModel,
+    best: _Placement,
+    s: float,
+    muscles: list[_Muscle],
+    anatomies: set[tuple[str, str]],
+    by_anatomy: dict,
+) -> dict[str, set[tuple[str, str]]]:
+    """Per muscle's mesh, the muscles of ``anatomies`` whose paths run along it.
+
+    Along: within ``defaults.check_far_thicknesses`` of its mean thickness for a quarter
+    of their length.
+    """
+    out: dict[str, set[tuple[str, str]]] = {}
+    opts = sorted(anatomies)
+    for m in muscles:
+        mi = m.info
+        lines = [
+            _lines_in(model, best, _muscle_on(model, mi, a, sd, by_anatomy), s) for a, sd in opts
+        ]
+        fits = line_fits(mi.V, mi.F, lines) if lines else []
+        out[mi.path.name] = {
+            o for o, f in zip(opts, fits, strict=True)
+            if f.near <= defaults.check_far_thicknesses * mi.thickness
+        }  # fmt: skip
+    return out
+
+
+def _muscle_on(
+    model: OpenSimModel, mi: MeshInfo, name: str, side: str, by_anatomy: dict
+) -> _Muscle:
+    """The scene muscle ``mi`` makes as the ``name`` of ``side`` (its paths, its region's body)."""
+    body = _first_body(model, _REGION_BODY[_ANATOMY[name].region], side) or "pelvis"
+    return _Muscle(mi, name, side, list(by_anatomy[(name, side)]), body)
 
 
 # ------------------------------------------------------------------------ placements
@@ -716,6 +1087,8 @@ def _choose(cands: list[_Placement], scores: list[float]) -> tuple[int, int, int
     def same(i: int, j: int) -> bool:
         a, b = cands[i], cands[j]
         if a.kind != b.kind or a.rest != b.rest:
+            return False
+        if [mi.path for _, mi, *_ in a.landmarks] != [mi.path for _, mi, *_ in b.landmarks]:
             return False
         if a.T is None or b.T is None:
             return a.T is None and b.T is None
@@ -778,8 +1151,7 @@ def _candidates(
         pose, miss = coincident
         why = f"the pose where the scene's bodies coincide (to {miss:.2g} rad and m)"
         out.insert(0, _Placement("body", pose, why))
-    marks = _landmarks(model, meshes, side)
-    if len(marks) >= 2:
+    for marks in _landmark_sets(model, meshes, side, s):
         model.set_pose(default)
         P = np.array([point for _, _, point, _, _ in marks])
         Q = np.array([model.transform(b, "ground")[:3, 3] * s for _, _, _, b, _ in marks])
@@ -798,6 +1170,34 @@ def _candidates(
                 )
             )
     return out
+
+
+def _landmark_sets(
+    model, meshes: list[MeshInfo], side: str, s: float
+) -> list[list[tuple[str, MeshInfo, FloatArray, str, str]]]:  # noqa: ANN001
+    """The sets of hip and knee landmarks a registration may be built from.
+
+    The landmarks the names (or the hip's cap's shape) give; where they give the hip
+    and no knee, one set per thin shell no name placed whose centroid lies as far from
+    the hip as the model's knee from its hip (0.5-1.5 times, in mesh units: subjects
+    differ by less) as that knee: the distal femur's cartilage by its shape and place.
+    The placement's fit chooses among them.
+    """
+    found = _landmarks(model, meshes, side)
+    if len(found) != 1 or found[0][0] != "hip" or f"tibia_{side}" not in model.body_names:
+        return [found] if len(found) >= 2 else []
+    model.set_pose(model.default_pose())
+    femur = model.transform(f"femur_{side}", "ground")[:3, 3]
+    expect = float(np.linalg.norm(model.transform(f"tibia_{side}", "ground")[:3, 3] - femur)) * s
+    hip = found[0][2]
+    sets = []
+    for mi in meshes:
+        if mi.kind is not None or mi.shape != "shell" or not mi.why.startswith("its name"):
+            continue
+        point, _ = landmark_point(mi.V, mi.F, "centroid", "knee", mi.path)
+        if 0.5 * expect <= float(np.linalg.norm(point - hip)) <= 1.5 * expect:
+            sets.append([found[0], ("knee", mi, point, f"tibia_{side}", "centroid")])
+    return sets
 
 
 def _landmarks(
@@ -966,7 +1366,13 @@ def _scene_text(
         f = m.fit
         assert f is not None and m.info.match is not None
         L.append(
-            f"# {m.info.path.name}: the {m.name.replace('_', ' ')} by name ({m.info.match.how}); "
+            f"# {m.info.path.name}: the {m.name.replace('_', ' ')} "
+            + (
+                m.info.match.how
+                if m.info.match.how.startswith(("by its place", "named the "))
+                else f"by name ({m.info.match.how})"
+            )
+            + "; "
             f"at rest its paths run {100 * f.inside:.0f} % inside it, a quarter of their length "
             f"within {f.near:.3g} {unit}, the farthest point {f.far:.3g} {unit} out; paths "
             f"{f.length:.4g} {unit} long, the muscle {f.extent:.4g}"
@@ -985,7 +1391,7 @@ def _scene_text(
             f"# {mi.path.name}: a {what}, the {mi.match.name.replace('_', ' ')} "
             + (
                 mi.match.how
-                if mi.match.how.startswith("by its shape")
+                if mi.match.how.startswith(("by its shape", "by its place"))
                 else f"by name ({mi.match.how})"
             )
             + f", carried by {body}"
