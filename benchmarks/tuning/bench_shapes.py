@@ -70,9 +70,12 @@ def vhf_shapes() -> None:
 
     print(
         "VHF meshes: sphere fit rms / radius, cap spread, the femur detector, mean "
-        "thickness over width (init's shell test)"
+        "thickness over width and over the median named muscle's (init's shell test)"
     )
-    thin = {mi.path.name: mi.thickness / mi.width for mi in survey(DATA / "vhf")}
+    thin = {
+        mi.path.name: f"{mi.thickness / mi.width:.3f} {mi.thickness / mi.muscles_thickness:.2f}"
+        for mi in survey(DATA / "vhf")
+    }
     for f in sorted((DATA / "vhf").glob("*.stl")):
         V, F, _ = tidy_mesh(*read_mesh(f))
         c, r, rms = fit_sphere(V)
@@ -82,8 +85,7 @@ def vhf_shapes() -> None:
         except SceneError:
             femur = "-"
         print(
-            f"  {f.stem[4:]:<44} {rms / r:6.3f} {cap_spread(V, c):6.2f}  {femur:<6}  "
-            f"{thin[f.name]:.3f}"
+            f"  {f.stem[4:]:<44} {rms / r:6.3f} {cap_spread(V, c):6.2f}  {femur:<6}  {thin[f.name]}"
         )
     print("LHDL meshes: mean thickness over width")
     for sub in ("muscles", "bones"):

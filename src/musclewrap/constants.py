@@ -291,10 +291,13 @@ class Defaults:
         (``python benchmarks/tuning/bench_shapes.py``).
     init_shell : float
         `musclewrap.subject.init_scene`: a closed mesh whose mean thickness (4 V / A) is
-        under this fraction of its width (its second principal extent) is a thin shell,
-        never a muscle, whatever its name says. The VHF cartilages measure 0.053-0.085;
-        the thinnest other shared meshes are the LHDL iliac bone (0.139) and sacrum
-        (0.156), and the thinnest muscle the LHDL iliacus (0.168)
+        under this fraction of its width (its second principal extent), and under half
+        the median mean thickness of the folder's meshes named as muscles (where it names
+        any: a flat muscle as thick as the others stays a muscle), is a thin shell, never
+        a muscle, whatever its name says. The VHF cartilages measure 0.053-0.085 of
+        their width and 0.11-0.18 of the median muscle; the thinnest other shared meshes
+        are the LHDL iliac bone (0.139) and sacrum (0.156), the thinnest muscle the LHDL
+        iliacus (0.168); the thinnest VHF muscle, the sartorius, is 0.66 of the median
         (``python benchmarks/tuning/bench_shapes.py``).
     init_bone_place : float
         `musclewrap.subject.init_scene` takes a closed solid no name places for the

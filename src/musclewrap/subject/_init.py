@@ -96,6 +96,8 @@ class MeshInfo:
     width: float = float("nan")
     #: a tie of names (the entries the name fits alike): where its place may decide
     alike: tuple[str, ...] = ()
+    #: the median mean thickness of the folder's closed meshes named as muscles (nan: none)
+    muscles_thickness: float = float("nan")
 
     @property
     def stem(self) -> str:
@@ -103,15 +105,28 @@ class MeshInfo:
 
     @property
     def shape(self) -> str:
-        """Open, shell (closed, thinner than ``defaults.init_shell`` of its width) or solid."""
+        """Open, shell or solid.
+
+        A shell is closed and thin: its mean thickness under ``defaults.init_shell`` of
+        its width and (where the folder names muscles) under half the median named
+        muscle's, so a flat muscle as thick as the others stays a solid.
+        """
         if not self.closed:
             return "open"
-        return "shell" if self.thickness < defaults.init_shell * self.width else "solid"
+        thin = self.thickness < defaults.init_shell * self.width
+        if not np.isnan(self.muscles_thickness):
+            thin = thin and self.thickness < 0.5 * self.muscles_thickness
+        return "shell" if thin else "solid"
 
     def shape_said(self) -> str:
         return (
             f"its mean thickness (4 V / A) {self.thickness:.3g} is "
             f"{self.thickness / self.width:.2g} of its width {self.width:.3g}"
+            + (
+                f" and {self.thickness / self.muscles_thickness:.2g} of the median named muscle's"
+                if not np.isnan(self.muscles_thickness)
+                else ""
+            )
         )
 
 
@@ -171,17 +186,21 @@ def survey(folder: Path) -> list[MeshInfo]:
                 None,
                 f"named like a muscle ({m.name}) but not closed ({chk.boundary_edges} boundary edges)",
             )
-        mi = MeshInfo(p, kind, match, side, V, F, closed, why, thick, width, tied)
-        if kind == "muscle" and mi.shape == "shell":
+        out.append(MeshInfo(p, kind, match, side, V, F, closed, why, thick, width, tied))
+    named = [mi.thickness for mi in out if mi.kind == "muscle"]
+    for mi in out:
+        mi.muscles_thickness = float(np.median(named)) if named else float("nan")
+        if mi.kind == "muscle" and mi.shape == "shell":
             # the shape decides: a muscle is no thin shell (a cartilage, a fascia's sheet)
+            assert mi.match is not None
             mi.kind, mi.why = (
                 None,
-                f"named like a muscle ({m.name}) but by its shape a thin shell, as a cartilage "
-                f"is: {mi.shape_said()} (a muscle's is more than {defaults.init_shell:g})",
+                f"named like a muscle ({mi.match.name}) but by its shape a thin shell, as a "
+                f"cartilage is: {mi.shape_said()} (a muscle's is more than "
+                f"{defaults.init_shell:g} of its width or half the median's)",
             )
-        elif kind is None and mi.shape == "shell" and not tied:
+        elif mi.kind is None and mi.shape == "shell" and not mi.alike:
             mi.why += f"; by its shape a thin shell ({mi.shape_said()}): a cartilage? name it"
-        out.append(mi)
     _caps_by_shape(out)
     return out
 
