@@ -28,6 +28,7 @@ import csv
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +44,12 @@ def _run(
     from _common import timed_run
 
     return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra], checkout)
+
+
+def _most(rows: list[dict], key: str) -> float:
+    """The largest of a report column over rows (nan where the column is empty)."""
+    vals = [float(x[key]) for x in rows if x.get(key) not in (None, "")]
+    return max(vals) if vals else float("nan")
 
 
 def _same_outputs(a: Path, b: Path) -> str:
@@ -107,7 +114,8 @@ def _other(rows: list[dict]) -> str:
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
-    p.add_argument("--frames", default="0:211:1")
+    p.add_argument("--frames", default=None, help="default 0:211:1; with --motion, every frame")
+    p.add_argument("--keep", type=Path, default=None, help="--no-timing: write the run here")
     p.add_argument("--check-every", type=int, default=10)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--no-timing", action="store_true")
@@ -115,8 +123,9 @@ def main() -> None:
     p.add_argument("--negate", nargs="*", default=[])
     p.add_argument("--compare", nargs="+", type=Path, metavar="CHECKOUT")
     a = p.parse_args()
+    walk_frames = a.frames or "0:211:1"
     if a.compare:
-        compare(a.scene, a.frames, a.repeats, a.compare)
+        compare(a.scene, walk_frames, a.repeats, a.compare)
         return
     import dataclasses
 
@@ -126,7 +135,8 @@ def main() -> None:
     if a.no_timing:
         scene = load_scene(a.scene)
         with tempfile.TemporaryDirectory() as tmp:
-            out = Path(tmp) / "on"
+            out = a.keep or Path(tmp) / "on"
+            t0 = time.perf_counter()
             if a.motion is not None:
                 from musclewrap.scene import run_scene, write_motion
 
@@ -135,20 +145,33 @@ def main() -> None:
                 path = Path(tmp) / Path(a.motion).name
                 write_motion(path, mot.time, cols, in_degrees=mot.in_degrees)
                 scene = dataclasses.replace(scene, motions=(path,), gif=False)
-                run_scene(scene, out, workers=2, progress=None)
+                run_scene(scene, out, workers=2, progress=None, frames=a.frames)
             else:
                 cmd = [sys.executable, "-m", "musclewrap.cli", "run", a.scene, "-o", str(out)]
                 subprocess.run(
                     [*cmd, "--no-gif", "--allow-unconverged"], check=True, capture_output=True
                 )
+            wall = time.perf_counter() - t0
             for m in scene.motions:
                 sc = dataclasses.replace(scene, motions=(m,))
                 folder = out if len(scene.motions) == 1 else out / m.stem
                 n = read_motion(m).n_frames
-                rows = verify_run(sc, folder, f"0:{n}:{a.check_every}")
+                start, stop, step = 0, n, 1
+                if a.frames is not None and a.motion is not None:
+                    start, stop, *rest = (int(x) for x in a.frames.split(":"))
+                    step = rest[0] if rest else 1
+                rows = verify_run(sc, folder, f"{start}:{min(stop, n)}:{step * a.check_every}")
                 with open(folder / "report.csv", newline="") as fh:
                     rep = list(csv.DictReader(fh))
-                print(f"{m.stem}: independent check on {len(rows) // len(scene.muscles)} frames")
+                rounds: dict[str, int] = {}
+                for x in rep:
+                    rounds[x["frame"]] = int(float(x.get("muscle_rounds") or 0))
+                r_all = sorted(rounds.values())
+                print(
+                    f"{m.stem}: {len(rounds)} frames run in {wall:.0f} s (2 workers); rounds a "
+                    f"frame median {r_all[len(r_all) // 2]}, most {r_all[-1]}; independent check "
+                    f"on {len(rows) // len(scene.muscles)} frames"
+                )
                 for mu in scene.muscles:
                     r = [x for x in rows if x["muscle"] == mu.name]
                     q = [x for x in rep if x["muscle"] == mu.name]
@@ -159,27 +182,29 @@ def main() -> None:
                         f"{_other(r)}; all frames: in another muscle <= "
                         f"{max(float(x.get('muscle_overlap_max') or 'nan') for x in q):.3f}, "
                         "shape change <= "
-                        f"{max(float(x['shape_change_max']) for x in q):.3f}, fit <= "
-                        f"{max(float(x['skeleton_fit_mean']) for x in q):.2f}, unconverged "
+                        f"{max(float(x['shape_change_max']) for x in q):.3f} (frames over "
+                        f"0.5: {sum(float(x['shape_change_max']) > 0.5 for x in q)}), fit <= "
+                        f"{max(float(x['skeleton_fit_mean']) for x in q):.2f}, where the lines "
+                        f"are free <= {_most(q, 'skeleton_fit_free'):.2f}, unconverged "
                         f"{sum(x['converged'] != 'True' for x in q)}"
                     )
         return
 
     with tempfile.TemporaryDirectory() as tmp:
         on, off = Path(tmp) / "on", Path(tmp) / "off"
-        _run(a.scene, on, a.frames, [])  # warm the cache
-        _run(a.scene, off, a.frames, ["--no-collisions"])
+        _run(a.scene, on, walk_frames, [])  # warm the cache
+        _run(a.scene, off, walk_frames, ["--no-collisions"])
         t_on, t_off = [], []
         for _ in range(a.repeats):
-            t_on.append(_run(a.scene, on, a.frames, []))
-            t_off.append(_run(a.scene, off, a.frames, ["--no-collisions"]))
+            t_on.append(_run(a.scene, on, walk_frames, []))
+            t_off.append(_run(a.scene, off, walk_frames, ["--no-collisions"]))
         m_on, m_off = float(np.median(t_on)), float(np.median(t_off))
-        print(f"{a.scene} frames {a.frames}, warm, no GIF, {a.repeats} runs each, alternating")
+        print(f"{a.scene} frames {walk_frames}, warm, no GIF, {a.repeats} runs each, alternating")
         print(
             f"  contact on: median {m_on:.1f} s; --no-collisions: {m_off:.1f} s; {m_on / m_off:.2f}x"
         )
         scene = load_scene(a.scene)
-        start, stop, *step = (int(x) for x in a.frames.split(":"))
+        start, stop, *step = (int(x) for x in walk_frames.split(":"))
         step = (step[0] if step else 1) * a.check_every
         for label, out in (("contact on", on), ("--no-collisions", off)):
             rows = verify_run(scene, out, f"{start}:{stop}:{step}")
