@@ -244,23 +244,15 @@ def test_overlapping_muscles_are_grouped_by_what_they_overlap():
     assert groups == [["a", "e"], ["b", "d"], ["c"]]
 
 
-@pytest.fixture
-def joint_steps():
-    """Muscles that overlap step together (`defaults.muscle_joint`), for one test."""
-    from musclewrap.constants import defaults
-
-    kept = defaults.muscle_joint
-    object.__setattr__(defaults, "muscle_joint", True)
-    yield
-    object.__setattr__(defaults, "muscle_joint", kept)
-
-
-def test_stepped_together_two_capsules_meet_between_whatever_their_order(pair, joint_steps):
+def test_stepped_together_two_capsules_meet_between_whatever_their_order(pair):
+    """``together``: muscles that overlap step together ([collisions] together)."""
     from musclewrap.solver import deform_together
 
     lines = {"a": _axis(4.0), "b": _axis(20.0)}
-    res = deform_together(pair, lines)
-    back = deform_together(dict(reversed(list(pair.items()))), dict(reversed(list(lines.items()))))
+    res = deform_together(pair, lines, together=True)
+    back = deform_together(
+        dict(reversed(list(pair.items()))), dict(reversed(list(lines.items()))), together=True
+    )
     _, edge = _apart(res, pair, 0.05)
     for n, r in res.items():
         assert 1 <= r.muscle_rounds <= 12
@@ -270,7 +262,7 @@ def test_stepped_together_two_capsules_meet_between_whatever_their_order(pair, j
     assert res["b"].V[:, 0].min() == pytest.approx(12.0, abs=0.25 * edge)
 
 
-def test_a_muscle_held_by_a_bone_leaves_the_other_to_give_way(joint_steps):
+def test_a_muscle_held_by_a_bone_leaves_the_other_to_give_way():
     """Stepped together, the muscle a bone holds stays out of it; the other takes the overlap."""
     from musclewrap.contact import Obstacle
     from musclewrap.solver import deform_together
@@ -280,7 +272,7 @@ def test_a_muscle_held_by_a_bone_leaves_the_other_to_give_way(joint_steps):
     # a's line drawn 3 toward a wall 1 behind it, b's 10 into a: a is pressed into the wall
     wall = Obstacle(*_box([-400.0, -300, -300], [-11.0, 300, 500]))
     lines = {"a": _axis(-3.0), "b": _axis(14.0)}
-    res = deform_together(ds, lines, obstacles={"a": [wall]})
+    res = deform_together(ds, lines, obstacles={"a": [wall]}, together=True)
     # the rounds stop on the depth behind the faces that face the other at rest (0.05
     # edges); the whole surface's, exact, is a little more here
     after, edge = _apart(res, ds, 0.1)
@@ -432,6 +424,7 @@ def test_collisions_pairs_name_muscles_of_the_scene(data_dir, tmp_path):
     assert load_scene(toml).muscle_pairs == (("other", "psoas"),)
     toml.write_text(_two_muscles(data_dir, str(iliacus)))
     assert load_scene(toml).muscle_pairs is None  # every pair
+    assert not load_scene(toml).muscle_together  # a step each, by default
     for bad, message in (
         ("[['psoas', 'iliacus']]", "pairs names 'iliacus', not a muscle of the scene"),
         ("[['psoas', 'psoas']]", "'psoas' paired with itself"),
@@ -441,6 +434,32 @@ def test_collisions_pairs_name_muscles_of_the_scene(data_dir, tmp_path):
         toml.write_text(_two_muscles(data_dir, str(iliacus), f"[collisions]\npairs = {bad}\n"))
         with pytest.raises(SceneError, match=f"s.toml: .*{message}"):
             load_scene(toml)
+
+
+@pytest.mark.realdata
+def test_collisions_together_reaches_the_runs_muscle_contact(data_dir, tmp_path):
+    """``[collisions] together = true``: read, refused when not a boolean, carried to every
+    muscle's job (whose round steps them together) and into the run's identity."""
+    from musclewrap.run._plan import muscle_jobs
+    from musclewrap.run._read import read_inputs, run_key
+    from musclewrap.scene import SceneError, load_scene
+
+    iliacus = data_dir / "lhdl" / "muscles" / "LHDL_R_Iliacus.vtk"
+    toml = tmp_path / "s.toml"
+    toml.write_text(_two_muscles(data_dir, str(iliacus), "[collisions]\ntogether = 'yes'\n"))
+    with pytest.raises(SceneError, match="s.toml: .*together"):
+        load_scene(toml)
+    keys = {}
+    for flag in (False, True):
+        toml.write_text(
+            _two_muscles(data_dir, str(iliacus), f"[collisions]\ntogether = {str(flag).lower()}\n")
+        )
+        scene = load_scene(toml)
+        assert scene.muscle_together is flag
+        inputs = read_inputs(scene, "0:1", None, True, lambda _: None, [])
+        assert {j.together for j in muscle_jobs(inputs, tmp_path / "o", "run")} == {flag}
+        keys[flag] = run_key(scene, inputs.drive, True)
+    assert keys[False] != keys[True]
 
 
 @pytest.mark.realdata

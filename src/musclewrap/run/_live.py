@@ -417,7 +417,10 @@ class LiveScene:
             if self._facing is None:
                 to_common = {j.name: np.linalg.inv(drive.to_body[j.name]) for j in self.jobs}
                 self._facing = facing_at_rest({n: m.d for n, m in ms.items()}, to_common)
-            results = meet_frame(ms, 0, self._facing, self.jobs[0].margin, self.scene.muscle_pairs)
+            results = meet_frame(
+                ms, 0, self._facing, self.jobs[0].margin, self.scene.muscle_pairs,
+                self.scene.muscle_together,
+            )  # fmt: skip
         else:
             results = {n: m.solve_frame(0) for n, m in ms.items()}
         t_solve = time.perf_counter()

@@ -121,6 +121,7 @@ def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
                 outdir=str(outdir),
                 run=run,
                 cage_around=inputs.cage_around.get(spec.name),
+                together=scene.muscle_together,
             )
         )
     jobs.sort(key=lambda j: -len(j.V))

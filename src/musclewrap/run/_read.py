@@ -739,7 +739,7 @@ def run_key(scene: Scene, drive: Drive, collisions: bool) -> str:
     return digest(
         *(f.read_bytes() for f in files),
         np.asarray(drive.frames),
-        f"{__version__}|collisions={collisions}",
+        f"{__version__}|collisions={collisions}" + ("|together" if scene.muscle_together else ""),
     )
 
 

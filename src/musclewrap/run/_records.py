@@ -139,6 +139,8 @@ class MuscleJob:
     outdir: str
     run: str
     cage_around: FloatArray | None = None
+    #: muscles that overlap in a round step together (``[collisions] together``)
+    together: bool = False
 
     @cached_property
     def cache_key(self) -> str:

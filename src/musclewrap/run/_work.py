@@ -726,7 +726,7 @@ class DeformGroup:
         facing = kept[key]
         margin = self.jobs[0].margin
         for k in range(len(self.spans[0])):
-            final = meet_frame(ms, k, facing, margin, self.pairs)
+            final = meet_frame(ms, k, facing, margin, self.pairs, self.jobs[0].together)
             for n, m in ms.items():
                 m.emit(k, final[n], final[n].muscle_overlap)
         return {n: m.result for n, m in ms.items()}
@@ -738,6 +738,7 @@ def meet_frame(
     facing: dict[tuple[str, str], IntArray],
     margin: float,
     pairs: tuple[tuple[str, str], ...] | None,
+    together: bool = False,
 ) -> dict[str, DeformationResult]:
     """Frame ``k`` of muscles in contact, solved together.
 
@@ -755,4 +756,5 @@ def meet_frame(
         sides={n: m.sides_of(k) for n, m in ms.items()},
         facing=facing,
         pairs=pairs,
+        together=together,
     )

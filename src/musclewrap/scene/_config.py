@@ -147,6 +147,7 @@ class Scene:
     fibres: FibreSpec | None = None
     muscle_collisions: bool = False
     muscle_pairs: tuple[tuple[str, str], ...] | None = None
+    muscle_together: bool = False
     extra: dict[str, Any] = field(default_factory=dict)
     #: with a line CSV: the bodies' poses per frame (``[lines] bodies``)
     bodies_csv: Path | None = None
@@ -280,6 +281,9 @@ def load_scene(path: PathLike) -> Scene:
         fibres=_fibres(raw, src, osim),
         muscle_collisions=collisions and against and len(muscles) > 1,
         muscle_pairs=_pairs(coll, [m.name for m in muscles], src),
+        muscle_together=(
+            _get(coll, "together", bool, "[collisions]", src) if "together" in coll else False
+        ),
     )
 
 

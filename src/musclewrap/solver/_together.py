@@ -79,6 +79,7 @@ def meet(
     sides: Mapping[str, Any] | None = None,
     facing: Mapping[tuple[str, str], IntArray] | None = None,
     pairs: Sequence[tuple[str, str]] | None = None,
+    together: bool | None = None,
 ) -> dict[str, DeformationResult]:
     """Muscles solved on their own (``finish=False``) taken out of each other, then finished.
 
@@ -86,8 +87,10 @@ def meet(
     all in this pose (default: they share one). ``obstacles``, ``sides``: per
     muscle, as `Deformer.deform` takes them. ``facing``: `facing_at_rest`
     (computed here when None). ``pairs``: the pairs of muscles kept apart
-    (default: every pair); the exact depth reported is over every pair. Returns
-    each muscle's finished result with ``muscle_overlap`` and ``muscle_rounds``.
+    (default: every pair); the exact depth reported is over every pair.
+    ``together``: muscles that overlap in a round take one step together
+    (`musclewrap.solver._group.joint_round`; default ``defaults.muscle_joint``).
+    Returns each muscle's finished result with ``muscle_overlap`` and ``muscle_rounds``.
     """
     names = sorted(deformers)
     frames = frames or {}
@@ -97,6 +100,7 @@ def meet(
     if facing is None:
         facing = facing_at_rest(deformers)
     edge = {n: float(deformers[n]._fine_edge) for n in names}
+    joint = defaults.muscle_joint if together is None else together
     state = {n: (results[n].cage, results[n].V) for n in names}
     live = [n for n in names if np.isfinite(state[n][1]).all()]
     pairs = every_pair(live, pairs)
@@ -140,7 +144,7 @@ def meet(
                 # vertices have moved since)
                 pose = results[n].pose
                 nears[n] = Near(state[n][1], obs, margin) if pose is None else pose.near
-        groups = overlap_groups(cage, found) if defaults.muscle_joint else [[n] for n in cage]
+        groups = overlap_groups(cage, found) if joint else [[n] for n in cage]
         for group in groups:
             if len(group) > 1:
                 # overlapping each other: one step together (an overlap one condition on
@@ -211,6 +215,7 @@ def deform_together(
     sides: Mapping[str, Any] | None = None,
     facing: Mapping[tuple[str, str], IntArray] | None = None,
     pairs: Sequence[tuple[str, str]] | None = None,
+    together: bool | None = None,
     **kw: Any,
 ) -> dict[str, DeformationResult]:
     """Deform several muscles for one pose together: each follows its lines, none inside another.
@@ -233,6 +238,9 @@ def deform_together(
         share a frame).
     pairs : sequence of (str, str), optional
         The pairs kept apart (default: every pair).
+    together : bool, optional
+        Muscles that overlap in a round take one step together (default
+        ``defaults.muscle_joint``: a step each with its share).
     **kw
         ``method``, ``max_iterations``: passed to each solve.
 
@@ -258,5 +266,5 @@ def deform_together(
     }
     return meet(
         deformers, results, lines, frames=frames, reference_points=refs, obstacles=obstacles,
-        margin=margin, sides=sides, facing=facing, pairs=pairs,
+        margin=margin, sides=sides, facing=facing, pairs=pairs, together=together,
     )  # fmt: skip
