@@ -219,8 +219,9 @@ class Defaults:
     muscle_joint : bool
         Muscles that overlap each other in a round take one step of their cages
         together (`musclewrap.solver._group.joint_round`: each overlap one condition on
-        both, by its whole depth), not a step each with its share. Off: on the 19-muscle
-        leg it lowers the largest shape change from 0.77 to 0.49, but its dual system is
+        both, by its whole depth), not a step each with its share: the default of a
+        scene's ``[collisions] together`` and of `musclewrap.solver.deform_together`'s
+        ``together``. Off: on the 19-muscle leg it lowers the largest shape change from 0.77 to 0.49, but its dual system is
         dense in the thousands of conditions of a large group: the run takes 1.35-1.62x
         as long on the 18- and 19-muscle scenes (BENCHMARKS.md, "Muscles stepped
         together").
