@@ -356,16 +356,10 @@ def init_scene(
     mesh_unit, s, units_note = _mesh_unit(model, muscles, say)
     driven = _driven(model, muscles, bones, motion)
     best, place_note = _placement(model, meshes, muscles, driven, s, main_side, mesh_unit, say)
-    bones += _bones_to_bodies(
-        model,
-        [
-            mi
-            for _, mi, _, _ in best.landmarks
-            if mi.match and mi.match.how.startswith("by its shape and")
-        ],
-        main_side,
-        unmatched,
-    )
+    # the knee's shell its shape and place gave (`_placement`): a landmark surface too
+    listed = [mi for mi, _, _ in bones]
+    shaped = [mi for _, mi, _, _ in best.landmarks if not any(mi is b for b in listed)]
+    bones += _bones_to_bodies(model, shaped, main_side, unmatched)
     for mi, name, body in _bones_by_place(model, meshes, best, s, main_side):
         while name in {n for _, n, _ in bones}:
             name += "_2"  # a bone the folder has under its name too
