@@ -3,9 +3,9 @@
     python benchmarks/accuracy/bench_joint.py [SCENE] [--frames 0:211:50] [--modes each,joint]
 
 Runs the scene warm in one process (``--workers 1``, one BLAS and Numba thread, no GIF),
-once per mode in turns in one sitting: ``each`` (`defaults.muscle_joint` off, a step of its
-cage per muscle with its share of every overlap) and ``joint`` (on: the muscles that
-overlap in a round step together, `musclewrap.solver._group.joint_round`). Prints per
+once per mode in turns in one sitting: ``each`` (``[collisions] together = false``, a step
+of its cage per muscle with its share of every overlap) and ``joint`` (``true``: the
+muscles that overlap in a round step together, `musclewrap.solver._group.joint_round`). Prints per
 mode the wall time and, from its report.csv, the rounds a frame (median, most, sum), and
 the largest muscle-in-muscle depth, shape change, bone vertex in a muscle, volume error
 and ``skeleton_fit_free``.
@@ -47,37 +47,31 @@ def main() -> None:
     import numba
     from threadpoolctl import threadpool_limits
 
-    from musclewrap.constants import defaults
     from musclewrap.scene import load_scene, run_scene
 
     threadpool_limits(1)
     numba.set_num_threads(1)
     scene = dataclasses.replace(load_scene(a.scene), paper_frames=0)
-    kept = defaults.muscle_joint
     with tempfile.TemporaryDirectory() as tmp:
         kw = dict(frames=a.frames, workers=1, render=False, progress=None,
                   cache_dir=Path(tmp) / "cache")  # fmt: skip
         run_scene(scene, Path(tmp) / "warm", **kw)
         print(f"{scene.name}: frames {a.frames}, one process, warm")
-        try:
-            for mode in a.modes.split(","):
-                object.__setattr__(defaults, "muscle_joint", mode == "joint")
-                out = Path(tmp) / mode
-                t0 = time.perf_counter()
-                run_scene(scene, out, **kw)
-                wall = time.perf_counter() - t0
-                with open(out / "report.csv", newline="") as fh:
-                    rows = list(csv.DictReader(fh))
-                rounds = _column(rows, "muscle_rounds")
-                ok = sum(r["converged"] in ("True", "true", "1") for r in rows)
-                figures = ", ".join(f"{k} {_column(rows, k).max():.3g}" for k in COLUMNS)
-                print(
-                    f"  {mode:<5} {wall:6.1f} s, {ok} of {len(rows)} converged, rounds a frame "
-                    f"median {np.median(rounds):.0f}, most {rounds.max():.0f}, "
-                    f"sum {rounds.sum():.0f}; {figures}"
-                )
-        finally:
-            object.__setattr__(defaults, "muscle_joint", kept)
+        for mode in a.modes.split(","):
+            out = Path(tmp) / mode
+            t0 = time.perf_counter()
+            run_scene(dataclasses.replace(scene, muscle_together=mode == "joint"), out, **kw)
+            wall = time.perf_counter() - t0
+            with open(out / "report.csv", newline="") as fh:
+                rows = list(csv.DictReader(fh))
+            rounds = _column(rows, "muscle_rounds")
+            ok = sum(r["converged"] in ("True", "true", "1") for r in rows)
+            figures = ", ".join(f"{k} {_column(rows, k).max():.3g}" for k in COLUMNS)
+            print(
+                f"  {mode:<5} {wall:6.1f} s, {ok} of {len(rows)} converged, rounds a frame "
+                f"median {np.median(rounds):.0f}, most {rounds.max():.0f}, "
+                f"sum {rounds.sum():.0f}; {figures}"
+            )
 
 
 if __name__ == "__main__":
