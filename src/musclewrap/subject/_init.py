@@ -98,6 +98,8 @@ class MeshInfo:
     alike: tuple[str, ...] = ()
     #: the median mean thickness of the folder's closed meshes named as muscles (nan: none)
     muscles_thickness: float = float("nan")
+    #: how its place compares with the model's bones (`_bones_by_place`), said where unplaced
+    bone_said: str = ""
 
     @property
     def stem(self) -> str:
@@ -791,7 +793,14 @@ def _bones_by_place(
     for mi in weighed:
         score = _bone_scores(mi, points)
         near = sorted(score, key=score.__getitem__)
-        if not near or score[near[0]] >= limit:
+        if not near:
+            mi.bone_said = "the model's bone meshes were not found to compare it with"
+            continue
+        if score[near[0]] >= limit:
+            mi.bone_said = (
+                f"no model bone lies where it lies (the nearest, {points[near[0]][1]} of "
+                f"{near[0]}, {score[near[0]]:.2g} of its size away on average; {limit:g} taken)"
+            )
             continue
         if len(near) > 1 and score[near[1]] < limit:
             mi.why += (
@@ -963,13 +972,16 @@ def _muscles_by_place(
                 k0, f0 = min(
                     ((k, f) for k, f in fits.items() if k[0] == i), key=lambda kf: kf[1].near
                 )
+                went = [weighed[r] for r, c in zip(rows, picked, strict=True) if c == k0[1]]
                 mi.why += (
-                    f"; by its shape a closed solid ({mi.shape_said()}) and no bone of the model "
-                    "where it lies, and along it runs no path of the model that no other mesh took "
+                    f"; by its shape a closed solid ({mi.shape_said()}); "
+                    + (mi.bone_said or "the model's bone meshes were not found to compare it with")
+                    + "; along it runs no path of the model that no other mesh took "
                     f"(the nearest, the {cols[k0[1]][0].replace('_', ' ')}'s, come within "
                     f"{f0.near:.3g} {mesh_unit} for a quarter of their length, "
-                    f"{f0.near / mi.thickness:.2g} of its mean thickness; {far:g} taken): "
-                    "a muscle the model lacks, or a bone? name it"
+                    f"{f0.near / mi.thickness:.2g} of its mean thickness; {far:g} taken"
+                    + (f"; they run along {went[0].path.name} better" if went else "")
+                    + "): a muscle the model lacks, or a bone? name it"
                 )
             continue
         name, sd = cols[j]
@@ -981,12 +993,15 @@ def _muscles_by_place(
         r2, c2 = linear_sum_assignment(banned)
         margin = float(banned[r2, c2].sum()) - total
         k2 = int(c2[list(r2).index(i)])
-        nxt = f"it the {cols[k2][0].replace('_', ' ')}" if k2 < n else "it in none"
+        other = f"the {cols[k2][0].replace('_', ' ')}" if k2 < n else None
+        nxt = f"it {other}" if other else "it placed nowhere"
         if margin < defaults.init_place_tie:
             if named is None:
                 mi.why += (
-                    f"; by its place it fits the {what} or {nxt.removeprefix('it ')} alike (the "
-                    f"next best assignment costs {margin:.2g} of its mean thickness more): name it"
+                    f"; by its place it fits the {what} "
+                    + (f"or {other} alike" if other else "barely (as well as no muscle)")
+                    + f" (the next best assignment costs {margin:.2g} of its mean thickness "
+                    "more): name it"
                 )
             continue
         fit = fits[i, j]
