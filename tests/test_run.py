@@ -863,3 +863,38 @@ def test_moment_arm_picture_is_drawn_against_the_swept_angle(tmp_path, monkeypat
 
     drive = drive_scene(load_scene(toml), "0:6", {})
     assert drive.swept == "flex" and drive.coordinate_values["flex"] == pytest.approx(q[:6])
+
+
+class _Ticks:
+    """A task that says it finished ``n`` frames (as a muscle's chunk does, frame by frame)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+
+    def run(self) -> int:
+        from musclewrap.run._work import _tick
+
+        for _ in range(self.n):
+            _tick()
+        return self.n
+
+
+def test_workers_exit_though_nobody_reads_their_ticks():
+    """`run_scene(..., progress=None)` read no frames-done ticks, and a worker with more of
+    them than its pipe holds waited at exit for a reader: the leg's squat (7,619
+    muscle-frames) finished its files and hung. The pool closes now, and the scheduler
+    reads the ticks with or without a display."""
+    import threading
+
+    from musclewrap.run._execute import ProcessExecutor
+
+    ex = ProcessExecutor(1)
+    try:
+        assert ex.result(ex.submit(_Ticks(100_000))) == 100_000
+        closing = threading.Thread(target=ex.close, daemon=True)
+        closing.start()
+        closing.join(120)
+        assert not closing.is_alive(), "the worker did not exit"
+    finally:
+        for proc in list((getattr(ex.pool, "_processes", None) or {}).values()):
+            proc.kill()

@@ -150,6 +150,9 @@ class LocalExecutor(Executor):
 
 def _init_worker(queue: Any, threads: int) -> None:
     set_tick(queue)
+    # Ticks are progress only: a worker exits without flushing those nobody read (more
+    # than its pipe holds, unread, kept it waiting at exit and the run with it).
+    queue.cancel_join_thread()
     # A failing initializer breaks the whole pool: thread limits are best effort.
     try:
         import numba
@@ -338,9 +341,10 @@ class Runner:
         """Take in what finished (waiting up to ``timeout`` for something), submit what is ready."""
         self.executor.step()
         idle = self.running > 0 and self.finished_q.empty()
-        if self.executor.fine_progress and self.progress is not None:
+        if self.executor.fine_progress:
+            # read even with no display, so the workers' ticks never pile up unread
             n = self.executor.ticks(timeout if idle else None)
-            if n:
+            if n and self.progress is not None:
                 self.progress(n)
             idle = False
         while True:
