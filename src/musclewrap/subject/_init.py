@@ -947,9 +947,11 @@ def _muscles_by_place(
     if not weighed or not cols:
         return False
     n, big = len(cols), 1e6
-    # a column per muscle, then one per mesh for "none of them" (cost 1)
+    # a column per muscle, then one per mesh for "none of them" (cost 1; a named mesh
+    # whose paths run along it keeps a muscle: its own, or one a contested mesh gave up)
     cost = np.full((len(weighed), n + len(weighed)), big)
-    cost[:, n:][np.diag_indices(len(weighed))] = 1.0
+    for i, mi in enumerate(weighed):
+        cost[i, n + i] = big if any(m.info is mi for m in holders) else 1.0
     fits: dict[tuple[int, int], LineFit] = {}
     for i, mi in enumerate(weighed):
         opts = options(mi)
