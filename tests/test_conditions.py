@@ -138,6 +138,105 @@ def test_line_sampling_matches_numpy_interpolation():
         assert np.array_equal(got[[1, 2]], Q[[0, -1]])
 
 
+def test_window_means_against_quadrature_rigid_motions_and_ends():
+    """A sample's window mean equals the integral of the path over its window (fine
+    trapezoids); a rigid motion of the path moves it rigidly; a width 0 is the point."""
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import polyline_at, window_mean
+
+    rng = np.random.default_rng(5)
+    P = np.cumsum(rng.normal(size=(6, 3)), axis=0)
+    t = rng.uniform(0.1, 0.9, 20)
+    w = rng.uniform(0.0, 0.1, 20)
+    got = window_mean(P, t, w)
+    for ti, wi, g in zip(t, w, got, strict=True):
+        u = np.linspace(ti - wi, ti + wi, 20001)
+        ref = np.trapezoid(polyline_at(P, u), u, axis=0) / (2 * wi)
+        assert np.abs(g - ref).max() < 1e-7
+    assert np.abs(window_mean(P, t, np.zeros(20)) - polyline_at(P, t)).max() < 1e-13
+    R, d = Rotation.random(random_state=5).as_matrix(), rng.normal(size=3)
+    assert np.abs(window_mean(P @ R.T + d, t, w) - (got @ R.T + d)).max() < 1e-12
+    # a straight path: the mean of a window is its centre's point
+    S = np.array([[0.0, 0, 0], [0, 0, 3], [0, 0, 10]])
+    assert np.allclose(window_mean(S, t, w), polyline_at(S, t), atol=1e-13)
+    # the sampling narrows the windows to the ends: they stay the line's ends
+    line = check_lines({"a": P})
+    s = sample_lines(line, spacing=0.3, window=0.5)
+    pts = s.evaluate(line)
+    assert np.array_equal(pts[[0, -1]], P[[0, -1]])
+    assert s.halfwidths[0].max() > 0 and np.all(s.halfwidths[0] <= s.params[0])
+
+
+def test_a_path_point_sliding_past_a_sample_does_not_kink_its_way():
+    """The psoas's stairs: a sample at a fixed arc length on a path whose corner slides
+    past it turns its velocity at once (a kink through the poses); its window mean does
+    not. Second differences along the slide: the point's jump against the mean's."""
+    from musclewrap.conditions import polyline_at, window_mean
+
+    t = np.array([0.5])
+    pts, means = [], []
+    for c in np.linspace(4.0, 6.0, 201):  # the corner slides along x past the sample
+        P = np.array([[0.0, 0, 0], [c, 2.0, 0], [10.0, 0, 0]])
+        pts.append(polyline_at(P, t)[0])
+        means.append(window_mean(P, t, np.array([0.05]))[0])
+    d2_point = np.abs(np.diff(np.array(pts), 2, axis=0)).max()
+    d2_mean = np.abs(np.diff(np.array(means), 2, axis=0)).max()
+    assert d2_point > 20 * d2_mean
+
+
+def test_a_muscle_bound_with_windows_is_at_rest_at_rest_and_rigid_under_a_rigid_motion(
+    small_muscle,
+):
+    """``line_window``: the current samples are the rest points at rest (the mesh stays),
+    the rest points moved rigidly under a rigid motion, and no kink where the path's
+    corner slides past a sample (second differences of the targets along the slide)."""
+    from scipy.spatial.transform import Rotation
+
+    rest = {"a": np.array([[0.0, 0, 0], [0, 3.0, 100], [0, 0, 200]])}
+    d = small_muscle.bind(rest, line_window=1.0)
+    plain = small_muscle.bind(rest)
+    assert d.sampling.halfwidths is not None and plain.sampling.halfwidths is None
+    assert np.array_equal(d.rest_samples, plain.rest_samples)
+    assert np.abs(d._targets(rest, None)[1] - d.rest_samples).max() < 1e-12
+    assert np.abs(d.deform(rest).V - small_muscle.V).max() < 1e-9
+    R, t = Rotation.from_rotvec([0.2, -0.1, 0.3]).as_matrix(), np.array([5.0, -2, 7])
+    moved = {"a": rest["a"] @ R.T + t}
+    got = d._targets(moved, None)[1]
+    assert np.abs(got - (d.rest_samples @ R.T + t)).max() < 1e-9
+    # the corner slides along z past the samples
+    kinks = []
+    for b in (plain, d):
+        s = [b._targets({"a": np.array([[0.0, 0, 0], [0, 8, c], [0, 0, 200]])}, None)[1]
+             for c in np.linspace(95.0, 105.0, 201)]  # fmt: skip
+        kinks.append(np.abs(np.diff(np.array(s), 2, axis=0)).max())
+    assert kinks[0] > 10 * kinks[1]
+    with pytest.raises(ValueError, match="line_window must be 0 or positive"):
+        small_muscle.bind(rest, line_window=-1.0)
+
+
+def test_path_rotations_in_windows_are_rigid_and_smooth():
+    """Windowed path rotations: a rigid motion's rotation everywhere; across a joint they
+    turn no faster than the unwindowed ones and never step."""
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import path_rotations
+
+    t = np.linspace(0.0, 1.0, 41)
+    h = np.minimum(np.minimum(np.full(41, 0.04), t), 1 - t)
+    Q = Rotation.random(random_state=4).as_matrix()
+    bent = np.cumsum(np.random.default_rng(4).normal(size=(7, 3)), axis=0)
+    got = path_rotations({"b": bent}, {"b": np.repeat(Q[None], 7, 0)}, ("b",), (t,), (h,))
+    assert np.abs(got - Q).max() < 1e-12
+    P = np.array([[0.0, 0, 0], [0, 0, 10], [0, 0, 20], [0, 0, 30], [0, 0, 40]])
+    R = Rotation.from_rotvec([0.0, np.radians(80.0), 0.0]).as_matrix()
+    rots = np.array([np.eye(3), np.eye(3), R, R, R])
+    got = path_rotations({"a": P}, {"a": rots}, ("a",), (t,), (h,))
+    assert np.abs(got[t <= 0.2] - np.eye(3)).max() < 1e-12
+    assert np.abs(got[t >= 0.55] - R).max() < 1e-12
+    assert _angle(np.einsum("kab,kcb->kac", got[1:], got[:-1])).max() < 80.0 / 9
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_sample_rotations_are_a_rigid_motions_rotation_whatever_the_reference(seed):
     """Under a rigid motion every sample's rotation is the motion's: a straight skeleton

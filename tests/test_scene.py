@@ -49,6 +49,18 @@ def test_fibre_settings_are_checked(tmp_path, table, message):
         load_scene(toml)
 
 
+def test_line_window_is_read_and_checked(tmp_path):
+    _, toml = _write_demo(tmp_path, n_frames=2)
+    good = toml.read_text()
+    assert load_scene(toml).line_window == 0.0
+    toml.write_text("line_window = 1\n" + good)
+    assert load_scene(toml).line_window == 1.0
+    for bad in ("-1", "'a'", "true", "nan"):
+        toml.write_text(f"line_window = {bad}\n" + good)
+        with pytest.raises(SceneError, match="line_window must be 0 or a positive number"):
+            load_scene(toml)
+
+
 def test_scene_errors_name_the_problem(tmp_path):
     _, toml = _write_demo(tmp_path, n_frames=2)
     good = toml.read_text()

@@ -64,6 +64,7 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("mesh._volume", "_mean_rows_kernel", f"({_A2},)"),
         ("conditions._lines", "_arclength_kernel", f"({_A2},)"),
         ("conditions._lines", "_polyline_at_kernel", f"({_A2}, {_A1}, {_A2})"),
+        ("conditions._lines", "_window_mean_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_A2})"),
     ),
     # a scene with bones or muscles in contact (the demo's): the bones' distance grids,
     # which muscle vertices are near them, winding numbers, the nearest triangles

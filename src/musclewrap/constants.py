@@ -127,6 +127,18 @@ class Defaults:
         A side with fewer such vertices takes its end cap instead.
     samples_per_line : int
         Minimum number of arc-length samples per action line.
+    line_window : float
+        The default of `Muscle.bind`'s ``line_window`` (a scene's ``line_window``):
+        each sample of a current action line is the line's mean over a window this
+        many sample spacings (half the cage's mean edge) either side of it, along the
+        rest line, narrowed to the line's ends (`musclewrap.conditions.window_mean`),
+        so a point of the path sliding past a sample does not kink the sample's way
+        through the poses, which steps the fibres' moment arms (the psoas's "stairs",
+        issue 48). 0: each sample is the line's point at its arc length. Measured
+        (BENCHMARKS.md, "The psoas's stairs"): 1 leaves no fibre-frame of the
+        18-muscle walk off (0.5: 35, 0: 56), and moves the contact's finish enough to
+        take two frames that sat just under 0.5 of shape change over it, so 0 stays
+        the default.
     line_reach : float
         A line's samples before the first or after the last that lies within this
         many of the muscle's mean thicknesses (``4 * volume / area``) outside the
@@ -337,6 +349,7 @@ class Defaults:
     fibre_area_end_part: float = 0.3
     fibre_area_least: int = 10
     samples_per_line: int = 33
+    line_window: float = 0.0
     line_reach: float = 1.0
     max_iterations: int = 60
     plain_iterations: int = 30

@@ -11,6 +11,7 @@ from ._lines import (
     polyline_at,
     read_lines_csv,
     sample_lines,
+    window_mean,
     within_reach,
 )
 from ._rotation import (
@@ -43,5 +44,6 @@ __all__ = [
     "read_lines_csv",
     "sample_lines",
     "sample_rotations",
+    "window_mean",
     "within_reach",
 ]

@@ -25,6 +25,7 @@ __all__ = [
     "polyline_at",
     "read_lines_csv",
     "sample_lines",
+    "window_mean",
     "within_reach",
 ]
 
@@ -139,6 +140,100 @@ def _polyline_at_kernel(P, t, out):  # noqa: ANN001, ANN202 # pragma: no cover -
                 out[i, k] = P[j, k] + f * (P[j + 1, k] - P[j, k])
 
 
+@numba.njit(cache=True)
+def _window_mean_kernel(X, P, t, w, out):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    # the mean of the piecewise-linear function through the rows of P at the normalized
+    # arc lengths of the points X, over [t - w, t + w], exactly: the difference of its
+    # running integral over the window's width; where w is 0, its value at t
+    s = _arclength_kernel(X)
+    last = P.shape[0] - 1
+    D = P.shape[1]
+    cum = np.zeros((P.shape[0], D))  # the integral from 0 to each point
+    for j in range(last):
+        h = s[j + 1] - s[j]
+        for k in range(D):
+            cum[j + 1, k] = cum[j, k] + 0.5 * h * (P[j, k] + P[j + 1, k])
+    lo_v = np.empty(D)
+    hi_v = np.empty(D)
+    for i in range(t.shape[0]):
+        wi = w[i]
+        if not wi > 0.0:
+            _integral_at(P, s, cum, t[i], lo_v, 1)
+            for k in range(D):
+                out[i, k] = lo_v[k]
+            continue
+        _integral_at(P, s, cum, t[i] - wi, lo_v, 0)
+        _integral_at(P, s, cum, t[i] + wi, hi_v, 0)
+        for k in range(D):
+            out[i, k] = (hi_v[k] - lo_v[k]) / (2.0 * wi)
+
+
+@numba.njit(cache=True)
+def _integral_at(P, s, cum, u, out, value):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    # value 0: the running integral at u (clamped to [0, 1]); 1: the function's value there
+    last = P.shape[0] - 1
+    D = P.shape[1]
+    if u <= s[0]:
+        for k in range(D):
+            out[k] = P[0, k] if value else cum[0, k]
+        return
+    if u >= s[last]:
+        for k in range(D):
+            out[k] = P[last, k] if value else cum[last, k]
+        return
+    lo, hi = 0, last
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if s[mid] <= u:
+            lo = mid
+        else:
+            hi = mid
+    j = lo
+    h = s[j + 1] - s[j]
+    d = u - s[j]
+    for k in range(D):
+        slope = (P[j + 1, k] - P[j, k]) / h
+        if value:
+            out[k] = P[j, k] + d * slope
+        else:
+            out[k] = cum[j, k] + d * P[j, k] + 0.5 * d * d * slope
+
+
+def window_mean(
+    X: FloatArray, t: FloatArray, w: FloatArray, P: FloatArray | None = None
+) -> FloatArray:
+    """Means of a poly-line (or rows per its point) over windows of normalized arc length.
+
+    The rows of ``P`` (default ``X``, the points; or anything given per point:
+    quaternions) joined linearly between the points' normalized arc lengths along
+    ``X``, averaged over ``[t - w, t + w]`` exactly (``w`` 0: the value at ``t``, as
+    `polyline_at`). Averaged so, a sample is continuously differentiable in the
+    points: a point of the path sliding past a sample no longer turns the sample's
+    velocity at once (a kink in its way through the poses, a step in the moment arms
+    of a muscle driven by it).
+
+    Parameters
+    ----------
+    X : (k, 3) float64 array
+        Poly-line points (consecutive points distinct).
+    t, w : (s,) float64 arrays
+        Window centres in [0, 1] and half-widths (within [0, 1]: ``t - w >= 0``,
+        ``t + w <= 1``).
+    P : (k, d) float64 array, optional
+        Rows per point to average (default ``X``).
+
+    Returns
+    -------
+    (s, d) float64 array
+    """
+    X = np.ascontiguousarray(X, dtype=np.float64)
+    P = X if P is None else np.ascontiguousarray(P, dtype=np.float64)
+    t = np.ascontiguousarray(t, dtype=np.float64)
+    out = np.empty((len(t), P.shape[1]))
+    _window_mean_kernel(X, P, t, np.ascontiguousarray(w, dtype=np.float64), out)
+    return out
+
+
 def _arclength(P: FloatArray) -> FloatArray:
     return _arclength_kernel(np.ascontiguousarray(P, dtype=np.float64))
 
@@ -173,15 +268,25 @@ class LineSampling:
         Line names, in sample order.
     params : tuple of (s,) float64 arrays
         Normalized arc-length parameters of each line's samples.
+    halfwidths : tuple of (s,) float64 arrays, optional
+        Per line and sample, the half-width (normalized arc length) of the window its
+        point is the mean over (`window_mean`); None: each sample is the line's point
+        at its parameter.
     """
 
     names: tuple[str, ...]
     params: tuple[FloatArray, ...]
+    halfwidths: tuple[FloatArray, ...] | None = None
 
     @property
     def count(self) -> int:
         """Total number of samples."""
         return int(sum(len(p) for p in self.params))
+
+    @property
+    def plain(self) -> LineSampling:
+        """The same samples without windows: each the line's point at its parameter."""
+        return LineSampling(names=self.names, params=self.params)
 
     def line_index(self) -> FloatArray:
         """(count,) index of the line each sample belongs to."""
@@ -215,14 +320,23 @@ class LineSampling:
             )
         out = np.empty((self.count, 3))
         start = 0
-        for n, t in zip(self.names, self.params, strict=True):
-            _polyline_at_kernel(lines[n], t, out[start : start + len(t)])
+        for i, (n, t) in enumerate(zip(self.names, self.params, strict=True)):
+            part = out[start : start + len(t)]
+            if self.halfwidths is None:
+                _polyline_at_kernel(lines[n], t, part)
+            else:
+                P = np.ascontiguousarray(lines[n], dtype=np.float64)
+                _window_mean_kernel(P, P, t, self.halfwidths[i], part)
             start += len(t)
         return out
 
 
 def sample_lines(
-    rest: Mapping[str, FloatArray], *, spacing: float, min_samples: int = 17
+    rest: Mapping[str, FloatArray],
+    *,
+    spacing: float,
+    min_samples: int = 17,
+    window: float = 0.0,
 ) -> LineSampling:
     """Choose arc-length samples for each rest line.
 
@@ -234,6 +348,10 @@ def sample_lines(
         Target distance between samples (mesh units).
     min_samples : int, optional
         Minimum number of samples per line.
+    window : float, optional
+        Half-width (mesh units, along the rest line) of the window each sample is the
+        line's mean over (`window_mean`), narrowed towards the line's ends so that they
+        stay its ends; 0: each sample is the line's point.
 
     Returns
     -------
@@ -245,6 +363,7 @@ def sample_lines(
     """
     names = tuple(sorted(rest))
     params = []
+    widths = []
     for n in names:
         P = rest[n]
         length = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
@@ -255,7 +374,10 @@ def sample_lines(
         t = t[keep]
         t[-1] = 1.0
         params.append(t)
-    return LineSampling(names=names, params=tuple(params))
+        widths.append(np.minimum(np.minimum(window / length, t), 1.0 - t).clip(0.0, None))
+    if not window > 0:
+        return LineSampling(names=names, params=tuple(params))
+    return LineSampling(names=names, params=tuple(params), halfwidths=tuple(widths))
 
 
 def within_reach(
@@ -293,24 +415,29 @@ def within_reach(
     """
     outside = np.asarray(outside, dtype=np.float64)
     params: list[FloatArray] = []
+    widths: list[FloatArray] = []
     cut: dict[str, tuple[float, float, float]] = {}
     start = 0
-    for name, t in zip(sampling.names, sampling.params, strict=True):
+    for i, (name, t) in enumerate(zip(sampling.names, sampling.params, strict=True)):
+        w = t if sampling.halfwidths is None else sampling.halfwidths[i]
         d = outside[start : start + len(t)]
         start += len(t)
         near = np.flatnonzero(d <= reach)
         if not len(near) or len(t) <= keep:
             params.append(t)
+            widths.append(w)
             continue
         a, b = int(near[0]), int(near[-1])
         if b - a + 1 < keep:
             a = min(max(0, int(np.argmin(d)) - keep // 2), len(t) - keep)
             b = a + keep - 1
         params.append(t[a : b + 1])
+        widths.append(w[a : b + 1])
         if a > 0 or b < len(t) - 1:
             dropped = np.r_[d[:a], d[b + 1 :]]
             cut[name] = (float(t[a]), float(1.0 - t[b]), float(dropped.max()))
-    return LineSampling(names=sampling.names, params=tuple(params)), cut
+    halfwidths = None if sampling.halfwidths is None else tuple(widths)
+    return LineSampling(names=sampling.names, params=tuple(params), halfwidths=halfwidths), cut
 
 
 def csv_rows(

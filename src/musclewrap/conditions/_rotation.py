@@ -8,7 +8,7 @@ import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ._lines import LineError, _arclength, distinct_mask
+from ._lines import LineError, _arclength, distinct_mask, window_mean
 
 __all__ = [
     "RotationField",
@@ -145,6 +145,7 @@ def path_rotations(
     rotations: Mapping[str, FloatArray],
     names: Sequence[str],
     params: Sequence[FloatArray],
+    halfwidths: Sequence[FloatArray] | None = None,
 ) -> FloatArray:
     """Rotation of every sample from the bodies its path's points are fixed in.
 
@@ -164,6 +165,11 @@ def path_rotations(
         Per line and point, its body's rotation from the rest pose.
     names, params : sequences
         The lines' names and each one's sample parameters (`LineSampling`).
+    halfwidths : sequence of (s,) float64 arrays, optional
+        Each line's samples' windows (`LineSampling.halfwidths`): a sample's rotation is
+        then that of the mean over its window of the points' quaternions joined linearly
+        (`musclewrap.conditions.window_mean`), continuously differentiable in the pose
+        as the samples' points are.
 
     Returns
     -------
@@ -175,7 +181,7 @@ def path_rotations(
         If a line has no rotations, or not one per point.
     """
     out = []
-    for n, t in zip(names, params, strict=True):
+    for i, (n, t) in enumerate(zip(names, params, strict=True)):
         P = np.asarray(lines[n], dtype=np.float64)
         R = rotations.get(n)
         if R is None or np.shape(R) != (len(P), 3, 3) or not np.all(np.isfinite(R)):
@@ -189,6 +195,10 @@ def path_rotations(
         # each quaternion on its predecessor's side: the interpolation takes the shorter way
         flip = np.cumprod(np.where(np.sum(q[1:] * q[:-1], axis=1) < 0.0, -1.0, 1.0))
         q[1:] *= flip[:, None]
+        if halfwidths is not None:
+            m = window_mean(P[keep], t, halfwidths[i], q)
+            out.append(quaternion_to_matrix(m / np.linalg.norm(m, axis=1)[:, None]))
+            continue
         j = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(s) - 2)
         f = np.clip((t - s[j]) / (s[j + 1] - s[j]), 0.0, 1.0)
         out.append(quaternion_to_matrix(_slerp(q[j], q[j + 1], f)))

@@ -122,6 +122,7 @@ def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
                 run=run,
                 cage_around=inputs.cage_around.get(spec.name),
                 together=scene.muscle_together,
+                line_window=scene.line_window,
             )
         )
     jobs.sort(key=lambda j: -len(j.V))

@@ -739,7 +739,9 @@ def run_key(scene: Scene, drive: Drive, collisions: bool) -> str:
     return digest(
         *(f.read_bytes() for f in files),
         np.asarray(drive.frames),
-        f"{__version__}|collisions={collisions}" + ("|together" if scene.muscle_together else ""),
+        f"{__version__}|collisions={collisions}"
+        + ("|together" if scene.muscle_together else "")
+        + (f"|line_window={scene.line_window!r}" if scene.line_window else ""),
     )
 
 

@@ -141,6 +141,8 @@ class MuscleJob:
     cage_around: FloatArray | None = None
     #: muscles that overlap in a round step together (``[collisions] together``)
     together: bool = False
+    #: the action lines' sample windows (the scene's ``line_window``)
+    line_window: float = 0.0
 
     @cached_property
     def cache_key(self) -> str:

@@ -169,6 +169,7 @@ def _deformer(job: MuscleJob, keep: int = 1) -> tuple[Muscle, Deformer, bool, st
         reference_point=job.rest_reference,
         anchors=job.anchors,
         line_reach=defaults.line_reach,
+        line_window=job.line_window,
     )
     while len(_deformers) >= max(1, keep):
         del _deformers[next(iter(_deformers))]  # the one used longest ago

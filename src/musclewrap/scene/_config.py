@@ -148,6 +148,8 @@ class Scene:
     muscle_collisions: bool = False
     muscle_pairs: tuple[tuple[str, str], ...] | None = None
     muscle_together: bool = False
+    #: each action-line sample the line's mean over this many sample spacings either side
+    line_window: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
     #: with a line CSV: the bodies' poses per frame (``[lines] bodies``)
     bodies_csv: Path | None = None
@@ -189,6 +191,17 @@ def _get(
         name = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
         raise SceneError(f"{src}: {where}.{key} must be {name}, got {v!r}")
     return v
+
+
+def _line_window(raw: Mapping[str, Any], src: Path) -> float:
+    """The scene's ``line_window`` (default 0), refused unless finite and not negative."""
+    if "line_window" not in raw:
+        return 0.0
+    w = raw["line_window"]
+    if isinstance(w, bool) or not isinstance(w, int | float) or not (np.isfinite(w) and w >= 0):
+        raise SceneError(f"{src}: line_window must be 0 or a positive number of sample "
+                         f"spacings, got {w!r}")  # fmt: skip
+    return float(w)
 
 
 def _file(base: Path, value: Any, where: str, src: Path, kind: str = "file") -> Path:
@@ -284,6 +297,7 @@ def load_scene(path: PathLike) -> Scene:
         muscle_together=(
             _get(coll, "together", bool, "[collisions]", src) if "together" in coll else False
         ),
+        line_window=_line_window(raw, src),
     )
 
 

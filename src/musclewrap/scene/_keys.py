@@ -25,6 +25,9 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "registration": "Table: meshes of another subject, placed on the model by landmarks.",
         "collisions": "Table: contact with the bones and between the muscles.",
         "fibres": "Table: fibres in every muscle, their lengths and moment arms.",
+        "line_window": "Each sample of an action line is the line's mean over this many sample "
+        "spacings either side (default 0: the line's point); 1 removes the steps a path's "
+        "point sliding past a sample gives the fibres' moment arms (docs: Fibres).",
     },
     "units": {
         "mesh": "Length unit of the mesh files: ``m``, ``cm`` or ``mm``.",

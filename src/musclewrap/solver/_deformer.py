@@ -126,6 +126,9 @@ class Deformer(ContactSteps, PaperSteps):
         A line's samples beyond the first or last within this many of the muscle's
         mean thicknesses outside it are not bound (`musclewrap.conditions.within_reach`);
         None binds every sample.
+    line_window : float, optional
+        Half-width of each current sample's window along its line, in sample spacings
+        (`Muscle.bind`); 0: the line's point.
 
     Attributes
     ----------
@@ -143,16 +146,22 @@ class Deformer(ContactSteps, PaperSteps):
         skeleton_weight: float = defaults.skeleton_weight,
         anchors: npt.ArrayLike | None = None,
         line_reach: float | None = defaults.line_reach,
+        line_window: float = defaults.line_window,
     ) -> None:
         if not skeleton_weight > 0:
             raise ValueError(f"skeleton_weight must be positive, got {skeleton_weight}")
+        if not (np.isfinite(line_window) and line_window >= 0):
+            raise ValueError(f"line_window must be 0 or positive, got {line_window}")
         self.muscle = muscle
         C, CF = muscle.cage.C, muscle.cage.CF
         rest = check_lines(rest_lines, "rest lines")
         self.rest_lines = rest
         self.spacing = mean_edge_length(C, CF) / 2
         self.sampling = sample_lines(
-            rest, spacing=self.spacing, min_samples=defaults.samples_per_line
+            rest,
+            spacing=self.spacing,
+            min_samples=defaults.samples_per_line,
+            window=line_window * self.spacing,
         )
         self.rest_samples = self.sampling.evaluate(rest, "rest lines")
         self.sample_line = self.sampling.line_index()
@@ -168,6 +177,13 @@ class Deformer(ContactSteps, PaperSteps):
             )
             self.rest_samples = self.sampling.evaluate(rest, "rest lines")
             self.sample_line = self.sampling.line_index()
+        # the samples are the rest lines' points; in a pose, the lines' window means
+        # (`LineSampling.halfwidths`) plus each point's offset from its rest window's mean,
+        # turned with the sample: exact at rest and under a rigid motion, and free of the
+        # kinks a path's point sliding past a sample gives its point
+        self._rest_means = self.rest_samples
+        self.rest_samples = self.sampling.plain.evaluate(rest, "rest lines")
+        self._sample_offset = self.rest_samples - self._rest_means
         self.S = mean_value_coordinates(self.rest_samples, C, CF)
         m, k = len(C), len(self.rest_samples)
         self.weight = skeleton_weight * np.sqrt(m / k)
@@ -201,7 +217,7 @@ class Deformer(ContactSteps, PaperSteps):
             None if reference_point is None else as_points([reference_point], "reference_point")[0]
         )
         self._sample_rotations = SampleRotations(
-            self.rest_samples, self.sample_line, reference_rest=self.reference_rest
+            self._rest_means, self.sample_line, reference_rest=self.reference_rest
         )
         self._LT = np.ascontiguousarray(L.T)
         self._ST = np.ascontiguousarray(self.S.T)
@@ -279,7 +295,14 @@ class Deformer(ContactSteps, PaperSteps):
         s_cur = self.sampling.evaluate(cur, "current lines")
         body = getattr(current_lines, "rotations", None)
         if body is not None:
-            R_s = path_rotations(current_lines, body, self.sampling.names, self.sampling.params)
+            R_s = path_rotations(
+                current_lines,
+                body,
+                self.sampling.names,
+                self.sampling.params,
+                self.sampling.halfwidths,
+            )
+            s_cur = self._offset(s_cur, R_s)
             return cur, s_cur, self.rotation_field.rotate(R_s, self.muscle.delta_rest)
         if (reference_point is None) != (self.reference_rest is None):
             raise ValueError(
@@ -289,8 +312,15 @@ class Deformer(ContactSteps, PaperSteps):
             None if reference_point is None else as_points([reference_point], "reference_point")[0]
         )
         R_s = self._sample_rotations(s_cur, reference_current=ref_cur)
+        s_cur = self._offset(s_cur, R_s)
         d_L = self.rotation_field.rotate(R_s, self.muscle.delta_rest)
         return cur, s_cur, d_L
+
+    def _offset(self, means: FloatArray, R_s: FloatArray) -> FloatArray:
+        """The samples from their windows' means: each rest point's offset, turned (``R_s``)."""
+        if self.sampling.halfwidths is None:
+            return means
+        return means + np.einsum("kab,kb->ka", R_s, self._sample_offset)
 
     def _rhs(self, d_L: FloatArray, s_cur: FloatArray) -> FloatArray:
         """``A^T d = L^T d_L + w^2 S^T s'``, the right-hand side of the normal equations."""
@@ -338,11 +368,11 @@ class Deformer(ContactSteps, PaperSteps):
 
         ``S x`` (the samples deformed with the cage ``x``) against ``current_lines`` as
         `deform` took them: the distances whose mean is ``skeleton_fit_mean``, and the
-        samples ``s'`` of the current lines (where they lie inside a bone, the surface
+        samples' points on the current lines (where they lie inside a bone, the surface
         kept out of it cannot follow them).
         """
         cur = check_lines(current_lines, "current lines")
-        s_cur = self.sampling.evaluate(cur, "current lines")
+        s_cur = self.sampling.plain.evaluate(cur, "current lines")
         Sx = np.asarray(self.S @ np.asarray(x, dtype=np.float64))
         return self._sample_distances(Sx, cur), s_cur
 

@@ -254,6 +254,7 @@ class Muscle(PreparedMuscle):
         skeleton_weight: float = defaults.skeleton_weight,
         anchors: npt.ArrayLike | None = None,
         line_reach: float | None = defaults.line_reach,
+        line_window: float = defaults.line_window,
     ) -> Deformer:
         """Attach the rest-pose action lines; returns the per-pose solver.
 
@@ -276,6 +277,11 @@ class Muscle(PreparedMuscle):
             of the muscle's mean thicknesses (``4 V / A``) outside it are not bound
             (tendons the mesh does not hold; `Deformer.unbound` says which). None
             binds every sample.
+        line_window : float, optional
+            Each sample of a current line is the line's mean over a window of this many
+            sample spacings either side (`musclewrap.conditions.window_mean`): the
+            deformation then has no kink where a point of the path slides past a sample
+            (the fibres' moment arms no step); 0 (the default): the line's point.
 
         Returns
         -------
@@ -288,6 +294,7 @@ class Muscle(PreparedMuscle):
             skeleton_weight=skeleton_weight,
             anchors=anchors,
             line_reach=line_reach,
+            line_window=line_window,
         )
 
 
