@@ -311,7 +311,9 @@ class Defaults:
         their width and 0.11-0.18 of the median muscle; the thinnest other shared meshes
         are the LHDL iliac bone (0.139) and sacrum (0.156), the thinnest muscle the LHDL
         iliacus (0.168); the thinnest VHF muscle, the sartorius, is 0.66 of the median
-        (``python benchmarks/tuning/bench_shapes.py``).
+        (``python benchmarks/tuning/bench_shapes.py``). A flat muscle such as an abdominal
+        oblique would measure about 0.11 (an estimate from its published size: no shared
+        folder holds one), hence the second test.
     init_bone_place : float
         `musclewrap.subject.init_scene` takes a closed solid no name places for the
         model's bone of a body when the mean distance between the two (each's vertices

@@ -10,6 +10,7 @@ so the scene may name the folder (``[model] geometry``).
 
 from __future__ import annotations
 
+import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,16 +43,13 @@ def geometry_folders(osim: Path, folder: Path | None = None) -> list[Path]:
 def body_meshes(osim: Path, body: str) -> list[tuple[str, tuple[float, float, float]]]:
     """The ``(mesh_file, scale_factors)`` a model attaches to ``body`` (empty: none)."""
     try:
-        root = ET.parse(osim).getroot()
+        st = Path(osim).stat()
+        listed = _listed_meshes(str(osim), st.st_mtime_ns, st.st_size)
     except (ET.ParseError, OSError) as exc:
         raise ValueError(f"{osim}: not a readable OpenSim model ({exc})") from None
     out = []
-    for b in root.iter("Body"):
-        if b.get("name") != body:
-            continue
-        for mesh in b.iter("Mesh"):
-            file = (mesh.findtext("mesh_file") or "").strip()
-            text = (mesh.findtext("scale_factors") or "1 1 1").split()
+    for b, file, text in listed:
+        if b == body:
             try:
                 s = tuple(float(x) for x in text)
             except ValueError:
@@ -61,6 +59,22 @@ def body_meshes(osim: Path, body: str) -> list[tuple[str, tuple[float, float, fl
             if file and len(s) == 3:
                 out.append((file, (s[0], s[1], s[2])))
     return out
+
+
+@functools.lru_cache(maxsize=8)
+def _listed_meshes(osim: str, mtime_ns: int, size: int) -> tuple[tuple[str, str, list[str]], ...]:
+    """Every ``(body, mesh_file, scale_factors' words)`` of a model file, parsed once per state.
+
+    ``init`` asks for each of a model's bodies in turn: one parse of the file, not one each
+    (``mtime_ns`` and ``size`` key the file's state: an edited model is parsed again).
+    """
+    out = []
+    for b in ET.parse(osim).getroot().iter("Body"):
+        for mesh in b.iter("Mesh"):
+            file = (mesh.findtext("mesh_file") or "").strip()
+            text = (mesh.findtext("scale_factors") or "1 1 1").split()
+            out.append((str(b.get("name")), file, text))
+    return tuple(out)
 
 
 def model_geometry(

@@ -43,9 +43,11 @@ from ..model import (
     LANDMARKS,
     MUSCLES,
     LineFit,
+    ModelGeometry,
     NameMatch,
     OpenSimModel,
     axes_rotation,
+    body_meshes,
     cap_spread,
     femur_landmarks,
     fit_sphere,
@@ -55,6 +57,7 @@ from ..model import (
     match_group,
     match_muscle,
     mesh_name_tokens,
+    model_geometry,
     path_anatomy,
     read_motion,
     similarity,
@@ -100,6 +103,10 @@ class MeshInfo:
     muscles_thickness: float = float("nan")
     #: how its place compares with the model's bones (`_bones_by_place`), said where unplaced
     bone_said: str = ""
+    #: what its name failed to say: "nothing" (no entry the tables know), "tie" (entries
+    #: alike), "" (it named one, or was refused for another reason): where shape and place
+    #: may decide instead
+    name_failed: str = ""
 
     @property
     def stem(self) -> str:
@@ -154,7 +161,7 @@ def survey(folder: Path) -> list[MeshInfo]:
         m, b, g = match_muscle(stem), match_bone(stem), match_group(stem)
         if g is not None and (m is None or _rank(g) > _rank(m)):
             m = g  # several muscles in one mesh (the iliopsoas)
-        kind, match, why = None, None, ""
+        kind, match, why, failed = None, None, "", ""
         said_muscle, said_bone = "muscle" in words or "muscles" in words, "bone" in words
         if m is not None and (b is None or said_muscle or _rank(m) > _rank(b[0])):
             kind, match = "muscle", m
@@ -167,15 +174,17 @@ def survey(folder: Path) -> list[MeshInfo]:
             # muscle's place may choose: `_muscles_by_place`)
             tied = (match.name, *match.others) if kind == "muscle" else ()
             alike = " or the ".join(o.replace("_", " ") for o in match.others)
-            kind, match, why = (
+            kind, match, why, failed = (
                 None,
                 None,
                 (
                     f"its name ('{match.run}') fits the {match.name.replace('_', ' ')} "
                     f"or the {alike} alike: rename it"
                 ),
+                "tie",
             )
         elif kind is None:
+            failed = "nothing"
             why = (
                 "its name says muscle but names no muscle the table knows (musclewrap.subject.MUSCLES)"
                 if said_muscle
@@ -188,7 +197,11 @@ def survey(folder: Path) -> list[MeshInfo]:
                 None,
                 f"named like a muscle ({m.name}) but not closed ({chk.boundary_edges} boundary edges)",
             )
-        out.append(MeshInfo(p, kind, match, side, V, F, closed, why, thick, width, tied))
+        out.append(
+            MeshInfo(
+                p, kind, match, side, V, F, closed, why, thick, width, tied, name_failed=failed
+            )
+        )
     named = [mi.thickness for mi in out if mi.kind == "muscle"]
     for mi in out:
         mi.muscles_thickness = float(np.median(named)) if named else float("nan")
@@ -227,7 +240,7 @@ def _caps_by_shape(meshes: list[MeshInfo]) -> None:
         return
     best: tuple[float, MeshInfo, float, float] | None = None
     for mi in meshes:
-        if mi.kind is not None or not mi.why.startswith("its name") or "fits the" in mi.why:
+        if mi.kind is not None or mi.name_failed != "nothing":
             continue  # placed, or named (an open muscle, a tie): shape does not overrule names
         if len(mi.V) < 20:
             continue
@@ -488,6 +501,26 @@ def _muscles_to_paths(
     return muscles
 
 
+def _side_geometry(
+    model: OpenSimModel, body: str, main_side: str
+) -> list[tuple[str, ModelGeometry | ValueError]]:
+    """The model's meshes of ``body`` on ``main_side`` or no side: each found, or why not.
+
+    ``(mesh file, its ModelGeometry or the ValueError that says why it is not on disk)``,
+    less the other side's half of a body (``l_pelvis.vtp``). Raises ValueError where the
+    model file cannot be read.
+    """
+    out: list[tuple[str, ModelGeometry | ValueError]] = []
+    for file, _ in body_meshes(model.path, body):
+        if mesh_name_tokens(Path(file).stem)[1] not in (None, main_side):
+            continue
+        try:
+            out.append((file, model_geometry(model.path, body, file)))
+        except ValueError as exc:
+            out.append((file, exc))
+    return out
+
+
 def _model_bones(
     model: OpenSimModel,
     muscles: list[_Muscle],
@@ -501,22 +534,15 @@ def _model_bones(
     and that is on disk (`musclewrap.model.geometry_folders`), less those named for the
     other side; what was taken, and what could not be, goes to ``notes``.
     """
-    from ..model import body_meshes, model_geometry
-
     have = {body for mi, _, body in bones if mi.kind == "bone"}
     names = {n for _, n, _ in bones} | {m.name for m in muscles}
     out: list[tuple[str, str, str]] = []
     for body in sorted({m.body for m in muscles} - have):
-        for file, _ in body_meshes(model.path, body):
-            stem = Path(file).stem
-            _, side = mesh_name_tokens(stem)
-            if side is not None and side != main_side:
-                continue  # the other side's half of a body (l_pelvis.vtp)
-            try:
-                model_geometry(model.path, body, file)
-            except ValueError as exc:
-                notes.append(f"the model's {file} of {body} not taken: {exc}")
+        for file, g in _side_geometry(model, body, main_side):
+            if isinstance(g, ValueError):
+                notes.append(f"the model's {file} of {body} not taken: {g}")
                 continue
+            stem = Path(file).stem
             found = match_bone(stem)
             name = found[0].name if found is not None else stem.lower()
             while name in names:
@@ -782,9 +808,8 @@ def _bones_by_place(
     weighed = [
         mi
         for mi in meshes
-        if mi.kind is None and mi.shape == "solid" and mi.why.startswith("its name")
-        and "fits the" not in mi.why
-    ]  # fmt: skip
+        if mi.kind is None and mi.shape == "solid" and mi.name_failed == "nothing"
+    ]
     if not weighed:
         return []
     points = _model_bone_points(model, best, s, main_side)
@@ -834,8 +859,6 @@ def _model_bone_points(
     side's bodies and those of no side; empty where the model's meshes are not on disk
     or its file is one only OpenSim reads.
     """
-    from ..model import body_meshes, model_geometry
-
     model.set_pose(best.rest)
     points: dict[str, tuple[FloatArray, str]] = {}
     for body in model.body_names:
@@ -843,14 +866,13 @@ def _model_bone_points(
             continue
         parts, first = [], ""
         try:
-            files = body_meshes(model.path, body)
+            files = _side_geometry(model, body, main_side)
         except ValueError:
             return {}
-        for file, _ in files:
-            if mesh_name_tokens(Path(file).stem)[1] not in (None, main_side):
-                continue  # the other side's half of a body (l_pelvis.vtp)
+        for file, g in files:
+            if isinstance(g, ValueError):
+                continue
             try:
-                g = model_geometry(model.path, body, file)
                 parts.append(read_mesh(g.path)[0] * np.asarray(g.scale))
             except (ValueError, SceneError):
                 continue
@@ -930,9 +952,7 @@ def _muscles_by_place(
     weighed = [
         mi
         for mi in meshes
-        if mi.kind is None
-        and mi.shape == "solid"
-        and (mi.alike or (mi.why.startswith("its name") and "fits the" not in mi.why))
+        if mi.kind is None and mi.shape == "solid" and (mi.alike or mi.name_failed == "nothing")
     ] + [m.info for m in moving]
 
     def options(mi: MeshInfo) -> list[tuple[str, str]]:
@@ -1222,7 +1242,7 @@ def _landmark_sets(
     hip = found[0][2]
     sets = []
     for mi in meshes:
-        if mi.kind is not None or mi.shape != "shell" or not mi.why.startswith("its name"):
+        if mi.kind is not None or mi.shape != "shell" or not mi.name_failed:
             continue
         point, _ = landmark_point(mi.V, mi.F, "centroid", "knee", mi.path)
         if 0.5 * expect <= float(np.linalg.norm(point - hip)) <= 1.5 * expect:
