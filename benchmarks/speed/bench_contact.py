@@ -4,11 +4,13 @@
         [--motion MOT [--negate COORDINATE ...]]
 
 Runs the scene warm (preparations cached by a first run) with contact on and with
-``--no-collisions``, alternately, three times each, and prints the medians and their ratio;
+``--no-collisions``, alternately, three times each (over ``--frames``, default 0:211:1), and
+prints the medians and their ratio;
 then checks the written meshes of the contact run against the full-resolution bones
 (`musclewrap.run.verify_run`: exact winding numbers and distances) on every
-``--check-every``-th frame. ``--no-timing``: one run with contact, then the check (a scene
-with several motions, such as the sweeps, is checked motion by motion over all its frames).
+``--check-every``-th frame. ``--no-timing``: one run with contact over ``--frames`` (default
+every frame), then the check (a scene with several motions, such as the sweeps, is checked
+motion by motion over all its frames, or over ``--frames`` of each).
 ``--motion``: the scene driven by another motion instead (with ``--no-timing``; run here on
 2 workers); ``--negate``: coordinates of it negated first, for a motion recorded on a model
 whose sign for them is the other (OpenCap's knee_angle_r is flexion positive, gait2392's
@@ -114,7 +116,11 @@ def _other(rows: list[dict]) -> str:
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
-    p.add_argument("--frames", default=None, help="default 0:211:1; with --motion, every frame")
+    p.add_argument(
+        "--frames",
+        default=None,
+        help="the frames run (default: 0:211:1 for the timing, every frame with --no-timing)",
+    )
     p.add_argument("--keep", type=Path, default=None, help="--no-timing: write the run here")
     p.add_argument("--check-every", type=int, default=10)
     p.add_argument("--repeats", type=int, default=3)
@@ -148,6 +154,8 @@ def main() -> None:
                 run_scene(scene, out, workers=2, progress=None, frames=a.frames)
             else:
                 cmd = [sys.executable, "-m", "musclewrap.cli", "run", a.scene, "-o", str(out)]
+                if a.frames is not None:
+                    cmd += ["--frames", a.frames]
                 subprocess.run(
                     [*cmd, "--no-gif", "--allow-unconverged"], check=True, capture_output=True
                 )
@@ -157,7 +165,7 @@ def main() -> None:
                 folder = out if len(scene.motions) == 1 else out / m.stem
                 n = read_motion(m).n_frames
                 start, stop, step = 0, n, 1
-                if a.frames is not None and a.motion is not None:
+                if a.frames is not None:
                     start, stop, *rest = (int(x) for x in a.frames.split(":"))
                     step = rest[0] if rest else 1
                 rows = verify_run(sc, folder, f"{start}:{min(stop, n)}:{step * a.check_every}")
