@@ -2,7 +2,7 @@
 
     python benchmarks/accuracy/bench_moment_arms.py [SCENE] [--steps 0.5,1,2,4] [--repeats 3]
     python benchmarks/accuracy/bench_moment_arms.py SCENE --smoothness [--fibres-of SCENE2]
-        [--attachments ends|bones] [--count N]
+        [--attachments ends|bones] [--count N] [--line-window W]
     python benchmarks/accuracy/bench_moment_arms.py SCENE --scan MUSCLE [--about START:STOP:STEP]
         [--span DEG] [--by DEG] [--line-reach X|none] [--fibres-of SCENE2]
 
@@ -366,6 +366,7 @@ def main() -> None:
     p.add_argument("--fibres-of", help="a scene whose [fibres] table to use")
     p.add_argument("--attachments", choices=("ends", "bones"), help="[fibres] attachments")
     p.add_argument("--count", type=int, help="[fibres] count")
+    p.add_argument("--line-window", type=float, help="the scene's line_window")
     p.add_argument("--scan", metavar="MUSCLE", help="only item 5 (or 6), for this muscle")
     p.add_argument("--about", metavar="START:STOP:STEP", help="item 6: the motion's rows")
     p.add_argument("--span", type=float, default=0.0, help="item 6: degrees of flexion either side")
@@ -387,6 +388,8 @@ def main() -> None:
         )
     if a.count:
         scene = dataclasses.replace(scene, fibres=dataclasses.replace(scene.fibres, count=a.count))
+    if a.line_window is not None:
+        scene = dataclasses.replace(scene, line_window=a.line_window)
     if a.smoothness:
         smoothness(scene, a.workers)
         return

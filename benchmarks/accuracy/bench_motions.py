@@ -1,6 +1,7 @@
 """Contact on motions nobody recorded: extreme hip motions and seeded random smooth ones.
 
     python benchmarks/accuracy/bench_motions.py [SCENE] [--random 5] [--seconds 3] [--check-every 2]
+        [--line-window W]
 
 Drives SCENE's model (default: examples/lhdl_walk.toml) with
 
@@ -48,6 +49,7 @@ def main() -> None:
     p.add_argument("--check-every", type=int, default=2)
     p.add_argument("--no-extreme", action="store_true")
     p.add_argument("--no-collisions-too", action="store_true")
+    p.add_argument("--line-window", type=float, help="the scene's line_window")
     a = p.parse_args()
 
     from musclewrap.run import verify_run
@@ -61,6 +63,8 @@ def main() -> None:
     )
 
     scene = load_scene(a.scene)
+    if a.line_window is not None:
+        scene = dataclasses.replace(scene, line_window=a.line_window)
     model = OpenSimModel(scene.osim)
     coords = list(scene.coordinates or ())
     ranges = {}

@@ -136,7 +136,7 @@ class Defaults:
         through the poses, which steps the fibres' moment arms (the psoas's "stairs",
         issue 48). 0: each sample is the line's point at its arc length. Measured
         (BENCHMARKS.md, "The psoas's stairs"): 1 leaves no fibre-frame of the
-        18-muscle walk off (0.5: 35, 0: 56), and moves the contact's finish enough to
+        18-muscle walk off (0.5: 35, 0: 54), and moves the contact's finish enough to
         take two frames that sat just under 0.5 of shape change over it, so 0 stays
         the default.
     line_reach : float
