@@ -14,7 +14,9 @@ cProfile slows the Python parts more than the compiled ones: read it for where, 
 ``--no-collisions``: what the contact's own work costs a muscle-frame, measured as it runs.
 
 ``--candidates``: no cProfile; per muscle and bone, how many of its vertices each cage step
-(after the solve, and in the rounds) takes as candidates (within ``defaults.contact_band`` of the bone's margin)
+(after the solve, and in the rounds) takes as candidates (within ``defaults.contact_band`` of the bone's margin),
+and per muscle how many steps each call of the bones' contact after the solve takes (and how
+often it reaches ``defaults.contact_cage_steps``)
 and how many of those are too near (median and most over the steps): how large the contact
 is that the steps work on.
 """
@@ -117,18 +119,30 @@ def candidates(scene, frames: str) -> None:  # noqa: ANN001
     """Per muscle and bone, the cage steps' candidates and those too near (median, most)."""
     import numpy as np
 
+    from musclewrap.constants import defaults
     from musclewrap.scene import run_scene
     from musclewrap.solver import _contact
 
     seen: dict[tuple[str, str], list[tuple[int, int]]] = collections.defaultdict(list)
     find, cls = _contact.contact_candidates, _contact.ContactSteps
-    kept = {k: getattr(cls, k) for k in ("_cage_contact", "contact_round")}
+    kept = {k: getattr(cls, k) for k in ("_cage_contact", "contact_round", "_cage_step")}
     at = [""]  # the muscle whose steps these are (its mesh's name)
+    # per muscle, how many cage steps each call of the bones' contact after the solve took
+    steps: dict[str, list[int]] = collections.defaultdict(list)
+    taken = [0]
 
     def named(f):  # noqa: ANN001, ANN202
         def call(self, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
             at[0] = Path(self.muscle.source).stem
-            return f(self, *args, **kw)
+            if f is kept["_cage_step"]:
+                taken[0] += 1
+                return f(self, *args, **kw)
+            if f is not kept["_cage_contact"]:
+                return f(self, *args, **kw)
+            taken[0] = 0
+            out = f(self, *args, **kw)
+            steps[at[0]].append(taken[0])
+            return out
 
         return call
 
@@ -158,6 +172,13 @@ def candidates(scene, frames: str) -> None:  # noqa: ANN001
         print(f"  {name:<28} {bone:<12} {len(a):4d} steps, median "
               f"{np.median(a[:, 0]):6.0f} / {np.median(a[:, 1]):4.0f}, most "
               f"{a[:, 0].max():6d} / {a[:, 1].max():4d}")  # fmt: skip
+    cap = defaults.contact_cage_steps
+    print(f"cage steps a call of the bones' contact after the solve (the cap: {cap})")
+    for name, got in sorted(steps.items()):
+        n = np.bincount(got, minlength=cap + 1)
+        print(f"  {name:<28} {len(got):4d} calls: " + ", ".join(
+            f"{k} steps {c}" for k, c in enumerate(n) if c
+        ) + f"; at the cap {100 * n[cap:].sum() / len(got):.1f} %")  # fmt: skip
 
 
 def main() -> None:
