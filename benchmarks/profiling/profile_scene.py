@@ -134,13 +134,15 @@ def candidates(scene, frames: str) -> None:  # noqa: ANN001
     def named(f):  # noqa: ANN001, ANN202
         def call(self, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
             at[0] = Path(self.muscle.source).stem
-            if f is kept["_cage_step"]:
-                taken[0] += 1
-                return f(self, *args, **kw)
-            if f is not kept["_cage_contact"]:
-                return f(self, *args, **kw)
+            taken[0] += f is kept["_cage_step"]
+            return f(self, *args, **kw)
+
+        return call
+
+    def stepped(f):  # noqa: ANN001, ANN202
+        def call(self, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
             taken[0] = 0
-            out = f(self, *args, **kw)
+            out = named(f)(self, *args, **kw)
             steps[at[0]].append(taken[0])
             return out
 
@@ -157,7 +159,7 @@ def candidates(scene, frames: str) -> None:  # noqa: ANN001
 
     _contact.contact_candidates = counted
     for k, f in kept.items():
-        setattr(cls, k, named(f))
+        setattr(cls, k, stepped(f) if k == "_cage_contact" else named(f))
     try:
         with tempfile.TemporaryDirectory() as tmp:
             run_scene(scene, Path(tmp) / "out", frames=frames, workers=1, render=False,

@@ -112,6 +112,20 @@ def _arclength_kernel(P):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
+def _segment_of(s, u):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
+    # the last j with s[j] <= u, for s[0] < u < s[-1] (a hand-written bisection:
+    # np.searchsorted compiles shape checks and string formatting that cost seconds)
+    lo, hi = 0, s.shape[0] - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if s[mid] <= u:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@numba.njit(cache=True)
 def _polyline_at_kernel(P, t, out):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
     # linear interpolation in normalized arc length, clamped to the ends (as np.interp)
     # (element loops and a hand-written bisection: row assignments and np.searchsorted
@@ -127,14 +141,7 @@ def _polyline_at_kernel(P, t, out):  # noqa: ANN001, ANN202 # pragma: no cover -
             for k in range(3):
                 out[i, k] = P[last, k]
         else:
-            lo, hi = 0, last  # s[lo] <= ti < s[hi]: the last j with s[j] <= ti
-            while hi - lo > 1:
-                mid = (lo + hi) // 2
-                if s[mid] <= ti:
-                    lo = mid
-                else:
-                    hi = mid
-            j = lo
+            j = _segment_of(s, ti)
             f = (ti - s[j]) / (s[j + 1] - s[j])
             for k in range(3):
                 out[i, k] = P[j, k] + f * (P[j + 1, k] - P[j, k])
@@ -181,14 +188,7 @@ def _integral_at(P, s, cum, u, out, value):  # noqa: ANN001, ANN202 # pragma: no
         for k in range(D):
             out[k] = P[last, k] if value else cum[last, k]
         return
-    lo, hi = 0, last
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if s[mid] <= u:
-            lo = mid
-        else:
-            hi = mid
-    j = lo
+    j = _segment_of(s, u)
     h = s[j + 1] - s[j]
     d = u - s[j]
     for k in range(D):

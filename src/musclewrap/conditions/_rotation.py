@@ -190,7 +190,6 @@ def path_rotations(
                 f"({len(P)}), got {None if R is None else np.shape(R)}"
             )
         keep = distinct_mask(P)
-        s = _arclength(P[keep])
         q = matrix_to_quaternion(R[keep])
         # each quaternion on its predecessor's side: the interpolation takes the shorter way
         flip = np.cumprod(np.where(np.sum(q[1:] * q[:-1], axis=1) < 0.0, -1.0, 1.0))
@@ -199,6 +198,7 @@ def path_rotations(
             m = window_mean(P[keep], t, halfwidths[i], q)
             out.append(quaternion_to_matrix(m / np.linalg.norm(m, axis=1)[:, None]))
             continue
+        s = _arclength(P[keep])
         j = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(s) - 2)
         f = np.clip((t - s[j]) / (s[j + 1] - s[j]), 0.0, 1.0)
         out.append(quaternion_to_matrix(_slerp(q[j], q[j + 1], f)))

@@ -163,7 +163,7 @@ class Deformer(ContactSteps, PaperSteps):
             min_samples=defaults.samples_per_line,
             window=line_window * self.spacing,
         )
-        self.rest_samples = self.sampling.evaluate(rest, "rest lines")
+        self.rest_samples = self.sampling.plain.evaluate(rest, "rest lines")
         self.sample_line = self.sampling.line_index()
         self._check_near(muscle.V)
         self.unbound: dict[str, tuple[float, float, float]] = {}
@@ -175,14 +175,14 @@ class Deformer(ContactSteps, PaperSteps):
             self.sampling, self.unbound = within_reach(
                 self.sampling, _outside(self.rest_samples, muscle), line_reach * thickness
             )
-            self.rest_samples = self.sampling.evaluate(rest, "rest lines")
+            self.rest_samples = self.sampling.plain.evaluate(rest, "rest lines")
             self.sample_line = self.sampling.line_index()
         # the samples are the rest lines' points; in a pose, the lines' window means
         # (`LineSampling.halfwidths`) plus each point's offset from its rest window's mean,
         # turned with the sample: exact at rest and under a rigid motion, and free of the
         # kinks a path's point sliding past a sample gives its point
-        self._rest_means = self.rest_samples
-        self.rest_samples = self.sampling.plain.evaluate(rest, "rest lines")
+        self._plain = self.sampling.plain
+        self._rest_means = self.sampling.evaluate(rest, "rest lines")
         self._sample_offset = self.rest_samples - self._rest_means
         self.S = mean_value_coordinates(self.rest_samples, C, CF)
         m, k = len(C), len(self.rest_samples)
@@ -372,7 +372,7 @@ class Deformer(ContactSteps, PaperSteps):
         kept out of it cannot follow them).
         """
         cur = check_lines(current_lines, "current lines")
-        s_cur = self.sampling.plain.evaluate(cur, "current lines")
+        s_cur = self._plain.evaluate(cur, "current lines")
         Sx = np.asarray(self.S @ np.asarray(x, dtype=np.float64))
         return self._sample_distances(Sx, cur), s_cur
 
