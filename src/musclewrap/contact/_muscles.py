@@ -30,13 +30,13 @@ from typing import Any
 
 import numba
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
 from ..mesh import (
     WindingGrid,
     bin_boxes,
-    in_box,
     in_oriented_box,
     mean_edge_length,
     oriented_box,
@@ -210,6 +210,60 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
         face[i] = bf
 
 
+class _Facer:
+    """What finding the faces of other muscles that face one muscle ``V, F`` needs, once.
+
+    Its vertices' tree (`scipy.spatial.cKDTree`), the radius round a vertex that covers
+    its triangles (every point of a triangle lies within its circumradius, acute, or half
+    its longest edge, obtuse, of a corner: within the longest edge over sqrt 3 either
+    way) and its `WindingGrid` (made when first needed, where none is given).
+    """
+
+    def __init__(self, V: FloatArray, F: IntArray, grid: WindingGrid | None = None) -> None:
+        self.V = np.ascontiguousarray(V, dtype=np.float64)
+        self.F = np.ascontiguousarray(F, dtype=np.int64)
+        # the box along its principal axes (the surface lies in it: a point more than the
+        # reach outside it is more than the reach from the surface)
+        self.box = oriented_box(self.V)
+        self.tree = cKDTree(self.V[np.unique(self.F)])
+        E = self.V[self.F] - self.V[np.roll(self.F, 1, axis=1)]
+        # widened by a billionth: a bound, whatever the rounding
+        self.cover = float(np.sqrt((E * E).sum(axis=2).max())) / np.sqrt(3.0) * (1.0 + 1e-9)
+        self._grid = grid
+
+    @property
+    def grid(self) -> WindingGrid:
+        if self._grid is None:
+            self._grid = WindingGrid(self.V, self.F)
+        return self._grid
+
+    def faces(self, centroids: FloatArray, reach: float) -> IntArray:
+        """The rows of ``centroids`` within ``reach`` of the surface or inside it (exact)."""
+        R, lo, hi = self.box
+        cand = in_oriented_box(centroids, R, lo - reach, hi + reach)
+        if not len(cand):
+            return cand.astype(np.int64)
+        Q = centroids[cand]
+        # the distance to the nearest vertex (infinite beyond reach + cover) is at least
+        # the distance to the surface, and at most cover more
+        upper = self.tree.query(Q, k=1, distance_upper_bound=reach + self.cover)[0]
+        near = upper <= reach
+        unsure = np.flatnonzero(~near & (upper - self.cover <= reach))
+        if len(unsure):
+            # a band round the reach, a few hundred points: the compiled grid's closest
+            # points (exact; no tree over the surface per pair)
+            P = np.ascontiguousarray(Q[unsure])
+            dist, C = np.empty(len(P)), np.empty((len(P), 3))
+            face = np.empty(len(P), dtype=np.int64)
+            _closest_kernel(P, self.V, self.F, dist, C, face)
+            near[unsure] = dist <= reach
+        inside = np.zeros(len(cand), dtype=bool)
+        rest = np.flatnonzero(~near)
+        if len(rest):
+            inside[rest] = self.grid(Q[rest]) > 0
+        return np.ascontiguousarray(cand[inside | near], dtype=np.int64)
+
+
 def facing_faces(
     Va: FloatArray,
     Fa: IntArray,
@@ -222,15 +276,15 @@ def facing_faces(
 
     Computed at rest, with both surfaces in one frame. Empty when none is. ``grid``:
     ``a``'s `WindingGrid`, where the caller has it.
+
+    Exact, and mostly without closest points: a centroid's distance to ``a``'s nearest
+    vertex bounds its distance to the surface from above, and less the radius round a
+    vertex that covers ``a``'s triangles from below (`_Facer`). Only the centroids whose
+    two bounds straddle ``reach`` take the exact distance, and only those not within
+    reach take the winding number (each centroid taken to the surface, and a tree over
+    the surface per pair, cost the 18 VHF muscles 20.6 s for all 306 pairs; 4.7 s so).
     """
-    cen = Vb[Fb].mean(axis=1)
-    lo, hi = Va.min(0) - reach, Va.max(0) + reach
-    cand = in_box(cen, lo, hi)
-    if not len(cand):
-        return cand.astype(np.int64)
-    inside = (WindingGrid(Va, Fa) if grid is None else grid)(cen[cand]) > 0
-    near = _closest(cen[cand], Va, Fa)[0] <= reach
-    return np.ascontiguousarray(cand[inside | near], dtype=np.int64)
+    return _Facer(Va, Fa, grid).faces(Vb[Fb].mean(axis=1), reach)
 
 
 def overlaps(
@@ -373,17 +427,21 @@ class _FacingOnDemand(Mapping[tuple[str, str], IntArray]):
     def __init__(self, meshes: Mapping[str, tuple[FloatArray, IntArray]], reach: float) -> None:
         self.meshes, self.reach = meshes, reach
         self.found: dict[tuple[str, str], IntArray] = {}
-        self.grids: dict[str, WindingGrid] = {}
+        # per muscle, what finding the faces that face it needs, and its faces' centroids
+        self.facers: dict[str, _Facer] = {}
+        self.centroids: dict[str, FloatArray] = {}
 
     def __getitem__(self, pair: tuple[str, str]) -> IntArray:
         if pair not in self.found:
             a, b = pair
             if a == b or a not in self.meshes or b not in self.meshes:
                 raise KeyError(pair)
-            if a not in self.grids:
-                self.grids[a] = WindingGrid(*self.meshes[a])
-            Va, Fa = self.meshes[a]
-            self.found[pair] = facing_faces(Va, Fa, *self.meshes[b], self.reach, self.grids[a])
+            if a not in self.facers:
+                self.facers[a] = _Facer(*self.meshes[a])
+            if b not in self.centroids:
+                Vb, Fb = self.meshes[b]
+                self.centroids[b] = Vb[Fb].mean(axis=1)
+            self.found[pair] = self.facers[a].faces(self.centroids[b], self.reach)
         return self.found[pair]
 
     def __iter__(self) -> Iterator[tuple[str, str]]:
