@@ -364,6 +364,27 @@ def test_facing_pairs_finds_each_pairs_faces_when_asked_the_same_as_facing_faces
     assert every_pair(["a", "b"], [("b", "a"), ("a", "c")]) == [("a", "b")]
 
 
+@pytest.mark.parametrize("reach", [0.5, 2.0, 3.7, 15.0])
+def test_facing_faces_are_every_centroid_within_reach_or_inside_by_brute_force(reach):
+    # the bounds (nearest vertex, and that less the triangles' cover) decide most
+    # centroids: every one must fall as the exact distance and winding number say, for
+    # a reach inside a triangle's size and beyond it, on a coarse capsule (long thin
+    # triangles) overlapping a sphere and, apart, beside it
+    import igl
+
+    from musclewrap.contact import facing_faces
+    from musclewrap.mesh import winding_numbers
+
+    a = capsule(radius=6.0, length=30.0, n_around=10, cap_rings=3, segments=4)
+    for centre in ([10.0, 0.0, 0.0], [14.5, 3.0, 0.0], [30.0, 0.0, 0.0]):
+        Vb, Fb = _sphere(7.0, centre)
+        cen = Vb[Fb].mean(axis=1)
+        sq = igl.point_mesh_squared_distance(cen, *a)[0]
+        want = np.flatnonzero((np.sqrt(sq) <= reach) | (winding_numbers(cen, *a) > 0))
+        got = facing_faces(*a, Vb, Fb, reach)
+        assert np.array_equal(got, want)
+
+
 def test_a_muscle_taken_apart_keeps_the_cage_of_its_mesh_as_segmented():
     from musclewrap.solver import Muscle
 
