@@ -385,6 +385,23 @@ def test_facing_faces_are_every_centroid_within_reach_or_inside_by_brute_force(r
         assert np.array_equal(got, want)
 
 
+def test_distance_outside_is_zero_inside_and_the_exact_distance_outside():
+    import igl
+
+    from musclewrap.contact import distance_outside
+
+    V, F = capsule(radius=6.0, length=30.0, n_around=16, cap_rings=4, segments=8)
+    rng = np.random.default_rng(3)
+    # inside, near the surface on either side, and far (a tendon's samples beyond the mesh)
+    P = np.vstack([rng.normal(0, 3, (50, 3)), rng.normal(0, 8, (200, 3)), [[0, 0, 300.0]]])
+    got = distance_outside(P, V, F)
+    inside = igl.fast_winding_number(V, F, P) > 0.5
+    want = np.where(inside, 0.0, np.sqrt(igl.point_mesh_squared_distance(P, V, F)[0]))
+    assert inside.any() and (~inside).any()
+    assert np.abs(got - want).max() <= 1e-12 * 300
+    assert len(distance_outside(np.zeros((0, 3)), V, F)) == 0
+
+
 def test_a_muscle_taken_apart_keeps_the_cage_of_its_mesh_as_segmented():
     from musclewrap.solver import Muscle
 

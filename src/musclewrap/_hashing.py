@@ -15,7 +15,8 @@ def digest(*parts: bytes | str | np.ndarray) -> str:
     h = hashlib.sha256()
     for p in parts:
         if isinstance(p, np.ndarray):
-            h.update(np.ascontiguousarray(p).tobytes())
+            # the array's own buffer (the same bytes as ``tobytes()``, without the copy)
+            h.update(np.ascontiguousarray(p).data)
         elif isinstance(p, str):
             h.update(p.encode())
         else:
@@ -35,5 +36,5 @@ def digest_arrays(arrays: Mapping[str, np.ndarray]) -> str:
         a = np.ascontiguousarray(arrays[k])
         h.update(k.encode())
         h.update(str(a.dtype).encode() + str(a.shape).encode())
-        h.update(a.tobytes())
+        h.update(a.data)  # the same bytes as a.tobytes(), not copied
     return h.hexdigest()

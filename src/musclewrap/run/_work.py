@@ -229,10 +229,11 @@ class FollowPath:
 
     job: MuscleJob
     span: PathSpan
+    keep: int = 1  # muscles kept in the process (`_deformer`): a group's, for its frames
 
     def run(self) -> PathStates:
         job, span = self.job, self.span
-        muscle, d, hit, note, seconds = _deformer(job)
+        muscle, d, hit, note, seconds = _deformer(job, self.keep)
         probes = [(bone_probe(b, job.cache_dir), b.name) for b in job.bones]
         K = len(span)
         cages = np.empty((K, len(muscle.cage.C), 3))

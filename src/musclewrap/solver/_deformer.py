@@ -6,7 +6,6 @@ import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 
-import igl
 import numba
 import numpy as np
 import numpy.typing as npt
@@ -32,6 +31,7 @@ from ..contact import (
     Placed,
     SideReference,
     as_placed,
+    distance_outside,
     rings,
 )
 from ..coordinates import mean_value_coordinates, rows_dot
@@ -756,9 +756,7 @@ class Deformer(ContactSteps, PaperSteps):
 
 def _outside(P: FloatArray, muscle: PreparedMuscle) -> FloatArray:
     """Each point's distance outside the muscle's surface (0 inside it)."""
-    d2, _, _ = igl.point_mesh_squared_distance(P, muscle.V, muscle.F)
-    inside = igl.fast_winding_number(muscle.V, muscle.F, P) > 0.5
-    return np.where(inside, 0.0, np.sqrt(d2))
+    return distance_outside(P, muscle.V, muscle.F)
 
 
 def _feather(muscle: PreparedMuscle, anchors: IntArray, depth: int) -> FloatArray:
