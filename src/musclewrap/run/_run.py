@@ -629,9 +629,6 @@ class _SceneRun:
         # the muscles in the scene's order, as in scene.pvd: their colours follow it
         order = [s.name for s in scene.muscles]
         first = [self.chunk_keys[m][0] for m in order]
-        # after the paper's comparisons too: the report and plots wait for those, and are
-        # then written here while the workers draw (behind the pictures they waited 1-2 s)
-        compare = [(self.tag, "compare", m) for m in order] if scene.paper_frames > 0 else []
         nodes = []
         for p, ks in enumerate(self.parts):
             pictures = [i for i, k in enumerate(shown) if k in ks]
@@ -643,7 +640,7 @@ class _SceneRun:
                 Node(
                     key,
                     self._picture_task(pictures, shown, after),
-                    after + tuple(compare),
+                    after,
                     done=self._pictures_done(bar, len(pictures)),
                     priority=4,
                 )
