@@ -52,12 +52,17 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------------- planning
-def chunks(n_frames: int, n_jobs: int, workers: int) -> list[range]:
-    """Frame ranges per muscle: about three tasks per worker, for an even finish.
+def chunks(n_frames: int, n_jobs: int, workers: int, muscles: int = 1) -> list[range]:
+    """Frame ranges per task: about three tasks per worker, for an even finish.
 
-    At most 128 frames each: a chunk is also what an interrupted run keeps.
+    ``n_jobs`` tasks share each range (a muscle's chunk each, or 1: a group's);
+    ``muscles``: the muscles a task solves in each frame (a group's). At least 20
+    muscle-frames a task (what a task's start costs is small beside them), at most
+    128 frames: a chunk is also what an interrupted run keeps. A group of 18 muscles
+    on 5 frames is 2 tasks: as one, it kept one worker busy and left the other idle.
     """
-    k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), n_frames // 20))
+    enough = n_frames * max(1, muscles) // 20
+    k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), enough))
     return contiguous_runs(n_frames, max(k, -(-n_frames // 128)))
 
 

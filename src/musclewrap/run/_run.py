@@ -343,7 +343,10 @@ class _SceneRun:
         run = os.urandom(8).hex()  # tells a worker's kept muscle from another run's
         self.jobs = muscle_jobs(self.inputs, self.outdir, run)
         spans = {j.name: frame_span(self.inputs, j.name) for j in self.jobs}
-        parts = chunks(n, 1 if self.grouped else len(self.jobs), ex.workers)
+        if self.grouped:
+            parts = chunks(n, 1, ex.workers, len(self.jobs))
+        else:
+            parts = chunks(n, len(self.jobs), ex.workers)
         journal = Journal(self.outdir, self.inputs.key, [(c.start, c.stop) for c in parts], resume)
         self.journal = journal
         self.tag = tag
@@ -484,7 +487,7 @@ class _SceneRun:
         """The paper's iteration beside the default for one muscle, once its frames are done."""
         node = Node(
             (self.tag, "compare", job.name),
-            self._compare_task(job, span, after),
+            self._compare_task(job, span, after, len(self.jobs) if self.grouped else 1),
             tuple(after),
             done=self._compare_done(job.name),
             priority=3,
@@ -527,12 +530,12 @@ class _SceneRun:
 
     @staticmethod
     def _compare_task(
-        job: MuscleJob, span: FrameSpan, chunk_keys: list[Any]
+        job: MuscleJob, span: FrameSpan, chunk_keys: list[Any], keep: int
     ) -> Callable[[dict[Any, Any]], Any]:
         def make(results: dict[Any, Any]) -> Compare:
             rows = [r for k in chunk_keys for r in _part(results[k], job.name).rows]
             worst, solved = Compare.frames_of(rows)
-            return Compare(job, span, worst, solved)
+            return Compare(job, span, worst, solved, keep)
 
         return make
 

@@ -362,11 +362,12 @@ class Compare:
     span: FrameSpan
     worst: int | None
     solved: tuple[int, ...]
+    keep: int = 1  # muscles kept in the process (`_deformer`): a group's, built for its frames
 
     def run(self) -> Comparison:
         if self.worst is None:
             return Comparison()
-        _, d, *_ = _deformer(self.job)
+        _, d, *_ = _deformer(self.job, self.keep)
         span, worst, solved = self.span, self.worst, self.solved
         spread = np.linspace(0, len(solved) - 1, self.job.paper_frames).round().astype(int)
         picks = {solved[i] for i in spread.tolist()}
