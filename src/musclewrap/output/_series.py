@@ -164,7 +164,14 @@ def plot_convergence(
     import matplotlib.pyplot as plt
 
     n = len(runs)
-    fig, axes = plt.subplots(2, n, figsize=(3.2 * n + 1, 5.5), dpi=110, squeeze=False)
+    width, height = 3.2 * n + 1, 5.5
+    fig, axes = plt.subplots(2, n, figsize=(width, height), dpi=110, squeeze=False)
+    # fixed margins in inches (the labels, the panels' titles and the figure's): tight_layout
+    # took half of this figure's time, 1.1 of 2.3 s with 18 muscles' panels
+    fig.subplots_adjust(
+        left=0.9 / width, right=1 - 0.15 / width, bottom=0.55 / height, top=1 - 0.75 / height,
+        wspace=0.35, hspace=0.3,
+    )  # fmt: skip
     for j, (muscle, (frame, hist)) in enumerate(runs.items()):
         for method, h in hist.items():
             if not h:
@@ -181,7 +188,7 @@ def plot_convergence(
     axes[1, 0].set_ylabel("|relative volume error|")
     axes[0, 0].legend(fontsize="small")
     fig.suptitle(title, fontsize="medium")
-    return _save_png(fig, path)
+    return _save_png(fig, path, tight=False)
 
 
 def plot_penetration(
