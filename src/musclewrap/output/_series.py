@@ -122,7 +122,7 @@ def plot_volume_error(
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
-    # fixed margins in inches (tight_layout took a third of the figure's time)
+    # fixed margins in inches: tight_layout took a fifth of the figure's time (0.13 s against 0.10)
     fig.subplots_adjust(left=0.95 / 7, right=1 - 0.15 / 7, bottom=0.55 / 4, top=1 - 0.4 / 4)
     for label, (x, y) in series.items():
         ax.semilogy(list(x), [max(abs(v), 1e-17) for v in y], marker=".", label=label)
@@ -247,7 +247,7 @@ def plot_penetration(
     panels = 1 + bool(bone_inside) + bool(muscle_inside)
     height = 3.2 * panels + 0.8
     fig, axes = plt.subplots(panels, 1, figsize=(7, height), dpi=110, sharex=True, squeeze=False)
-    # fixed margins in inches (tight_layout took a third of the figure's time)
+    # fixed margins in inches: tight_layout took a fifth of the figure's time (0.36 s against 0.29)
     fig.subplots_adjust(
         left=0.85 / 7, right=1 - 0.15 / 7, bottom=0.55 / height, top=1 - 0.4 / height,
         hspace=0.1,
