@@ -2,6 +2,7 @@
 
     python benchmarks/speed/bench_closest.py [--repeats 7]
     python benchmarks/speed/bench_closest.py --scene SCENE [--frames 0:211:10]
+    python benchmarks/speed/bench_closest.py --facing SCENE
 
 `musclewrap.contact._muscles._closest` takes, per point, the triangles whose bounding spheres
 come within the best distance so far, looked for in rings of a uniform grid of their centroids
@@ -12,6 +13,11 @@ faces, an LHDL muscle, the VHF vastus lateralis) and 10 to 10,000 points within 
 wall, the median time of each and the largest difference of their distances (the threshold of
 200 points came from the loop over every triangle that came before the grid; `defaults.closest_grid_points`
 says why it stays).
+
+``--facing SCENE``: the faces of every ordered pair of the scene's muscles that face each
+other at rest (`musclewrap.contact.facing_pairs`, what a run finds once per process),
+timed twice in one process, then each pair's faces against their definition taken by
+brute force (every centroid's distance by libigl, its winding number): how many pairs differ.
 
 ``--scene``: the calls a run makes instead (one process, warm: the overlap search's and the
 facing faces' own inputs, recorded), each timed again by the grid search and by libigl's tree,
@@ -53,9 +59,9 @@ def scene_calls(scene_path: str, frames: str) -> None:
     calls = []
     closest = muscles._closest
 
-    def recorded(P, V, F):  # noqa: ANN001, ANN202
+    def recorded(P, V, F, **kw):  # noqa: ANN001, ANN003, ANN202
         calls.append((np.ascontiguousarray(P), np.ascontiguousarray(V), np.ascontiguousarray(F)))
-        return closest(P, V, F)
+        return closest(P, V, F, **kw)
 
     with tempfile.TemporaryDirectory() as tmp:
         kw = dict(frames=frames, workers=1, render=False, progress=None,
@@ -83,12 +89,64 @@ def scene_calls(scene_path: str, frames: str) -> None:
         print(f"{label:<9} {len(sel):6d} {grid:7.3f} {tree:9.3f}")
 
 
+def facing(scene_path: str) -> None:
+    """`facing_pairs` of every ordered pair of the scene's muscles at rest: time and exactness."""
+    import igl
+    import numba
+    from threadpoolctl import threadpool_limits
+
+    from musclewrap.constants import defaults
+    from musclewrap.contact import facing_pairs
+    from musclewrap.mesh import winding_numbers
+    from musclewrap.scene import load_scene, run_scene
+    from musclewrap.solver import _together
+
+    threadpool_limits(1)
+    numba.set_num_threads(1)
+    scene = dataclasses.replace(load_scene(scene_path), paper_frames=0, gif=False)
+    rest: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    kept = _together.facing_pairs
+
+    def recorded(meshes, reach=None):  # noqa: ANN001, ANN202
+        rest.update(meshes)  # the muscles at rest in one frame, as the run has them
+        return kept(meshes, reach)
+
+    _together.facing_pairs = recorded
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            run_scene(scene, Path(tmp) / "out", frames="0:1:1", workers=1, render=False,
+                      progress=None, cache_dir=Path(tmp) / "cache")  # fmt: skip
+    finally:
+        _together.facing_pairs = kept
+    reach = defaults.muscle_facing_reach
+    for _ in range(2):
+        t0 = time.perf_counter()
+        found = facing_pairs(rest, reach)
+        got = {pair: found[pair] for pair in found}
+        print(
+            f"{scene_path}: facing_pairs, {len(got)} ordered pairs, {time.perf_counter() - t0:.2f} s"
+        )
+    differ = 0
+    for (a, b), faces in got.items():
+        cen = rest[b][0][rest[b][1]].mean(axis=1)
+        d = np.sqrt(igl.point_mesh_squared_distance(cen, *rest[a])[0])
+        want = np.flatnonzero((d <= reach) | (winding_numbers(cen, *rest[a]) > 0))
+        differ += not np.array_equal(faces, want)
+    print(
+        f"pairs whose faces differ from brute force (libigl's distances, winding numbers): {differ}"
+    )
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--repeats", type=int, default=7)
     p.add_argument("--scene")
+    p.add_argument("--facing", metavar="SCENE")
     p.add_argument("--frames", default="0:211:10")
     a = p.parse_args()
+    if a.facing:
+        facing(a.facing)
+        return
     if a.scene:
         scene_calls(a.scene, a.frames)
         return

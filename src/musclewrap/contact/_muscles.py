@@ -91,7 +91,9 @@ class Overlap:
     point: FloatArray
 
 
-def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, FloatArray, IntArray]:
+def _closest(
+    P: FloatArray, V: FloatArray, F: IntArray, *, grid: bool = False
+) -> tuple[FloatArray, FloatArray, IntArray]:
     """Distances of the points ``P`` to the triangles ``F`` of ``V``, closest points, their rows of F.
 
     Exact either way: where there are few points, per point the triangles whose bounding
@@ -99,12 +101,13 @@ def _closest(P: FloatArray, V: FloatArray, F: IntArray) -> tuple[FloatArray, Flo
     centroids round the point (one pass over the triangles to bin them, no tree); else
     libigl's AABB tree (about 0.4 us per triangle to build, per call: the surface moves
     every round). On capsules the grid is 5-23 times quicker than the tree up to 1,000
-    points (`python benchmarks/speed/bench_closest.py`).
+    points (`python benchmarks/speed/bench_closest.py`). ``grid``: the grid whatever the
+    count (points near the surface, where its rings stay few).
     """
     P = np.ascontiguousarray(P, dtype=np.float64)
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
-    if len(P) <= defaults.closest_grid_points:
+    if grid or len(P) <= defaults.closest_grid_points:
         dist, C = np.empty(len(P)), np.empty((len(P), 3))
         face = np.empty(len(P), dtype=np.int64)
         _closest_kernel(P, V, F, dist, C, face)
@@ -271,11 +274,7 @@ class _Facer:
         if len(unsure):
             # a band round the reach, a few hundred points: the compiled grid's closest
             # points (exact; no tree over the surface per pair)
-            P = np.ascontiguousarray(Q[unsure])
-            dist, C = np.empty(len(P)), np.empty((len(P), 3))
-            face = np.empty(len(P), dtype=np.int64)
-            _closest_kernel(P, self.V, self.F, dist, C, face)
-            near[unsure] = dist <= reach
+            near[unsure] = _closest(Q[unsure], self.V, self.F, grid=True)[0] <= reach
         inside = np.zeros(len(cand), dtype=bool)
         rest = np.flatnonzero(~near)
         if len(rest):

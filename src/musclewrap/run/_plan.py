@@ -59,7 +59,7 @@ def chunks(n_frames: int, n_jobs: int, workers: int, muscles: int = 1) -> list[r
     ``muscles``: the muscles a task solves in each frame (a group's). At least 20
     muscle-frames a task (what a task's start costs is small beside them), at most
     128 frames: a chunk is also what an interrupted run keeps. A group of 18 muscles
-    on 5 frames is 2 tasks: as one, it kept one worker busy and left the other idle.
+    on 5 frames is 4 tasks: as one, it kept one worker busy and left the other idle.
     """
     enough = n_frames * max(1, muscles) // 20
     k = 1 if workers <= 1 else max(1, min(-(-3 * workers // n_jobs), enough))

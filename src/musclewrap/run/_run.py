@@ -388,13 +388,7 @@ class _SceneRun:
                 nodes.append(
                     Node(
                         path_key,
-                        # in a group, the muscle is kept for the group's frames in this
-                        # process (they need every muscle: each built once, not twice)
-                        FollowPath(
-                            j,
-                            path_span(self.inputs, j.name),
-                            len(self.jobs) if self.grouped else 1,
-                        ),
+                        FollowPath(j, path_span(self.inputs, j.name), self.kept),
                         tuple(after),
                         priority=1,
                     )
@@ -483,11 +477,20 @@ class _SceneRun:
             nodes += [self._compare_node(j, spans[j.name], keys) for j in jobs]
         return nodes
 
+    @property
+    def kept(self) -> int:
+        """Muscles a worker keeps bound (`._work._deformer`) for the waypoints and comparisons.
+
+        A group's frames need every muscle in each process: those its waypoints bound
+        stay for them, built once, not twice; alone, one at a time.
+        """
+        return len(self.jobs) if self.grouped else 1
+
     def _compare_node(self, job: MuscleJob, span: FrameSpan, after: list[Any]) -> Node:
         """The paper's iteration beside the default for one muscle, once its frames are done."""
         node = Node(
             (self.tag, "compare", job.name),
-            self._compare_task(job, span, after, len(self.jobs) if self.grouped else 1),
+            self._compare_task(job, span, after, self.kept),
             tuple(after),
             done=self._compare_done(job.name),
             priority=3,

@@ -173,7 +173,9 @@ class Deformer(ContactSteps, PaperSteps):
             # tendons beyond the mesh: their samples' coordinates would extrapolate the cage
             thickness = mean_thickness(muscle.V, muscle.F, muscle.volume_rest)
             self.sampling, self.unbound = within_reach(
-                self.sampling, _outside(self.rest_samples, muscle), line_reach * thickness
+                self.sampling,
+                distance_outside(self.rest_samples, muscle.V, muscle.F),
+                line_reach * thickness,
             )
             self.rest_samples = self.sampling.plain.evaluate(rest, "rest lines")
             self.sample_line = self.sampling.line_index()
@@ -752,11 +754,6 @@ class Deformer(ContactSteps, PaperSteps):
                 return x, lam, its, True
             damp = damp / 4.0 if damp > 1e-3 else 0.0
         return x, lam, budget, False
-
-
-def _outside(P: FloatArray, muscle: PreparedMuscle) -> FloatArray:
-    """Each point's distance outside the muscle's surface (0 inside it)."""
-    return distance_outside(P, muscle.V, muscle.F)
 
 
 def _feather(muscle: PreparedMuscle, anchors: IntArray, depth: int) -> FloatArray:
