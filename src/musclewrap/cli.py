@@ -463,16 +463,6 @@ def _cmd_run(a: argparse.Namespace) -> int:
 
     scenes = [load_scene(p) for p in a.scene]
     cache: Path | bool = False if a.no_cache else (Path(a.cache_dir) if a.cache_dir else True)
-    if not a.no_check:
-        from .scene import check_scene
-
-        for sc in scenes:
-            rep = check_scene(sc, cache_dir=cache)  # the run's cache: --no-cache writes none
-            if not rep.ok:
-                from .run import refusal
-
-                print(f"error: {refusal(sc, rep)}", file=sys.stderr)
-                return 2
     if len(scenes) > 1 and not a.output:
         raise ValueError("several scenes: give the batch's output folder with -o")
     stems = [sc.path.stem for sc in scenes]
@@ -500,11 +490,27 @@ def _cmd_run(a: argparse.Namespace) -> int:
             runs += [dataclasses.replace(scene, motions=(m,)) for m in scene.motions]
             folders += [out / m.stem for m in scene.motions]
     with contextlib.ExitStack() as stack:
-        client = None
+        executor = None
+        muscles = sum(len(sc.muscles) for sc in runs)
+        if not a.scheduler and workers > 1 and muscles > 1:
+            from .run import ProcessExecutor
+
+            # started before the check: the workers import while this process checks
+            executor = stack.enter_context(ProcessExecutor(min(workers, muscles)))
+        if not a.no_check:
+            from .scene import check_scene
+
+            for sc in scenes:
+                rep = check_scene(sc, cache_dir=cache)  # the run's cache: --no-cache writes none
+                if not rep.ok:
+                    from .run import refusal
+
+                    print(f"error: {refusal(sc, rep)}", file=sys.stderr)
+                    return 2
         if a.scheduler:
             from .run import connect
 
-            client = stack.enter_context(
+            executor = stack.enter_context(
                 connect(a.scheduler, log=lambda m: print(m, file=sys.stderr))
             )
         summaries = run_batch(
@@ -518,7 +524,7 @@ def _cmd_run(a: argparse.Namespace) -> int:
             log=lambda m: print(m, file=sys.stderr),
             resume=a.resume,
             collisions=False if a.no_collisions else None,
-            executor=client,
+            executor=executor,
         )
     unconverged = 0
     for sc, summary in zip(runs, summaries, strict=True):
