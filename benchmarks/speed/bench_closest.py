@@ -1,18 +1,17 @@
 """Closest points on another muscle's faces: the compiled search against libigl's tree.
 
     python benchmarks/speed/bench_closest.py [--repeats 7]
-    python benchmarks/speed/bench_closest.py --scene SCENE [--frames 0:211:10]
+    python benchmarks/speed/bench_closest.py --scene SCENE [--frames 0:211:10] [--bins 200 5000]
     python benchmarks/speed/bench_closest.py --facing SCENE
 
 `musclewrap.contact._muscles._closest` takes, per point, the triangles whose bounding spheres
 come within the best distance so far, looked for in rings of a uniform grid of their centroids
-(no tree to build), for up to 200 points, and libigl's AABB tree
+(no tree to build), for up to `defaults.closest_grid_points` points, and libigl's AABB tree
 (`igl.point_mesh_squared_distance`, built per call: the surface moves every round) from
 there on. Prints, for capsules of about 2,000, 8,000 and 40,000 triangles (a muscle's facing
 faces, an LHDL muscle, the VHF vastus lateralis) and 10 to 10,000 points within the capsule's
-wall, the median time of each and the largest difference of their distances (the threshold of
-200 points came from the loop over every triangle that came before the grid; `defaults.closest_grid_points`
-says why it stays).
+wall, the median time of each and the largest difference of their distances
+(`defaults.closest_grid_points` says what the threshold rests on).
 
 ``--facing SCENE``: the faces of every ordered pair of the scene's muscles that face each
 other at rest (`musclewrap.contact.facing_pairs`, what a run finds once per process),
@@ -21,7 +20,8 @@ brute force (every centroid's distance by libigl, its winding number): how many 
 
 ``--scene``: the calls a run makes instead (one process, warm: the overlap search's and the
 facing faces' own inputs, recorded), each timed again by the grid search and by libigl's tree,
-summed by how many points a call has: what the threshold of 200 points gives up or gains there.
+summed by how many points a call has (up to each of ``--bins``): what a threshold gives up
+or gains there.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def _median(f, repeats: int) -> float:  # noqa: ANN001
     return float(np.median(times))
 
 
-def scene_calls(scene_path: str, frames: str) -> None:
+def scene_calls(scene_path: str, frames: str, edges: list[int]) -> None:
     """The grid search against libigl's tree on the calls a run of the scene makes."""
     import igl
     import numba
@@ -72,7 +72,11 @@ def scene_calls(scene_path: str, frames: str) -> None:
             run_scene(scene, Path(tmp) / "timed", **kw)
         finally:
             muscles._closest = closest
-    groups = {"<= 200": (0, 200), "201-5000": (201, 5000), "> 5000": (5001, 10**12)}
+    bounds = [0, *edges, 10**12]
+    groups = {
+        (f"<= {hi}" if lo == 0 else f"> {lo}" if hi == 10**12 else f"{lo + 1}-{hi}"): (lo + 1, hi)
+        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
+    }
     print(f"{scene_path} frames {frames}: {len(calls)} calls of _closest (one process)")
     print("points     calls  grid s  libigl s")
     for label, (lo, hi) in groups.items():
@@ -143,12 +147,16 @@ def main() -> None:
     p.add_argument("--scene")
     p.add_argument("--facing", metavar="SCENE")
     p.add_argument("--frames", default="0:211:10")
+    p.add_argument(
+        "--bins", type=int, nargs="+", default=[200, 5000],
+        help="--scene: the calls summed by points up to each of these counts, and beyond",
+    )  # fmt: skip
     a = p.parse_args()
     if a.facing:
         facing(a.facing)
         return
     if a.scene:
-        scene_calls(a.scene, a.frames)
+        scene_calls(a.scene, a.frames, a.bins)
         return
     import igl
 

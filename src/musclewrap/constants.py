@@ -254,11 +254,14 @@ class Defaults:
         once per run (`musclewrap.contact.apart_at_rest`).
     closest_grid_points : int
         Up to this many points, the closest points on another muscle come from a grid of
-        its triangles' centroids; beyond it, libigl's tree. On the gait2392 walk every
-        10th frame the grid takes the calls of 201-5,000 points in 0.34 s against the
-        tree's 0.56 s, those of over 5,000 in 2.2 against 0.48 s (`python
-        benchmarks/speed/bench_closest.py --scene examples/gait2392_walk.toml`): 200 kept, too
-        little to gain to change the results' last bits for.
+        its triangles' centroids; beyond it, libigl's tree (both exact; the last bits of a
+        distance and the row taken on a tie may differ). The calls a run makes, each timed
+        both ways (`python benchmarks/speed/bench_closest.py --scene SCENE --bins 200 500
+        1000 2000 3000`, one process, 2026-11-27): the 18 hip and thigh muscles every 50th
+        frame, 201-2,000 points 1.26 s against the tree's 2.89 s, 2,001-3,000 0.17 against
+        0.18 s; the gait2392 walk every 10th 0.24 against 0.52 s. The grid's cost grows
+        with the points far from the surface (an earlier run's calls of over 5,000 points:
+        2.2 against 0.48 s). 200 before.
     fibre_inside_depth : float
         How far inside the surface a fibre point found outside it is put, in grid cells
         of the fibres' field.
@@ -379,7 +382,7 @@ class Defaults:
     muscle_fine_depth: float = 0.25
     muscle_facing_reach: float = 15.0
     muscle_rest_rounds: int = 30
-    closest_grid_points: int = 200
+    closest_grid_points: int = 2000
     fibre_inside_depth: float = 0.1
     check_far_thicknesses: float = 1.0
     check_attached_m: float = 0.010
