@@ -8,6 +8,8 @@ import pytest
 
 from musclewrap.output import (
     STRETCH_RANGE,
+    plot_convergence,
+    plot_penetration,
     plot_volume_error,
     stretch_colours,
     stretch_table,
@@ -79,3 +81,76 @@ def test_volume_error_plot_draws_exact_volumes_too(tmp_path):
     p = plot_volume_error(tmp_path / "v.png", series, title="t", markers={"a": ([1], [1e-9])})
     assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert sorted(x.name for x in tmp_path.iterdir()) == ["v.png"]
+
+
+def _drawn(monkeypatch):
+    """The figures the plot functions make, drawn and kept open instead of written."""
+    from musclewrap.output import _series
+
+    figs = []
+
+    def keep(fig, path, *, tight=True):
+        fig.canvas.draw()
+        figs.append(fig)
+        return path
+
+    monkeypatch.setattr(_series, "_save_png", keep)
+    return figs
+
+
+def test_plots_of_many_muscles_keep_legends_off_the_data_and_muscles_apart(tmp_path, monkeypatch):
+    """18 muscles (a whole thigh): the legend beside the panels, not over them; every muscle
+    its own colour or marker, its squares (the paper's iteration) in its line's colour; the
+    title within the figure, however long."""
+    from matplotlib.colors import to_rgba
+
+    figs = _drawn(monkeypatch)
+    names = [f"muscle_{i:02d}_{'x' * 12}" for i in range(18)]
+    frames = list(range(0, 211, 10))
+    series = {n: (frames, [1e-15 * (i + 1)] * len(frames)) for i, n in enumerate(names)}
+    plot_volume_error(
+        tmp_path / "v.png", series, title="a scene's name that runs long " * 4,
+        markers={n: ([0, 210], [1e-16, 2e-16]) for n in names},
+        line_label="sqp", marker_label="paper, eq. 11",
+    )  # fmt: skip
+    depths = {n: (frames, [0.01 * i] * len(frames)) for i, n in enumerate(names)}
+    plot_penetration(
+        tmp_path / "p.png", depths, title="the whole leg: muscles and bones in each other " * 3,
+        before=depths, bone_inside=depths, muscle_inside=depths, line_inside=depths, limit=0.5,
+    )  # fmt: skip
+    for fig in figs:
+        r = fig.canvas.get_renderer()
+        ax = fig.axes[0]
+        legend = ax.get_legend().get_window_extent(r)
+        assert all(not legend.overlaps(a.get_window_extent(r)) for a in fig.axes)
+        assert legend.x1 <= fig.bbox.x1 and legend.y0 >= fig.bbox.y0
+        title = ax.title.get_window_extent(r)
+        assert fig.bbox.x0 <= title.x0 and title.x1 <= fig.bbox.x1 and title.y1 <= fig.bbox.y1
+        lines = {ln.get_label(): ln for ln in ax.get_lines() if ln.get_label() in names}
+        assert len(lines) == 18
+        assert len({(to_rgba(ln.get_color()), ln.get_marker()) for ln in lines.values()}) == 18
+    squares = [ln for ln in figs[0].axes[0].get_lines() if ln.get_marker() == "s"][:18]
+    for name, sq in zip(names, squares, strict=True):
+        assert to_rgba(sq.get_color()) == to_rgba(
+            next(ln for ln in figs[0].axes[0].get_lines() if ln.get_label() == name).get_color()
+        )
+
+
+def test_convergence_plot_of_many_muscles_is_rows_of_pairs(tmp_path, monkeypatch):
+    """18 muscles: three rows of six panel pairs (not one strip 6,400 pixels wide), no
+    panel's title on another's labels."""
+    figs = _drawn(monkeypatch)
+    hist = {"exact": [(1.0, 1e-3), (1e-6, 1e-14)], "paper": [(1.0, 1e-3), (0.1, 1e-5)]}
+    plot_convergence(tmp_path / "c.png", {f"m{i}": (3, hist) for i in range(18)}, title="t")
+    (fig,) = figs
+    assert len(fig.axes) == 36
+    width, height = fig.get_size_inches()
+    assert width <= 3.2 * 6 + 1 and height < 2 * width
+    r = fig.canvas.get_renderer()
+    boxes = [a.get_window_extent(r) for a in fig.axes]
+    texts = [t.get_window_extent(r) for a in fig.axes for t in (a.title, a.xaxis.label)
+             if t.get_text()]  # fmt: skip
+    assert sum(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1 :]) == 0
+    assert sum(a.overlaps(b) for i, a in enumerate(texts) for b in texts[i + 1 :]) == 0
+    for t in texts:
+        assert not any(t.overlaps(b) for b in boxes)

@@ -91,12 +91,48 @@ def _save_png(fig: Any, path: PathLike, *, tight: bool = True) -> Path:
     return p
 
 
+def _styles(n: int) -> list[tuple[Any, str]]:
+    """A colour and a marker for each of ``n`` muscles, all told apart.
+
+    Up to 10: matplotlib's own cycle (C0-C9). Up to 20: its ten hues dark, then the same
+    ten light (``tab20``); beyond, the twenty again with other markers.
+    """
+    if n <= 10:
+        return [(f"C{i}", ".") for i in range(n)]
+    import matplotlib
+
+    tab20 = matplotlib.colormaps["tab20"].colors
+    marks = (".", "x", "+", "^")
+    return [(tab20[2 * (i % 10) + (i // 10) % 2], marks[(i // 20) % 4]) for i in range(n)]
+
+
+#: the legend's rows that fit beside a panel, per inch of its height (fontsize "small")
+_LEGEND_ROWS_PER_INCH = 5.5
+#: the width a legend's column takes beside the panels, inches (labels of about 24 letters)
+_LEGEND_COLUMN_INCHES = 2.3
+
+
+def _legend_columns(entries: int, height: float) -> int:
+    """How many columns a legend of ``entries`` rows needs beside panels ``height`` inches tall."""
+    rows = max(1, int(height * _LEGEND_ROWS_PER_INCH))
+    return -(-entries // rows)
+
+
+def _wrapped(title: str, width: float) -> str:
+    """``title`` broken into lines that fit a figure ``width`` inches wide (fontsize "medium")."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(title, max(20, int(width * 11))))
+
+
 def plot_volume_error(
     path: PathLike,
     series: Mapping[str, tuple[Sequence[float], Sequence[float]]],
     *,
     title: str,
     markers: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
+    line_label: str | None = None,
+    marker_label: str | None = None,
 ) -> Path:
     """Plot |relative volume error| per frame on a log scale, one curve per label.
 
@@ -105,12 +141,15 @@ def plot_volume_error(
     path : str or os.PathLike
         Destination PNG.
     series : mapping of str to (frames, errors)
-        Curves to draw.
+        Curves to draw (a muscle's each).
     title : str
         Plot title.
     markers : mapping of str to (frames, errors), optional
-        Values on a few frames only (e.g. the paper's iteration), drawn as
-        markers without lines.
+        Values on a few frames only (e.g. the paper's iteration), drawn as open
+        squares without lines, in the colour of the curve of the same label.
+    line_label, marker_label : str, optional
+        What the curves and the squares are (e.g. ``"sqp"`` and ``"paper, eq. 11"``),
+        said once each in the legend.
 
     Returns
     -------
@@ -121,22 +160,54 @@ def plot_volume_error(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
+    markers = markers or {}
+    labels = list(series) + [m for m in markers if m not in series]
+    style = dict(zip(labels, _styles(len(labels)), strict=True))
+    entries = len(labels) + bool(markers) + bool(line_label) + 1  # and the target's line
+    # many muscles: the legend beside the panel, not over it
+    outside = entries > 8
+    columns = _legend_columns(entries, 4.0 - 0.95) if outside else 0
+    width = 7.0 + columns * _LEGEND_COLUMN_INCHES
+    title = _wrapped(title, 7.0)
+    top = 0.4 + 0.2 * title.count("\n")
+    fig, ax = plt.subplots(figsize=(width, 4 + top - 0.4), dpi=110)
+    height = 4 + top - 0.4
     # fixed margins in inches: tight_layout took a fifth of the figure's time (0.13 s against 0.10)
-    fig.subplots_adjust(left=0.95 / 7, right=1 - 0.15 / 7, bottom=0.55 / 4, top=1 - 0.4 / 4)
+    fig.subplots_adjust(
+        left=0.95 / width, right=1 - (0.15 + columns * _LEGEND_COLUMN_INCHES) / width,
+        bottom=0.55 / height, top=1 - top / height,
+    )  # fmt: skip
     for label, (x, y) in series.items():
-        ax.semilogy(list(x), [max(abs(v), 1e-17) for v in y], marker=".", label=label)
-    for label, (x, y) in (markers or {}).items():
+        colour, mark = style[label]
         ax.semilogy(
-            list(x), [max(abs(v), 1e-17) for v in y], ls="none", marker="s", mfc="none", label=label
+            list(x), [max(abs(v), 1e-17) for v in y], marker=mark, color=colour, label=label
         )
+    for label, (x, y) in markers.items():
+        colour, _ = style[label]
+        ax.semilogy(
+            list(x), [max(abs(v), 1e-17) for v in y], ls="none", marker="s", mfc="none",
+            color=colour, label=None if label in series else label,
+        )  # fmt: skip
+    if line_label:
+        ax.semilogy([], [], color="0.4", marker=".", label=f"lines: {line_label}")
+    if markers and marker_label:
+        ax.semilogy([], [], ls="none", marker="s", mfc="none", color="0.4",
+                    label=f"squares: {marker_label}")  # fmt: skip
     ax.axhline(1e-9, color="k", ls="--", lw=0.8, label="target 1e-9")
     ax.set_xlabel("frame")
     ax.set_ylabel("|relative volume error|")
     ax.set_title(title)
     _log_axis(ax)
-    ax.legend(fontsize="small", ncol=2 if len(series) + len(markers or {}) > 4 else 1)
+    if outside:
+        ax.legend(fontsize="small", ncol=columns, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                  borderaxespad=0.0)  # fmt: skip
+    else:
+        ax.legend(fontsize="small", ncol=2 if entries > 4 else 1)
     return _save_png(fig, path, tight=False)
+
+
+#: the most muscles (panel pairs) in a row of the convergence plot
+_CONVERGENCE_COLUMNS = 6
 
 
 def plot_convergence(
@@ -146,6 +217,8 @@ def plot_convergence(
     title: str,
 ) -> Path:
     """Energy and |volume error| against iteration, one panel pair per muscle (paper's Fig. 6).
+
+    The pairs side by side, at most six a row (rows of pairs below).
 
     Parameters
     ----------
@@ -166,28 +239,41 @@ def plot_convergence(
     import matplotlib.pyplot as plt
 
     n = len(runs)
-    width, height = 3.2 * n + 1, 5.5
-    fig, axes = plt.subplots(2, n, figsize=(width, height), dpi=110, squeeze=False)
+    # a panel pair per muscle, at most six pairs a row: 18 muscles in three rows, not a strip
+    # 6,400 pixels wide
+    cols = min(n, _CONVERGENCE_COLUMNS)
+    rows = -(-n // cols)
+    width, height = 3.2 * cols + 1, 5.4 * rows + 0.1 - 0.4 * (rows - 1)
+    fig = plt.figure(figsize=(width, height), dpi=110)
     # fixed margins in inches (the labels, the panels' titles and the figure's): tight_layout
-    # took half of this figure's time, 1.1 of 2.3 s with 18 muscles' panels
-    fig.subplots_adjust(
+    # took half of this figure's time, 1.1 of 2.3 s with 18 muscles' panels; a thin empty
+    # row between rows of pairs for the pair below's titles
+    grid = fig.add_gridspec(
+        3 * rows - 1, cols, height_ratios=[1.0, 1.0, 0.02] * (rows - 1) + [1.0, 1.0],
         left=0.9 / width, right=1 - 0.15 / width, bottom=0.55 / height, top=1 - 0.75 / height,
         wspace=0.35, hspace=0.3,
     )  # fmt: skip
+    axes = np.empty((2 * rows, cols), dtype=object)
+    for j in range(n):
+        r, c = divmod(j, cols)
+        axes[2 * r, c] = fig.add_subplot(grid[3 * r, c])
+        axes[2 * r + 1, c] = fig.add_subplot(grid[3 * r + 1, c])
     for j, (muscle, (frame, hist)) in enumerate(runs.items()):
+        top, bottom = axes[2 * (j // cols), j % cols], axes[2 * (j // cols) + 1, j % cols]
         for method, h in hist.items():
             if not h:
                 continue
             it = range(1, len(h) + 1)
-            axes[0, j].semilogy(it, [max(e, 1e-30) for e, _ in h], marker=".", label=method)
-            axes[1, j].semilogy(it, [max(abs(v), 1e-17) for _, v in h], marker=".", label=method)
-        axes[0, j].set_title(f"{muscle}, frame {frame}", fontsize="small")
-        axes[1, j].axhline(1e-9, color="k", ls="--", lw=0.8)
-        axes[1, j].set_xlabel("iteration")
-        for ax in axes[:, j]:
+            top.semilogy(it, [max(e, 1e-30) for e, _ in h], marker=".", label=method)
+            bottom.semilogy(it, [max(abs(v), 1e-17) for _, v in h], marker=".", label=method)
+        top.set_title(f"{muscle}, frame {frame}", fontsize="small")
+        bottom.axhline(1e-9, color="k", ls="--", lw=0.8)
+        bottom.set_xlabel("iteration")
+        for ax in (top, bottom):
             _log_axis(ax)
-    axes[0, 0].set_ylabel("energy")
-    axes[1, 0].set_ylabel("|relative volume error|")
+    for r in range(rows):
+        axes[2 * r, 0].set_ylabel("energy")
+        axes[2 * r + 1, 0].set_ylabel("|relative volume error|")
     axes[0, 0].legend(fontsize="small")
     fig.suptitle(title, fontsize="medium")
     return _save_png(fig, path, tight=False)
@@ -245,18 +331,31 @@ def plot_penetration(
     import matplotlib.pyplot as plt
 
     panels = 1 + bool(bone_inside) + bool(muscle_inside)
-    height = 3.2 * panels + 0.8
-    fig, axes = plt.subplots(panels, 1, figsize=(7, height), dpi=110, sharex=True, squeeze=False)
+    labels = list(dict.fromkeys([*after, *(bone_inside or {}), *(muscle_inside or {})]))
+    style = dict(zip(labels, _styles(len(labels)), strict=True))
+    lines_shown = bool(line_inside) and any(
+        any(v > 0 for v in ly) for lab, (_, ly) in line_inside.items() if lab in after
+    )
+    entries = len(after) + bool(before) + lines_shown + (limit is not None)
+    # many muscles: the legend beside the panels, not over them
+    outside = entries > 8
+    columns = _legend_columns(entries, 3.2 * panels - 0.5) if outside else 0
+    width = 7.0 + columns * _LEGEND_COLUMN_INCHES
+    title = _wrapped(title, 7.0)
+    top = 0.4 + 0.2 * title.count("\n")
+    height = 3.2 * panels + 0.55 + top
+    fig, axes = plt.subplots(
+        panels, 1, figsize=(width, height), dpi=110, sharex=True, squeeze=False
+    )
     # fixed margins in inches: tight_layout took a fifth of the figure's time (0.36 s against 0.29)
     fig.subplots_adjust(
-        left=0.85 / 7, right=1 - 0.15 / 7, bottom=0.55 / height, top=1 - 0.4 / height,
-        hspace=0.1,
+        left=0.85 / width, right=1 - (0.15 + columns * _LEGEND_COLUMN_INCHES) / width,
+        bottom=0.55 / height, top=1 - top / height, hspace=0.1,
     )  # fmt: skip
     ax = axes[0, 0]
-    lines_shown = False
-    for i, (label, (x, y)) in enumerate(after.items()):
-        colour = f"C{i % 10}"
-        ax.plot(list(x), list(y), marker=".", ms=3, color=colour, label=label)
+    for label, (x, y) in after.items():
+        colour, mark = style[label]
+        ax.plot(list(x), list(y), marker=mark, ms=3, color=colour, label=label)
         if before and label in before:
             bx, by = before[label]
             ax.plot(list(bx), list(by), ls="--", lw=0.8, color=colour, alpha=0.7)
@@ -264,7 +363,6 @@ def plot_penetration(
             lx, ly = line_inside[label]
             if any(v > 0 for v in ly):
                 ax.plot(list(lx), list(ly), ls=":", lw=1.0, color=colour, alpha=0.9)
-                lines_shown = True
     if before:
         ax.plot([], [], ls="--", lw=0.8, color="0.4", label="before contact (dashed)")
     if lines_shown:
@@ -275,18 +373,24 @@ def plot_penetration(
     ax.set_ylim(bottom=0.0)
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small", ncol=2 if len(after) > 4 else 1)
+    if outside:
+        ax.legend(fontsize="small", ncol=columns, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                  borderaxespad=0.0)  # fmt: skip
+    else:
+        ax.legend(fontsize="small", ncol=2 if len(after) > 4 else 1)
     if bone_inside:
         ax2 = axes[1, 0]
-        for i, (label, (x, y)) in enumerate(bone_inside.items()):
-            ax2.plot(list(x), list(y), marker=".", ms=3, color=f"C{i % 10}", label=label)
+        for label, (x, y) in bone_inside.items():
+            colour, mark = style[label]
+            ax2.plot(list(x), list(y), marker=mark, ms=3, color=colour, label=label)
         ax2.set_ylabel(f"bone vertex in muscle ({unit})")
         ax2.set_ylim(bottom=0.0)
         ax2.grid(True, alpha=0.3)
     if muscle_inside:
         ax3 = axes[-1, 0]
-        for i, (label, (x, y)) in enumerate(muscle_inside.items()):
-            ax3.plot(list(x), list(y), marker=".", ms=3, color=f"C{i % 10}", label=label)
+        for label, (x, y) in muscle_inside.items():
+            colour, mark = style[label]
+            ax3.plot(list(x), list(y), marker=mark, ms=3, color=colour, label=label)
         ax3.set_ylabel(f"vertex in another muscle ({unit})")
         ax3.set_ylim(bottom=0.0)
         ax3.grid(True, alpha=0.3)

@@ -139,7 +139,7 @@ def _plots(
     series = {}
     for res in results:
         rows = res.rows
-        series[f"{res.name} (sqp)"] = (
+        series[res.name] = (
             [r["frame"] for r in rows],
             [r["relative_volume_error"] for r in rows],
         )
@@ -149,10 +149,10 @@ def _plots(
             outdir / PLOT_VOLUME,
             series,
             title=f"{scene.name}: relative volume error per frame",
-            markers={
-                f"{m} (paper, eq. 11)": ([p[0] for p in ps], [p[1] for p in ps])
-                for m, ps in paper.items()
-            },
+            markers={m: ([p[0] for p in ps], [p[1] for p in ps]) for m, ps in paper.items()},
+            # each muscle's own method (the old figure said "sqp" whatever it was)
+            line_label=", ".join(sorted({m.method for m in scene.muscles})),
+            marker_label="paper, eq. 11",
         )
     ]
     conv = {
