@@ -35,7 +35,8 @@ def kernels_cached() -> bool:
 #: called with. On a first run a second process compiles the pose's and some of the
 #: contact's while the run's own compiles the preparation's and the contact's others
 #: (`HERE`), before its workers start. Kernels that only these call are compiled with them.
-#: A test checks that the demo compiles nothing else.
+#: A test checks that the demo compiles nothing else. A kernel the demo does not call is
+#: left to its first call (the paths' windows, `line_window`: about 1 s in each worker).
 _A2, _A1, _I2, _I1 = "float64[:, ::1]", "float64[::1]", "int64[:, ::1]", "int64[::1]"
 _A3, _F2 = "float64[:, :, ::1]", "float32[:, ::1]"
 KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
@@ -64,7 +65,6 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("mesh._volume", "_mean_rows_kernel", f"({_A2},)"),
         ("conditions._lines", "_arclength_kernel", f"({_A2},)"),
         ("conditions._lines", "_polyline_at_kernel", f"({_A2}, {_A1}, {_A2})"),
-        ("conditions._lines", "_window_mean_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_A2})"),
     ),
     # a scene with bones or muscles in contact (the demo's): the bones' distance grids,
     # which muscle vertices are near them, winding numbers, the nearest triangles
@@ -102,9 +102,14 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
 
 
 #: on a first run, the contact's kernels that the run's own process compiles (after the
-#: preparation's) while the helper compiles the pose's and the contact's others: each side
-#: about 12 s of the 23 s that all take in one process (`bench_first_run.py --kernels`)
-HERE = ("_closest_kernel", "_region_kernel", "_query_kernel")
+#: preparation's) while the helper compiles the pose's and the contact's others. Each
+#: process compiles the callees and numpy functions it needs itself, so the two sides took
+#: 11.6-14.1 s each where all take 18.7 s in one process (`bench_first_run.py --each`;
+#: a scratch timing of each side, 2026-11-27): with the winding grid's binning here too
+#: (it was the helper's, which then finished 1.4-2.2 s after this side) and the paths'
+#: windows not compiled, the demo's first run took 22.9-25.6 s against 25.1-27.7 s
+#: (`bench_first_run.py`, three each in turns)
+HERE = ("_closest_kernel", "_region_kernel", "_query_kernel", "_bin_kernel", "_cells_kernel")
 
 
 def compile_kernels(group: str | None = None, *, here: bool | None = None) -> None:
