@@ -46,6 +46,8 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("solver._proxy", "_mat3", f"({_F2}, {_A2})"),
         ("solver._deformer", "_point_polyline_distance", f"({_A2}, {_A2})"),
         ("mesh._volume", "_combine_kernel", f"({_A2}, float64, {_A1})"),
+        # the written surface's stretch
+        ("mesh._geometry", "_vertex_areas_kernel", f"({_A2}, {_I2}, {_A1})"),
         ("coordinates._mvc", "_rows_dot_kernel", f"({_A2}, {_A2}, {_A2})"),
         ("solver._deformer", "_energy_kernel",
          f"({_I1}, {_I1}, {_A1}, {_A2}, {_A2}, {_A2}, {_A2}, float64)"),

@@ -272,16 +272,36 @@ def line_inside_depth(
     exactly (`Obstacle.measure`): where a model's action line itself runs
     through a bone, the muscle cannot follow it there.
     """
-    pts = []
-    for L in lines:
-        L = np.asarray(L, dtype=np.float64)
-        for a, b in zip(L[:-1], L[1:], strict=True):
-            k = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing)))
-            pts.append(a + np.linspace(0.0, 1.0, k + 1)[:, None] * (b - a))
+    pts = [_segment_samples(np.asarray(L, dtype=np.float64), spacing) for L in lines]
+    pts = [q for q in pts if len(q)]
     if not pts or not placed:
         return 0.0
     Q = np.vstack(pts)
     return max(pl.obstacle.measure(pl.to_obstacle(Q))[1] for pl in placed)
+
+
+def _segment_samples(L: FloatArray, spacing: float) -> FloatArray:
+    """Each segment of the poly-line ``L`` sampled at ``k + 1`` even steps.
+
+    ``k`` the least that keeps them ``spacing`` or less apart: ``a + np.linspace(0, 1, k +
+    1) (b - a)`` segment by segment, to the bit (its steps ``j (1 / k)``, the last 1),
+    without a call a segment.
+    """
+    if len(L) < 2:
+        return np.zeros((0, 3))
+    a, d = L[:-1], L[1:] - L[:-1]
+    r = np.linalg.norm(d, axis=1) / spacing
+    # a segment's own norm (a dot product) may differ from the rows' in the last bit: where
+    # that could move the ceiling, the segment's own
+    tie = np.flatnonzero(np.abs(r - np.rint(r)) <= 1e-9 * np.maximum(r, 1.0))
+    r[tie] = [np.linalg.norm(d[i]) / spacing for i in tie]
+    k = np.maximum(1, np.ceil(r).astype(np.int64))
+    seg = np.repeat(np.arange(len(k)), k + 1)
+    start = np.concatenate([[0], np.cumsum(k + 1)[:-1]])
+    j = (np.arange(len(seg)) - start[seg]).astype(np.float64)
+    t = j * (1.0 / k[seg])
+    t[start + k] = 1.0
+    return a[seg] + t[:, None] * d[seg]
 
 
 @numba.njit(cache=True)

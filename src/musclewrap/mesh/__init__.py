@@ -27,6 +27,7 @@ from ._geometry import (
     oriented_box,
     umbrella_laplacian,
     vertex_adjacency,
+    vertex_areas,
     vertex_normals,
 )
 from ._io import FORMATS, atomic_path, read_mesh, write_mesh
@@ -76,6 +77,7 @@ __all__ = [
     "tidy_mesh",
     "umbrella_laplacian",
     "vertex_adjacency",
+    "vertex_areas",
     "vertex_normals",
     "vertex_origins",
     "volume",

