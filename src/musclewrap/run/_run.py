@@ -584,6 +584,7 @@ class _SceneRun:
             self.notes,
         )
         self.notes += _conflict_notes(rows, scene.mesh_unit)
+        self.notes += _overlap_notes(rows, scene.mesh_unit)
         worst = max(
             (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
             for r in rows
@@ -731,6 +732,32 @@ class _SceneRun:
         Journal.finish(self.outdir)  # complete: nothing left to resume
         self.summary.seconds = time.perf_counter() - self.t0
         return self.summary
+
+
+def _overlap_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
+    """The notes of the muscles left inside another muscle deeper than `defaults.overlap_note_mm`.
+
+    Where the rounds end at their cap (`defaults.muscle_rounds`) with muscles still in
+    each other (their lines press them together harder than they can give way), the
+    frame converged and its volumes are exact, but a user of the meshes must know it:
+    on how many frames, how deep and where (``muscle_overlap_max`` in report.csv).
+    """
+    out = []
+    deep = defaults.overlap_note_mm * 1e-3 / UNITS[unit]  # in mesh units
+    for name in dict.fromkeys(r["muscle"] for r in rows):
+        mine = [
+            r for r in rows if r["muscle"] == name and r.get("muscle_overlap_max", np.nan) > deep
+        ]
+        if not mine:
+            continue
+        worst = max(mine, key=lambda r: r["muscle_overlap_max"])
+        out.append(
+            f"{name}: on {len(mine)} frame(s) a vertex stays more than {deep:g} {unit} inside "
+            f"another muscle (up to {worst['muscle_overlap_max']:.3g} {unit}, frame "
+            f"{worst['frame']}, after {worst.get('muscle_rounds', 0)} rounds; "
+            "muscle_overlap_max in report.csv): the muscles could not be taken apart there"
+        )
+    return out
 
 
 def _conflict_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:

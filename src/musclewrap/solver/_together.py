@@ -108,92 +108,106 @@ def meet(
     rounds = 0
     surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
     memo: dict[Any, Any] = {}  # what stays over the rounds for the muscles that stay
-    for _ in range(defaults.muscle_rounds if pairs else 0):
-        # each muscle's side: its vertices inside others go out by its share, and where
-        # another's vertex stands inside it, its surface gives the other share (a muscle
-        # held by a bone cannot take its own; where only one surface has vertices inside
-        # the other, both still move)
-        found = overlaps(surf, pairs, facing, memo)
-        met = meetings(found, defaults.muscle_share)
-        # per muscle the deepest of its vertices in another or another's in it, in its edges
-        worst = {n: max(m.depth, m.given) / edge[n] for n, m in met.items()}
-        if max(worst.values()) <= defaults.muscle_overlap_depth:
-            break  # all out, to the tolerance
-        rounds += 1
-        new = {}
-        cage = []  # the muscles that take a step of their cage this round
-        for n in live:
-            d, m = deformers[n], met[n]
-            if worst[n] <= defaults.muscle_overlap_depth:
-                continue  # out already (to the tolerance): no step
-            m = m.rotated(frames.get(n))  # the ways out in the muscle's frame
-            if worst[n] <= defaults.muscle_fine_depth:
-                # a fraction of an edge: the fine vertices themselves (the cage cannot take
-                # a few vertices out without moving their whole region)
-                Vn = push_apart(
-                    state[n][1], d.muscle.F, d.muscle.adjacency, m, surf[n][0],
-                    volume_target=d.muscle.volume_rest, edge=d._fine_edge,
-                )  # fmt: skip
-                if Vn is not None:
-                    new[n] = (state[n][0], Vn)
+    final: dict[str, DeformationResult] = {}
+    ok: list[str] = []
+    for settled in range(defaults.muscle_finish_passes):
+        if settled:
+            # the bones' finish pushed a muscle deep into another: the rounds again, from
+            # where the finish left them (it has the last word on the bones)
+            state.update({n: (final[n].cage, final[n].V) for n in ok})
+            surf.update({n: (_apply(frames.get(n), final[n].V), deformers[n].muscle.F) for n in ok})
+        for _ in range(defaults.muscle_rounds - rounds if pairs else 0):
+            # each muscle's side: its vertices inside others go out by its share, and where
+            # another's vertex stands inside it, its surface gives the other share (a muscle
+            # held by a bone cannot take its own; where only one surface has vertices inside
+            # the other, both still move)
+            found = overlaps(surf, pairs, facing, memo)
+            met = meetings(found, defaults.muscle_share)
+            # per muscle the deepest of its vertices in another or another's in it, in its edges
+            worst = {n: max(m.depth, m.given) / edge[n] for n, m in met.items()}
+            if max(worst.values()) <= defaults.muscle_overlap_depth:
+                break  # all out, to the tolerance
+            rounds += 1
+            new = {}
+            cage = []  # the muscles that take a step of their cage this round
+            for n in live:
+                d, m = deformers[n], met[n]
+                if worst[n] <= defaults.muscle_overlap_depth:
+                    continue  # out already (to the tolerance): no step
+                m = m.rotated(frames.get(n))  # the ways out in the muscle's frame
+                if worst[n] <= defaults.muscle_fine_depth:
+                    # a fraction of an edge: the fine vertices themselves (the cage cannot take
+                    # a few vertices out without moving their whole region)
+                    Vn = push_apart(
+                        state[n][1], d.muscle.F, d.muscle.adjacency, m, surf[n][0],
+                        volume_target=d.muscle.volume_rest, edge=d._fine_edge,
+                    )  # fmt: skip
+                    if Vn is not None:
+                        new[n] = (state[n][0], Vn)
+                        continue
+                cage.append(n)
+                obs = obstacles.get(n)
+                if obs and n not in nears:
+                    # the pose's bounds where its solve kept them (they hold wherever the
+                    # vertices have moved since)
+                    pose = results[n].pose
+                    nears[n] = Near(state[n][1], obs, margin) if pose is None else pose.near
+            groups = overlap_groups(cage, found) if joint else [[n] for n in cage]
+            for group in groups:
+                if len(group) > 1:
+                    # overlapping each other: one step together (an overlap one condition on
+                    # both), not a step each with its share
+                    new.update(
+                        joint_round(
+                            deformers, state, surf, found, group, frames=frames,
+                            obstacles={n: as_placed(obstacles.get(n)) for n in group},
+                            margin=margin, sides=sides, nears=nears,
+                        )
+                    )  # fmt: skip
                     continue
-            cage.append(n)
-            obs = obstacles.get(n)
-            if obs and n not in nears:
-                # the pose's bounds where its solve kept them (they hold wherever the
-                # vertices have moved since)
-                pose = results[n].pose
-                nears[n] = Near(state[n][1], obs, margin) if pose is None else pose.near
-        groups = overlap_groups(cage, found) if joint else [[n] for n in cage]
-        for group in groups:
-            if len(group) > 1:
-                # overlapping each other: one step together (an overlap one condition on
-                # both), not a step each with its share
-                new.update(
-                    joint_round(
-                        deformers, state, surf, found, group, frames=frames,
-                        obstacles={n: as_placed(obstacles.get(n)) for n in group},
-                        margin=margin, sides=sides, nears=nears,
-                    )
+                n = group[0]
+                d, m = deformers[n], met[n].rotated(frames.get(n))
+                points = None
+                if len(m.faces):
+                    points = (d.surface_rows(m.at, m.faces, surf[n][0]), m.give, m.back)
+                new[n] = d.contact_round(
+                    *state[n], m.rows, m.need, m.out, obstacles=obstacles.get(n), margin=margin,
+                    sides=sides.get(n), near=nears.get(n), points=points,
                 )  # fmt: skip
-                continue
-            n = group[0]
-            d, m = deformers[n], met[n].rotated(frames.get(n))
-            points = None
-            if len(m.faces):
-                points = (d.surface_rows(m.at, m.faces, surf[n][0]), m.give, m.back)
-            new[n] = d.contact_round(
-                *state[n], m.rows, m.need, m.out, obstacles=obstacles.get(n), margin=margin,
-                sides=sides.get(n), near=nears.get(n), points=points,
+            for n, (x, V) in new.items():
+                if V is not state[n][1]:  # moved: its surface anew (the others' stay, memo too)
+                    surf[n] = (_apply(frames.get(n), V), deformers[n].muscle.F)
+            state.update(new)
+        final = {
+            n: deformers[n].settle(
+                results[n],
+                *state[n],
+                lines[n],
+                reference_point=refs.get(n),
+                obstacles=obstacles.get(n),
+                margin=margin,
+                sides=sides.get(n),
             )  # fmt: skip
-        for n, (x, V) in new.items():
-            if V is not state[n][1]:  # moved: its surface anew (the others' stay, memo too)
-                surf[n] = (_apply(frames.get(n), V), deformers[n].muscle.F)
-        state.update(new)
-    final = {
-        n: deformers[n].settle(
-            results[n],
-            *state[n],
-            lines[n],
-            reference_point=refs.get(n),
-            obstacles=obstacles.get(n),
-            margin=margin,
-            sides=sides.get(n),
+            for n in names
+        }
+        ok = [n for n in names if np.isfinite(final[n].V).all()]
+        # the exact check; a surface the finish did not move is the rounds' own (and what the
+        # rounds found about it is taken again)
+        depth = overlap_depths(
+            {
+                n: surf[n] if n in surf and final[n].V is state[n][1]
+                else (_apply(frames.get(n), final[n].V), deformers[n].muscle.F)
+                for n in ok
+            },
+            every_pair(ok),
+            memo,
         )  # fmt: skip
-        for n in names
-    }
-    ok = [n for n in names if np.isfinite(final[n].V).all()]
-    # the exact check; a surface the finish did not move is the rounds' own (and what the
-    # rounds found about it is taken again)
-    depth = overlap_depths(
-        {
-            n: surf[n] if n in surf and final[n].V is state[n][1]
-            else (_apply(frames.get(n), final[n].V), deformers[n].muscle.F)
-            for n in ok
-        },
-        every_pair(ok),
-        memo,
-    )  # fmt: skip
+        if (
+            rounds >= defaults.muscle_rounds
+            or not pairs
+            or all(depth[n][1] <= defaults.muscle_finish_retry * edge[n] for n in ok)
+        ):
+            break
     return {
         n: dataclasses.replace(
             final[n],
