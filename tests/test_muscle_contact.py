@@ -641,6 +641,58 @@ def test_gait2392_thigh_muscles_stay_apart_whatever_their_order(data_dir, tmp_pa
     assert (tmp_path / "a" / "penetration.png").is_file()
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_the_whole_leg_on_its_hardest_walk_frames(data_dir, tmp_path):
+    """Issue 46: the 19 VHF muscles with gait2392's femur, pelvis and sacrum, on the walk's
+    frames with the most rounds (50: 12, 190: 10) and the largest shape change (120),
+    checked independently (`verify_run`). What holds there: every frame converged, volumes
+    exact, no muscle vertex 0.5 mm inside another muscle or (beyond the rest overlaps the
+    scene keeps) a bone, no bone vertex 1 mm inside a muscle, the rounds ended by taking the
+    muscles apart, not at their cap. Not met there, not checked: shape change 0.5 (the
+    gluteus minimus 0.77 on frame 120) and ``skeleton_fit_free`` 1.5 mm (1.72 mm)."""
+    import re
+    from pathlib import Path
+
+    from musclewrap.constants import defaults
+    from musclewrap.run._verify import verify_run
+    from musclewrap.scene import load_scene, run_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "examples" / "gait2392_leg.toml")
+    assert len(scene.muscles) == 19
+    model = {b.name: b.source for b in scene.bones if b.source}
+    assert sorted(model) == ["femur", "pelvis", "sacrum"]
+    assert all(src.startswith("the model's ") for src in model.values())
+    frames = "50:191:70"
+    s = run_scene(
+        scene, tmp_path / "a", frames=frames, workers=2, cache_dir=tmp_path / "c",
+        progress=None, render=False,
+    )  # fmt: skip
+    assert len(s.rows) == 3 * 19
+    for r in s.rows:
+        assert r["converged"], r
+        assert abs(r["relative_volume_error"]) <= 1e-9, r
+        assert r["muscle_overlap_max"] <= 0.5, r
+        assert 1 <= r["muscle_rounds"] < defaults.muscle_rounds, r
+    # the muscles whose overlap with the generic bones at rest the scene keeps, how deep
+    kept = {
+        m.group(1): float(m.group(2))
+        for n in s.notes
+        if (m := re.match(r"(\w+): rest overlap with bones kept \(up to ([0-9.]+) mm deep\)", n))
+    }
+    assert sorted(kept) == ["iliacus", "psoas", "vastus_intermedius"]
+    rows = verify_run(scene, tmp_path / "a", frames)
+    assert len(rows) == 3 * 19
+    for r in rows:
+        assert abs(r["relative_volume_error"]) <= 1e-9, r
+        assert r["muscle_in_muscle"] <= 0.5, r
+        if r["muscle"] in kept:
+            assert r["muscle_in_bone"] <= kept[r["muscle"]] + 0.5, r
+        else:
+            assert r["muscle_in_bone"] <= 0.5, r
+            assert r["bone_in_muscle"] <= 1.0, r
+
+
 # ------------------------------------------------------------------ the contact colours' distances
 def _icosphere(radius: float, centre) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
