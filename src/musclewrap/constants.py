@@ -248,8 +248,9 @@ class Defaults:
         the finish is taken again, at most ``muscle_finish_passes`` times in all. Three
         capsules stacked against a rod and pressed from outside
         (`tests/test_muscle_contact.py`): without it the rounds ended apart after 17
-        and the finish pushed the first 7.1 mm (3.6 edges) into the second; the real
-        scenes' walks stay under 0.3 edges (no second pass: the same bytes).
+        and the finish pushed the first 7.1 mm (3.6 edges) into the second. No second
+        pass runs on the real scenes (their files are the same bytes: BENCHMARKS.md,
+        "Rounds again after the bones' finish").
     muscle_finish_passes : int
         See ``muscle_finish_retry``.
     muscle_fine_depth : float
