@@ -349,16 +349,8 @@ def test_the_documented_columns_are_the_files_columns_and_the_keys_the_readers()
     assert tables == {t.split(".")[0] for t in SCENE_KEYS if t}
 
 
-@pytest.mark.realdata
-def test_a_bone_from_the_models_own_geometry(data_dir, tmp_path):
-    """``[bones.NAME] model = FILE``: the mesh the model attaches to the body, scaled by its
-    scale factors and the units, in the body's frame: the femur's head on the hip joint
-    centre (the body's origin), where the registered VHF vastus intermedius wraps it; a
-    wrong file, folder or combination is refused by name."""
-    from musclewrap.model import fit_sphere
-    from musclewrap.run import check_scene
-    from musclewrap.run._read import _read_bone
-
+def _model_femur_scene(data_dir) -> str:
+    """A scene of the VHF vastus intermedius with gait2392's own femur (``model``)."""
     osim = data_dir / "opensim" / "models" / "subject01_simbody.osim"
     vhf = data_dir / "vhf"
     text = f"""name = "the model's femur"
@@ -390,6 +382,79 @@ body = "femur_r"
 model = "femur_r.vtp"
 body = "femur_r"
 """
+    return text
+
+
+@pytest.mark.realdata
+def test_a_model_bone_is_where_opensim_places_it(data_dir, tmp_path):
+    """Issue 46: the model's femur as a run places it (its mesh read and scaled as the run
+    reads it, then the frame's transforms) against OpenSim placing every vertex of the
+    file itself (the Mesh's own frame, its scale factors, the walk's coordinates from the
+    .mot by OpenSim's reader), on three frames of the walk: the same points to 1e-9 of
+    the bone's size."""
+    from scipy.spatial import cKDTree
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    from musclewrap.mesh import apply_transform
+    from musclewrap.model import import_opensim
+    from musclewrap.run._read import _read_bone
+    from musclewrap.scene import drive_scene
+
+    toml = tmp_path / "s.toml"
+    toml.write_text(_model_femur_scene(data_dir))
+    scene = load_scene(toml)
+    (femur,) = scene.bones
+    V, _, _, _ = _read_bone(femur, None)
+    frames = [0, 30, 60]
+    drive = drive_scene(scene, "0:61:30", {femur.name: V.mean(axis=0)})
+    osim = import_opensim()
+    model = osim.Model(str(data_dir / "opensim" / "models" / "subject01_simbody.osim"))
+    state = model.initSystem()
+    body = model.getBodySet().get("femur_r")
+    mesh = next(
+        osim.Mesh.safeDownCast(body.get_attached_geometry(i))
+        for i in range(body.getPropertyByName("attached_geometry").size())
+        if osim.Mesh.safeDownCast(body.get_attached_geometry(i)).get_mesh_file() == "femur_r.vtp"
+    )
+    scale = np.array([mesh.get_scale_factors().get(i) for i in range(3)])
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(data_dir / "opensim" / "Geometry" / "femur_r.vtp"))
+    reader.Update()
+    raw = vtk_to_numpy(reader.GetOutput().GetPoints().GetData()).astype(np.float64)
+    motion = osim.TimeSeriesTable(str(data_dir / "opensim" / "motions" / "subject01_walk1_ik.mot"))
+    # an old SIMM motion says nothing: degrees, as SIMM wrote them
+    keys = list(motion.getTableMetaDataKeys())
+    degrees = "inDegrees" not in keys or motion.getTableMetaDataAsString("inDegrees") == "yes"
+    for k, frame in enumerate(frames):
+        for c in ("hip_flexion_r", "knee_angle_r"):
+            v = motion.getDependentColumn(c)[frame]
+            model.getCoordinateSet().get(c).setValue(state, np.radians(v) if degrees else v)
+        model.realizePosition(state)
+        theirs = np.array([
+            [g.get(0), g.get(1), g.get(2)]
+            for p in raw * scale
+            for g in (mesh.getFrame().findStationLocationInGround(state, osim.Vec3(*p)),)
+        ]) * 1000.0  # fmt: skip
+        ours = apply_transform(drive.to_output[femur.body][k] @ drive.to_body[femur.name], V)
+        size = np.ptp(theirs, axis=0).max()
+        # every vertex the run keeps is one of the file's, placed as OpenSim places it, and
+        # every one of the file's is kept (the run's reading merges repeated points only)
+        assert cKDTree(theirs).query(ours)[0].max() <= 1e-9 * size
+        assert cKDTree(ours).query(theirs)[0].max() <= 1e-9 * size
+
+
+@pytest.mark.realdata
+def test_a_bone_from_the_models_own_geometry(data_dir, tmp_path):
+    """``[bones.NAME] model = FILE``: the mesh the model attaches to the body, scaled by its
+    scale factors and the units, in the body's frame: the femur's head on the hip joint
+    centre (the body's origin), where the registered VHF vastus intermedius wraps it; a
+    wrong file, folder or combination is refused by name."""
+    from musclewrap.model import fit_sphere
+    from musclewrap.run import check_scene
+    from musclewrap.run._read import _read_bone
+
+    text = _model_femur_scene(data_dir)
     toml = tmp_path / "s.toml"
     toml.write_text(text)
     femur = load_scene(toml).bones[0]
