@@ -110,7 +110,7 @@ def meet(
     memo: dict[Any, Any] = {}  # what stays over the rounds for the muscles that stay
     final: dict[str, DeformationResult] = {}
     ok: list[str] = []
-    for settled in range(defaults.muscle_finish_passes):
+    for settled in range(max(1, defaults.muscle_finish_passes)):
         if settled:
             # the bones' finish pushed a muscle deep into another: the rounds again, from
             # where the finish left them (it has the last word on the bones)
