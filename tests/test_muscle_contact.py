@@ -260,6 +260,31 @@ def test_three_capsules_stacked_on_a_rod_and_pressed_end_apart(press):
     assert res["a"].V[:, 0].min() < -10.5  # pressed onto the rod
 
 
+def test_the_finish_is_taken_again_only_for_the_pairs_kept_apart(monkeypatch):
+    """Pressed as above, with only b and c kept apart: a stays deep in b (measured, not
+    kept apart), and that is no reason for more rounds or another finish."""
+    from musclewrap.constants import defaults
+    from musclewrap.contact import Obstacle
+    from musclewrap.solver import deform_together
+
+    ds = _capsules({"a": 0.0, "b": 24.0, "c": 48.0})
+    RV, RF = capsule(radius=5.0, length=90.0, n_around=32, cap_rings=6, segments=30)
+    rod = Obstacle(RV + [-16.0, 0.0, -25.0], RF)
+    lines = {"a": _axis(-7.0), "b": _axis(8.0), "c": _axis(24.0)}
+    kw = dict(obstacles={n: [rod] for n in ds}, pairs=[("b", "c")])
+    res = deform_together(ds, lines, **kw)
+    assert res["a"].muscle_overlap > defaults.muscle_finish_retry * ds["a"]._fine_edge
+    import dataclasses
+
+    import musclewrap.solver._together as together
+
+    monkeypatch.setattr(together, "defaults", dataclasses.replace(defaults, muscle_finish_passes=1))
+    once = deform_together(ds, lines, **kw)
+    for n in ds:
+        assert np.array_equal(res[n].V, once[n].V)
+        assert res[n].muscle_rounds == once[n].muscle_rounds
+
+
 def test_overlapping_muscles_are_grouped_by_what_they_overlap():
     from musclewrap.contact import Overlap
     from musclewrap.solver._group import overlap_groups

@@ -110,8 +110,10 @@ def meet(
     memo: dict[Any, Any] = {}  # what stays over the rounds for the muscles that stay
     final: dict[str, DeformationResult] = {}
     ok: list[str] = []
+    taken = 0  # the rounds before this pass of the finish
     for settled in range(max(1, defaults.muscle_finish_passes)):
         if settled:
+            taken = rounds
             # the bones' finish pushed a muscle deep into another: the rounds again, from
             # where the finish left them (it has the last word on the bones)
             state.update({n: (final[n].cage, final[n].V) for n in ok})
@@ -178,6 +180,8 @@ def meet(
                 if V is not state[n][1]:  # moved: its surface anew (the others' stay, memo too)
                     surf[n] = (_apply(frames.get(n), V), deformers[n].muscle.F)
             state.update(new)
+        if settled and rounds == taken:
+            break  # no round since the last finish: it stands (again it would give the same)
         final = {
             n: deformers[n].settle(
                 results[n],
@@ -193,19 +197,21 @@ def meet(
         ok = [n for n in names if np.isfinite(final[n].V).all()]
         # the exact check; a surface the finish did not move is the rounds' own (and what the
         # rounds found about it is taken again)
-        depth = overlap_depths(
-            {
-                n: surf[n] if n in surf and final[n].V is state[n][1]
-                else (_apply(frames.get(n), final[n].V), deformers[n].muscle.F)
-                for n in ok
-            },
-            every_pair(ok),
-            memo,
-        )  # fmt: skip
+        surf_now = {
+            n: surf[n] if n in surf and final[n].V is state[n][1]
+            else (_apply(frames.get(n), final[n].V), deformers[n].muscle.F)
+            for n in ok
+        }  # fmt: skip
+        depth = overlap_depths(surf_now, every_pair(ok), memo)
+        # the rounds again only for the pairs they keep apart (the others are measured only)
+        kept = [p for p in pairs if p[0] in ok and p[1] in ok]
         if (
             rounds >= defaults.muscle_rounds
-            or not pairs
-            or all(depth[n][1] <= defaults.muscle_finish_retry * edge[n] for n in ok)
+            or not kept
+            or all(
+                d <= defaults.muscle_finish_retry * edge[n]
+                for n, (_, d) in _deepest(depth, surf_now, kept, memo).items()
+            )
         ):
             break
     return {
@@ -216,6 +222,21 @@ def meet(
         )
         for n in names
     }
+
+
+def _deepest(
+    depth: dict[str, tuple[int, float]],
+    surfaces: Mapping[str, tuple[FloatArray, IntArray]],
+    kept: list[tuple[str, str]],
+    memo: dict[Any, Any],
+) -> dict[str, tuple[int, float]]:
+    """``depth`` (over every pair of ``surfaces``) restricted to the pairs ``kept`` apart.
+
+    The same where every pair is kept (the default); else measured again over those.
+    """
+    if kept == every_pair(list(surfaces)):
+        return depth
+    return overlap_depths(surfaces, kept, memo)
 
 
 def deform_together(
