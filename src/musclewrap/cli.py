@@ -491,12 +491,11 @@ def _cmd_run(a: argparse.Namespace) -> int:
             folders += [out / m.stem for m in scene.motions]
     with contextlib.ExitStack() as stack:
         executor = None
-        muscles = sum(len(sc.muscles) for sc in runs)
-        if not a.scheduler and workers > 1 and muscles > 1:
-            from .run import ProcessExecutor
+        if not a.scheduler:
+            from .run import local_executor
 
             # started before the check: the workers import while this process checks
-            executor = stack.enter_context(ProcessExecutor(min(workers, muscles)))
+            executor = local_executor(workers, sum(len(sc.muscles) for sc in runs), stack)
         if not a.no_check:
             from .scene import check_scene
 

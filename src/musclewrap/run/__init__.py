@@ -13,7 +13,15 @@ from ._check import CheckReport, Finding, check_scene
 from ._dask import DaskExecutor, connect
 from ._execute import Executor, LocalExecutor, Node, ProcessExecutor, Runner, run_task
 from ._live import CheckError, Coordinate, LiveScene, PoseResult, refusal
-from ._run import REPORT_FIELDS, RunOptions, RunSummary, default_cache_dir, run_batch, run_scene
+from ._run import (
+    REPORT_FIELDS,
+    RunOptions,
+    RunSummary,
+    default_cache_dir,
+    local_executor,
+    run_batch,
+    run_scene,
+)
 from ._verify import inside_depth, inside_depths, muscle_overlaps, verify_run
 
 __all__ = [
@@ -37,6 +45,7 @@ __all__ = [
     "default_cache_dir",
     "inside_depth",
     "inside_depths",
+    "local_executor",
     "muscle_overlaps",
     "refusal",
     "run_batch",

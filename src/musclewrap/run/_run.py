@@ -278,8 +278,17 @@ def _executor(executor: Any, workers: int, muscles: int, stack: contextlib.ExitS
             return executor
 
         return stack.enter_context(DaskExecutor(executor))  # a distributed.Client
+    return local_executor(workers, muscles, stack)
+
+
+def local_executor(workers: int, muscles: int, stack: contextlib.ExitStack) -> Executor:
+    """The executor on this machine for ``muscles`` muscles on ``workers`` processes, entered.
+
+    Worker processes (no more than the muscles) where there are two of each, this
+    process otherwise. Started first (a caller may start it before the scene's check):
+    the workers import while this process reads meshes and OpenSim.
+    """
     if workers > 1 and muscles > 1:
-        # started first: the workers import while this process reads meshes and OpenSim
         return stack.enter_context(ProcessExecutor(min(workers, muscles)))
     return LocalExecutor()
 
