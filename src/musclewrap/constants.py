@@ -243,9 +243,10 @@ class Defaults:
         muscle whose vertices are all out to that depth takes no step in a round.
     muscle_finish_retry : float
         Where the bones' fine finish, after the muscles' rounds, leaves a vertex deeper
-        than this many of its mean edges inside another muscle (it pushes each muscle out
-        of its bones alone), the rounds go on from there (within ``muscle_rounds``) and
-        the finish is taken again, at most ``muscle_finish_passes`` times in all. Three
+        than this many of its mean edges inside another muscle it is kept apart from (it
+        pushes each muscle out of its bones alone), the rounds go on from there (within
+        ``muscle_rounds``) and, where they take a step, the finish is taken again, at
+        most ``muscle_finish_passes`` times in all. Three
         capsules stacked against a rod and pressed from outside
         (`tests/test_muscle_contact.py`): without it the rounds ended apart after 17
         and the finish pushed the first 7.1 mm (3.6 edges) into the second. On the real
