@@ -60,6 +60,21 @@ def test_capsule_counts_and_checks():
     assert chk.ok and chk.closed
 
 
+def test_a_sleeve_is_a_closed_outward_tube_of_the_faceted_annulus_volume():
+    from musclewrap.synthetic import sleeve
+
+    V, F = sleeve(5.0, 10.0, 60.0, n_around=64, segments=30, cap_rings=3)
+    assert V.shape == (64 * 66, 3) and F.shape == (2 * 64 * 66, 3)
+    chk = check_mesh(V, F)
+    assert chk.ok and chk.closed and chk.components == 1
+    # Euler characteristic 0: genus 1
+    assert len(V) - len(F) // 2 * 3 + len(F) == 0
+    want = 60.0 * 32 * np.sin(2 * np.pi / 64) * (10.0**2 - 5.0**2)  # a prism on 64-gons
+    assert volume(V, F) == pytest.approx(want, rel=1e-12)
+    with pytest.raises(ValueError, match="inner < outer"):
+        sleeve(10.0, 5.0, 60.0)
+
+
 def test_open_mesh_refused():
     V, F = capsule(n_around=12, cap_rings=4, segments=5)
     with pytest.raises(MeshError, match="boundary edge"):

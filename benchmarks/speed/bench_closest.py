@@ -101,7 +101,7 @@ def facing(scene_path: str) -> None:
 
     from musclewrap.constants import defaults
     from musclewrap.contact import facing_pairs
-    from musclewrap.mesh import winding_numbers
+    from musclewrap.mesh import face_normals, winding_numbers
     from musclewrap.scene import load_scene, run_scene
     from musclewrap.solver import _together
 
@@ -133,8 +133,10 @@ def facing(scene_path: str) -> None:
     differ = 0
     for (a, b), faces in got.items():
         cen = rest[b][0][rest[b][1]].mean(axis=1)
-        d = np.sqrt(igl.point_mesh_squared_distance(cen, *rest[a])[0])
-        want = np.flatnonzero((d <= reach) | (winding_numbers(cen, *rest[a]) > 0))
+        sq, _, C = igl.point_mesh_squared_distance(cen, *rest[a])
+        front = ((C - cen) * face_normals(*rest[b])).sum(axis=1) >= 0.0
+        near = (np.sqrt(sq) <= reach) & front
+        want = np.flatnonzero(near | (winding_numbers(cen, *rest[a]) > 0))
         differ += not np.array_equal(faces, want)
     print(
         f"pairs whose faces differ from brute force (libigl's distances, winding numbers): {differ}"

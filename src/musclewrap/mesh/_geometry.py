@@ -44,9 +44,14 @@ def half_edges(F: IntArray) -> IntArray:
     return np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
 
 
+def face_normals(V: FloatArray, F: IntArray) -> FloatArray:
+    """Every triangle's normal (outward on an outward mesh), as long as twice its area."""
+    return np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+
+
 def face_areas(V: FloatArray, F: IntArray) -> FloatArray:
     """Area of every triangle."""
-    return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    return 0.5 * np.linalg.norm(face_normals(V, F), axis=1)
 
 
 def mean_edge_length(V: FloatArray, F: IntArray) -> float:

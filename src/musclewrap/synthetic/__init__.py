@@ -12,6 +12,7 @@ from ._capsule import (
     capsule_scenario,
     principal_axis_scenario,
     rings_mesh,
+    sleeve,
 )
 from ._demo import DemoScene, demo_scene
 from ._knee import KneeDemo, knee_demo, write_knee_scene
@@ -26,5 +27,6 @@ __all__ = [
     "knee_demo",
     "principal_axis_scenario",
     "rings_mesh",
+    "sleeve",
     "write_knee_scene",
 ]

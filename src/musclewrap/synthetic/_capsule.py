@@ -12,6 +12,7 @@ __all__ = [
     "capsule_scenario",
     "principal_axis_scenario",
     "rings_mesh",
+    "sleeve",
 ]
 
 CAPSULE_SCENARIOS = ("bend", "bend_short", "bend_long", "short", "rot")
@@ -90,6 +91,58 @@ def capsule(
     z = np.concatenate([[0.0], zb, zc, (2 * radius + length - zb)[::-1], [2 * radius + length]])
     r = np.concatenate([[0.0], rb, np.full(segments + 1, radius), rb[::-1], [0.0]])
     return rings_mesh(z, r, n_around)
+
+
+def sleeve(
+    inner: float,
+    outer: float,
+    length: float,
+    n_around: int = 64,
+    segments: int = 30,
+    cap_rings: int = 3,
+) -> tuple[FloatArray, IntArray]:
+    """A thick-walled tube along +z from 0 to ``length``, closed by flat annular ends (genus 1).
+
+    A muscle wrapped round a bone or round another muscle (the vasti round the vastus
+    intermedius round the femur). Its walls at radii ``inner`` and ``outer`` have
+    ``segments`` bands, each end ``cap_rings`` bands.
+
+    Returns
+    -------
+    V : (n_around * 2 * (segments + cap_rings), 3) float64 array
+    F : (2 * n_around * 2 * (segments + cap_rings), 3) int64 array, outward oriented
+    """
+    if not 0.0 < inner < outer or length <= 0.0:
+        raise ValueError(
+            f"a sleeve needs 0 < inner < outer and length > 0: {inner}, {outer}, {length}"
+        )
+    up = length * np.arange(segments) / segments
+    across = inner + (outer - inner) * np.arange(cap_rings) / cap_rings
+    # the profile, a closed loop in (r, z): up the outer wall, in across the top, down the
+    # inner wall, out across the bottom
+    r = np.concatenate(
+        [np.full(segments, outer), outer + inner - across, np.full(segments, inner), across]
+    )
+    z = np.concatenate([up, np.full(cap_rings, length), length - up, np.zeros(cap_rings)])
+    ang = 2 * np.pi * np.arange(n_around) / n_around
+    V = np.stack(
+        [
+            (r[:, None] * np.cos(ang)).ravel(),
+            (r[:, None] * np.sin(ang)).ravel(),
+            np.repeat(z, n_around),
+        ],
+        axis=1,
+    )
+    k = len(r)
+    i = np.arange(k)[:, None] * n_around
+    n = (np.arange(k)[:, None] + 1) % k * n_around
+    j, jn = np.arange(n_around), (np.arange(n_around) + 1) % n_around
+    # the profile runs counter-clockwise in (r, z) seen with the angle growing away from
+    # the viewer: these windings point out of the solid
+    F = np.concatenate(
+        [np.stack([i + j, n + jn, n + j], axis=2), np.stack([i + j, i + jn, n + jn], axis=2)]
+    ).reshape(-1, 3)
+    return V, F.astype(np.int64)
 
 
 def capsule_scenario(
