@@ -279,15 +279,16 @@ class _Facer:
         upper = self.tree.query(Q, k=1, distance_upper_bound=reach + self.cover)[0]
         near = upper <= reach
         # those the bounds leave unsure (a band round the reach), and with normals every
-        # one within reach, take their exact closest points: the compiled grid's (a few
-        # hundred to a few thousand points; no tree over the surface per pair)
+        # one within reach, take their exact closest points (the 18 VHF muscles' 306
+        # pairs at rest, 506,000 points: 6.9 s all by the compiled grid, 6.0 s all by
+        # libigl's tree, 5.5 s as `_closest` chooses by their count)
         exact = np.flatnonzero(
             upper - self.cover <= reach
             if normals is not None
             else ~near & (upper - self.cover <= reach)
         )
         if len(exact):
-            dist, C = _closest(Q[exact], self.V, self.F, grid=True)[:2]
+            dist, C = _closest(Q[exact], self.V, self.F, grid=normals is None)[:2]
             near[exact] = dist <= reach
             if normals is not None:
                 # a face the surface lies behind faces away from it: taking a vertex
@@ -323,9 +324,13 @@ def facing_faces(
     Exact, and mostly without closest points: a centroid's distance to ``a``'s nearest
     vertex bounds its distance to the surface from above, and less the radius round a
     vertex that covers ``a``'s triangles from below (`_Facer`). Only the centroids whose
-    two bounds straddle ``reach`` take the exact distance, and only those not within
-    reach take the winding number (each centroid taken to the surface, and a tree over
-    the surface per pair, cost the 18 VHF muscles 13 s for all 306 pairs at rest; 3.4 s so).
+    two bounds straddle ``reach``, and with the sides those within it, take the exact
+    closest point, and only those not within reach take the winding number (each centroid
+    taken to the surface, and a tree over the surface per pair, cost the 18 VHF muscles
+    13 s for all 306 pairs at rest; 3.0 s so without the sides, 5.5 s with them:
+    `python benchmarks/speed/bench_closest.py --facing`). Where the nearest vertex decided
+    the side instead of the closest point, where it lies in front, the LHDL walk took 506
+    rounds again, not 425, most 8 a frame, not 3.
     """
     return _Facer(Va, Fa, grid).faces(Vb[Fb].mean(axis=1), reach, face_normals(Vb, Fb))
 
@@ -458,7 +463,7 @@ def facing_pairs(
 
     Each pair's faces are found when first looked up, and kept: most pairs of a
     scene's muscles never overlap, and finding them all is most of the cost of a
-    large scene (18 muscles: 306 ordered pairs, 3.4 s; 13 s before `_Facer`). ``reach``
+    large scene (18 muscles: 306 ordered pairs, 5.5 s; 13 s before `_Facer`). ``reach``
     (mesh units): default ``defaults.muscle_facing_reach``.
     """
     return _FacingOnDemand(meshes, defaults.muscle_facing_reach if reach is None else reach)

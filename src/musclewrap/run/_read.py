@@ -237,6 +237,9 @@ def _mesh_cache_file(path: Path, cache: Path | None, tag: str) -> Path | None:
 
 
 _MUSCLE_TAG = "self-intersection, fans, orientation, input_id"
+# of the cached taking apart at rest (2: a face of another muscle faces this one only
+# where this one lies in front of it)
+_APART_FORMAT = 2
 
 
 def _read_muscle(
@@ -497,7 +500,7 @@ def _apart_cached(
         key = digest(
             *(a for n in names for a in (rest[n][0], np.asarray(rest[n][1], dtype=np.int64))),
             repr((names, None if pairs is None else sorted(map(tuple, pairs)), resolve)),
-            repr((defaults, __version__)),
+            repr((defaults, __version__, _APART_FORMAT)),
         )
         path = Path(cache) / f"apart-at-rest-{key[:32]}.npz"
     made: list[Any] = []
