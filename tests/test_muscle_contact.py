@@ -420,6 +420,28 @@ def test_facing_pairs_finds_each_pairs_faces_when_asked_the_same_as_facing_faces
     assert every_pair(["a", "b"], [("b", "a"), ("a", "c")]) == [("a", "b")]
 
 
+def test_facing_pairs_kept_in_a_cache_are_read_back_not_found_again(tmp_path, monkeypatch):
+    import musclewrap.contact._muscles as mm
+    from musclewrap.contact import facing_pairs
+
+    meshes = {"b": _sphere(10.0, [17, 0, 0]), "a": _sphere(10.0, [0, 0, 0])}
+    want = facing_pairs(meshes)
+    made = facing_pairs(meshes, cache=tmp_path)
+    assert all(np.array_equal(made[p], want[p]) for p in want)
+    assert len(list(tmp_path.glob("facing-*.npz"))) == 2
+
+    def refused(*args, **kw):  # noqa: ANN002, ANN003, ANN202
+        raise AssertionError("found again")
+
+    monkeypatch.setattr(mm._Facer, "faces", refused)
+    again = facing_pairs(meshes, cache=tmp_path)
+    for p in want:
+        assert np.array_equal(again[p], want[p]) and again[p].dtype == np.int64
+    moved = {"a": meshes["a"], "b": (meshes["b"][0] + [1.0, 0.0, 0.0], meshes["b"][1])}
+    with pytest.raises(AssertionError, match="found again"):  # another placement: found anew
+        facing_pairs(moved, cache=tmp_path)["a", "b"]
+
+
 @pytest.mark.parametrize("reach", [0.5, 2.0, 3.7, 15.0])
 def test_facing_faces_are_every_centroid_within_reach_or_inside_by_brute_force(reach):
     # the bounds (nearest vertex, and that less the triangles' cover) decide most

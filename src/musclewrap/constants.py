@@ -263,8 +263,10 @@ class Defaults:
         (`musclewrap.contact.nudge`), not by a step of its cage.
     muscle_facing_reach : float
         A muscle's faces within this distance (mesh units) of another muscle at
-        rest, or inside it, are where the other's vertices leave it
-        (`musclewrap.contact.facing_faces`).
+        rest, with the other in front of them, or inside it, are where the other's
+        vertices leave it (`musclewrap.contact.facing_faces`). 10 to 1,000 mm leave the
+        gait2392 walk's worst frames the same (no vertex over 0.03 mm inside another),
+        5 mm 0.75 mm (BENCHMARKS.md, "Thresholds, either side").
     muscle_rest_rounds : int
         Most rounds in which segmented muscles that overlap at rest are taken apart,
         once per run (`musclewrap.contact.apart_at_rest`).

@@ -10,11 +10,13 @@ has gone deeper into its neighbour than half the neighbour's thickness is nearer
 the far side, and taking it out there passes one muscle through the other. Two
 muscles meet where they face each other at rest: the way out of muscle ``b`` for a
 vertex of muscle ``a`` is the nearest point on the faces of ``b`` that lie within
-``reach`` of ``a``'s surface at rest, or inside it (`facing_faces`): muscles slide
-along each other, they do not go round. Measured on the gait2392 walk's worst frames
-(`python benchmarks/tuning/bench_thresholds.py --only facing`): the faces within 5, 10 or 15 mm
-at rest leave no vertex more than 0.07 mm inside another; within 25 mm, or all faces
-(the nearest way out), 1.1-1.3 mm.
+``reach`` of ``a``'s surface at rest with ``a`` in front of them, or inside it
+(`facing_faces`): muscles slide along each other, they do not go round. Measured on
+the gait2392 walk's worst frames (`python benchmarks/tuning/bench_thresholds.py --only
+facing`): the faces within 10, 15, 25 or 1,000 mm leave no vertex more than 0.03 mm
+inside another, within 5 mm 0.75 mm (too few faces: the sartorius creases, 0.65).
+Without the sides, 5-15 mm left 0.07 mm and 25 mm or more 1.1-1.3 mm: the far side of a
+thin muscle within reach.
 
 Each vertex inside another muscle comes with the point of the other's surface it
 leaves through (`Overlap.point`, `Overlap.face`): the solver takes each side's share
@@ -26,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numba
@@ -457,41 +460,73 @@ def overlap_depths(
 
 
 def facing_pairs(
-    meshes: Mapping[str, tuple[FloatArray, IntArray]], reach: float | None = None
+    meshes: Mapping[str, tuple[FloatArray, IntArray]],
+    reach: float | None = None,
+    cache: Path | None = None,
 ) -> Mapping[tuple[str, str], IntArray]:
     """`facing_faces` for every ordered pair of ``meshes`` (at rest, in one frame).
 
     Each pair's faces are found when first looked up, and kept: most pairs of a
     scene's muscles never overlap, and finding them all is most of the cost of a
     large scene (18 muscles: 306 ordered pairs, 5.5 s; 13 s before `_Facer`). ``reach``
-    (mesh units): default ``defaults.muscle_facing_reach``.
+    (mesh units): default ``defaults.muscle_facing_reach``. ``cache``: a folder where
+    each pair's faces are kept between processes and runs (keyed by both meshes as
+    placed and the reach).
     """
-    return _FacingOnDemand(meshes, defaults.muscle_facing_reach if reach is None else reach)
+    reach = defaults.muscle_facing_reach if reach is None else reach
+    return _FacingOnDemand(meshes, reach, cache)
+
+
+_FACING_FORMAT = 2  # of the cached facing faces (2: a face's side)
 
 
 class _FacingOnDemand(Mapping[tuple[str, str], IntArray]):
     """`facing_pairs`: each pair's facing faces found when first asked for."""
 
-    def __init__(self, meshes: Mapping[str, tuple[FloatArray, IntArray]], reach: float) -> None:
-        self.meshes, self.reach = meshes, reach
+    def __init__(
+        self,
+        meshes: Mapping[str, tuple[FloatArray, IntArray]],
+        reach: float,
+        cache: Path | None = None,
+    ) -> None:
+        self.meshes, self.reach, self.cache = meshes, reach, cache
         self.found: dict[tuple[str, str], IntArray] = {}
         # per muscle, what finding the faces that face it needs, and its faces' centroids
         self.facers: dict[str, _Facer] = {}
         self.centroids: dict[str, tuple[FloatArray, FloatArray]] = {}  # and normals
+        self.digests: dict[str, str] = {}  # of each mesh as placed (the cache's keys)
 
     def __getitem__(self, pair: tuple[str, str]) -> IntArray:
         if pair not in self.found:
             a, b = pair
             if a == b or a not in self.meshes or b not in self.meshes:
                 raise KeyError(pair)
-            if a not in self.facers:
-                self.facers[a] = _Facer(*self.meshes[a])
-            if b not in self.centroids:
-                Vb, Fb = self.meshes[b]
-                self.centroids[b] = (Vb[Fb].mean(axis=1), face_normals(Vb, Fb))
-            centroids, normals = self.centroids[b]
-            self.found[pair] = self.facers[a].faces(centroids, self.reach, normals)
+            if self.cache is None:
+                self.found[pair] = self._find(a, b)
+            else:
+                from .._cache import cached_arrays, digest
+
+                for n in (a, b):
+                    if n not in self.digests:
+                        V, F = self.meshes[n]
+                        self.digests[n] = digest(
+                            np.ascontiguousarray(V, dtype=np.float64),
+                            np.ascontiguousarray(F, dtype=np.int64),
+                        )
+                key = digest(self.digests[a], self.digests[b], repr((self.reach, _FACING_FORMAT)))
+                path = Path(self.cache) / f"facing-{key[:32]}.npz"
+                got = cached_arrays(path, lambda: {"faces": self._find(a, b)})
+                self.found[pair] = np.ascontiguousarray(got["faces"], dtype=np.int64)
         return self.found[pair]
+
+    def _find(self, a: str, b: str) -> IntArray:
+        if a not in self.facers:
+            self.facers[a] = _Facer(*self.meshes[a])
+        if b not in self.centroids:
+            Vb, Fb = self.meshes[b]
+            self.centroids[b] = (Vb[Fb].mean(axis=1), face_normals(Vb, Fb))
+        centroids, normals = self.centroids[b]
+        return self.facers[a].faces(centroids, self.reach, normals)
 
     def __iter__(self) -> Iterator[tuple[str, str]]:
         names = sorted(self.meshes)

@@ -416,7 +416,9 @@ class LiveScene:
         if self.grouped:
             if self._facing is None:
                 to_common = {j.name: np.linalg.inv(drive.to_body[j.name]) for j in self.jobs}
-                self._facing = facing_at_rest({n: m.d for n, m in ms.items()}, to_common)
+                self._facing = facing_at_rest(
+                    {n: m.d for n, m in ms.items()}, to_common, cache=self.cache
+                )
             results = meet_frame(
                 ms, 0, self._facing, self.jobs[0].margin, self.scene.muscle_pairs,
                 self.scene.muscle_together,

@@ -725,7 +725,12 @@ class DeformGroup:
         key = (self.jobs[0].run, tuple(ms))
         if key not in kept:
             kept.clear()
-            kept[key] = facing_at_rest(ds, {self.jobs[i].name: self.to_common[i] for i in order})
+            cache = self.jobs[0].cache_dir
+            kept[key] = facing_at_rest(
+                ds,
+                {self.jobs[i].name: self.to_common[i] for i in order},
+                cache=None if cache is None else Path(cache),
+            )
         facing = kept[key]
         margin = self.jobs[0].margin
         for k in range(len(self.spans[0])):

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -49,12 +50,14 @@ def facing_at_rest(
     deformers: Mapping[str, Deformer],
     rest_frames: Mapping[str, FloatArray] | None = None,
     reach: float | None = None,
+    cache: Path | None = None,
 ) -> dict[tuple[str, str], IntArray]:
     """For every ordered pair, the faces of the second that face the first at rest.
 
     ``rest_frames[name]``: the transform from the muscle's frame into a common one
     at rest (default: they share one). ``reach`` (mesh units): default
-    ``defaults.muscle_facing_reach``.
+    ``defaults.muscle_facing_reach``. ``cache``: a folder where each pair's faces
+    are kept between processes (`facing_pairs`).
     """
     names = sorted(deformers)
     rest = {
@@ -64,7 +67,7 @@ def facing_at_rest(
         )
         for n in names
     }
-    return facing_pairs(rest, reach)
+    return facing_pairs(rest, reach, cache)
 
 
 def meet(
