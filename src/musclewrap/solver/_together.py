@@ -102,93 +102,25 @@ def meet(
     sides = sides or {}
     if facing is None:
         facing = facing_at_rest(deformers)
-    edge = {n: float(deformers[n]._fine_edge) for n in names}
     joint = defaults.muscle_joint if together is None else together
-    state = {n: (results[n].cage, results[n].V) for n in names}
-    live = [n for n in names if np.isfinite(state[n][1]).all()]
-    pairs = every_pair(live, pairs)
-    nears: dict[str, Near] = {}
-    rounds = 0
-    surf = {n: (_apply(frames.get(n), state[n][1]), deformers[n].muscle.F) for n in live}
-    memo: dict[Any, Any] = {}  # what stays over the rounds for the muscles that stay
+    rounds = _Rounds(
+        deformers, results, frames, obstacles, margin, sides, facing, pairs, joint
+    )  # fmt: skip
     final: dict[str, DeformationResult] = {}
     ok: list[str] = []
-    taken = 0  # the rounds before this pass of the finish
     for settled in range(max(1, defaults.muscle_finish_passes)):
+        taken = rounds.count  # the rounds before this pass
         if settled:
-            taken = rounds
             # the bones' finish pushed a muscle deep into another: the rounds again, from
             # where the finish left them (it has the last word on the bones)
-            state.update({n: (final[n].cage, final[n].V) for n in ok})
-            surf.update({n: (_apply(frames.get(n), final[n].V), deformers[n].muscle.F) for n in ok})
-        for _ in range(defaults.muscle_rounds - rounds if pairs else 0):
-            # each muscle's side: its vertices inside others go out by its share, and where
-            # another's vertex stands inside it, its surface gives the other share (a muscle
-            # held by a bone cannot take its own; where only one surface has vertices inside
-            # the other, both still move)
-            found = overlaps(surf, pairs, facing, memo)
-            met = meetings(found, defaults.muscle_share)
-            # per muscle the deepest of its vertices in another or another's in it, in its edges
-            worst = {n: max(m.depth, m.given) / edge[n] for n, m in met.items()}
-            if max(worst.values()) <= defaults.muscle_overlap_depth:
-                break  # all out, to the tolerance
-            rounds += 1
-            new = {}
-            cage = []  # the muscles that take a step of their cage this round
-            for n in live:
-                d, m = deformers[n], met[n]
-                if worst[n] <= defaults.muscle_overlap_depth:
-                    continue  # out already (to the tolerance): no step
-                m = m.rotated(frames.get(n))  # the ways out in the muscle's frame
-                if worst[n] <= defaults.muscle_fine_depth:
-                    # a fraction of an edge: the fine vertices themselves (the cage cannot take
-                    # a few vertices out without moving their whole region)
-                    Vn = push_apart(
-                        state[n][1], d.muscle.F, d.muscle.adjacency, m, surf[n][0],
-                        volume_target=d.muscle.volume_rest, edge=d._fine_edge,
-                    )  # fmt: skip
-                    if Vn is not None:
-                        new[n] = (state[n][0], Vn)
-                        continue
-                cage.append(n)
-                obs = obstacles.get(n)
-                if obs and n not in nears:
-                    # the pose's bounds where its solve kept them (they hold wherever the
-                    # vertices have moved since)
-                    pose = results[n].pose
-                    nears[n] = Near(state[n][1], obs, margin) if pose is None else pose.near
-            groups = overlap_groups(cage, found) if joint else [[n] for n in cage]
-            for group in groups:
-                if len(group) > 1:
-                    # overlapping each other: one step together (an overlap one condition on
-                    # both), not a step each with its share
-                    new.update(
-                        joint_round(
-                            deformers, state, surf, found, group, frames=frames,
-                            obstacles={n: as_placed(obstacles.get(n)) for n in group},
-                            margin=margin, sides=sides, nears=nears,
-                        )
-                    )  # fmt: skip
-                    continue
-                n = group[0]
-                d, m = deformers[n], met[n].rotated(frames.get(n))
-                points = None
-                if len(m.faces):
-                    points = (d.surface_rows(m.at, m.faces, surf[n][0]), m.give, m.back)
-                new[n] = d.contact_round(
-                    *state[n], m.rows, m.need, m.out, obstacles=obstacles.get(n), margin=margin,
-                    sides=sides.get(n), near=nears.get(n), points=points,
-                )  # fmt: skip
-            for n, (x, V) in new.items():
-                if V is not state[n][1]:  # moved: its surface anew (the others' stay, memo too)
-                    surf[n] = (_apply(frames.get(n), V), deformers[n].muscle.F)
-            state.update(new)
-        if settled and rounds == taken:
+            rounds.restart({n: final[n] for n in ok})
+        rounds.run()
+        if settled and rounds.count == taken:
             break  # no round since the last finish: it stands (again it would give the same)
         final = {
             n: deformers[n].settle(
                 results[n],
-                *state[n],
+                *rounds.state[n],
                 lines[n],
                 reference_point=refs.get(n),
                 obstacles=obstacles.get(n),
@@ -200,20 +132,20 @@ def meet(
         ok = [n for n in names if np.isfinite(final[n].V).all()]
         # the exact check; a surface the finish did not move is the rounds' own (and what the
         # rounds found about it is taken again)
-        surf_now = {
-            n: surf[n] if n in surf and final[n].V is state[n][1]
+        surf = {
+            n: rounds.surf[n] if n in rounds.surf and final[n].V is rounds.state[n][1]
             else (_apply(frames.get(n), final[n].V), deformers[n].muscle.F)
             for n in ok
         }  # fmt: skip
-        depth = overlap_depths(surf_now, every_pair(ok), memo)
+        depth = overlap_depths(surf, every_pair(ok), rounds.memo)
         # the rounds again only for the pairs they keep apart (the others are measured only)
-        kept = [p for p in pairs if p[0] in ok and p[1] in ok]
+        kept = [p for p in rounds.pairs if p[0] in ok and p[1] in ok]
         if (
-            rounds >= defaults.muscle_rounds
+            rounds.count >= defaults.muscle_rounds
             or not kept
             or all(
-                d <= defaults.muscle_finish_retry * edge[n]
-                for n, (_, d) in _deepest(depth, surf_now, kept, memo).items()
+                d <= defaults.muscle_finish_retry * rounds.edge[n]
+                for n, (_, d) in _deepest(depth, surf, kept, rounds.memo).items()
             )
         ):
             break
@@ -221,10 +153,130 @@ def meet(
         n: dataclasses.replace(
             final[n],
             muscle_overlap=depth[n][1] if n in depth else float("nan"),
-            muscle_rounds=rounds,
+            muscle_rounds=rounds.count,
         )
         for n in names
     }
+
+
+class _Rounds:
+    """The rounds of one pose that take muscles out of each other, and what they keep.
+
+    ``state[name]``: each muscle's cage and fine vertices as the rounds leave them;
+    ``surf[name]``: its surface in the common frame (the muscles whose solve gave
+    finite positions); ``memo``: what `overlaps` keeps over the rounds for the
+    surfaces that do not move; ``count``: the rounds taken, over every pass.
+    """
+
+    def __init__(
+        self,
+        deformers: Mapping[str, Deformer],
+        results: Mapping[str, DeformationResult],
+        frames: Mapping[str, FloatArray],
+        obstacles: Mapping[str, Sequence[Any] | None],
+        margin: float,
+        sides: Mapping[str, Any],
+        facing: Mapping[tuple[str, str], IntArray],
+        pairs: Sequence[tuple[str, str]] | None,
+        joint: bool,
+    ) -> None:
+        self.deformers, self.results, self.frames = deformers, results, frames
+        self.obstacles, self.margin, self.sides = obstacles, margin, sides
+        self.facing, self.joint = facing, joint
+        names = sorted(deformers)
+        self.edge = {n: float(deformers[n]._fine_edge) for n in names}
+        self.state = {n: (results[n].cage, results[n].V) for n in names}
+        self.live = [n for n in names if np.isfinite(self.state[n][1]).all()]
+        self.pairs = every_pair(self.live, pairs)
+        self.surf = {n: self._placed(n, self.state[n][1]) for n in self.live}
+        self.memo: dict[Any, Any] = {}  # what stays over the rounds for the muscles that stay
+        self.nears: dict[str, Near] = {}
+        self.count = 0
+
+    def _placed(self, n: str, V: FloatArray) -> tuple[FloatArray, IntArray]:
+        """Muscle ``n``'s surface at ``V`` in the common frame."""
+        return _apply(self.frames.get(n), V), self.deformers[n].muscle.F
+
+    def restart(self, final: Mapping[str, DeformationResult]) -> None:
+        """Go on from the finished results ``final`` (the muscles the finish left finite)."""
+        self.state.update({n: (r.cage, r.V) for n, r in final.items()})
+        self.surf.update({n: self._placed(n, r.V) for n, r in final.items()})
+
+    def run(self) -> None:
+        """Rounds until every kept pair is apart (to the tolerance), or the rounds' cap."""
+        for _ in range(defaults.muscle_rounds - self.count if self.pairs else 0):
+            # each muscle's side: its vertices inside others go out by its share, and where
+            # another's vertex stands inside it, its surface gives the other share (a muscle
+            # held by a bone cannot take its own; where only one surface has vertices inside
+            # the other, both still move)
+            found = overlaps(self.surf, self.pairs, self.facing, self.memo)
+            met = meetings(found, defaults.muscle_share)
+            # per muscle the deepest of its vertices in another or another's in it, in its edges
+            worst = {n: max(m.depth, m.given) / self.edge[n] for n, m in met.items()}
+            if max(worst.values()) <= defaults.muscle_overlap_depth:
+                break  # all out, to the tolerance
+            self.count += 1
+            new = self._round(found, met, worst)
+            for n, (_, V) in new.items():
+                if V is not self.state[n][1]:  # moved: its surface anew (the others stay)
+                    self.surf[n] = self._placed(n, V)
+            self.state.update(new)
+
+    def _round(
+        self, found: Any, met: Mapping[str, Any], worst: Mapping[str, float]
+    ) -> dict[str, tuple[FloatArray, FloatArray]]:
+        """One round's new cage and vertices of each muscle that moves."""
+        new = {}
+        cage = []  # the muscles that take a step of their cage this round
+        for n in self.live:
+            d = self.deformers[n]
+            if worst[n] <= defaults.muscle_overlap_depth:
+                continue  # out already (to the tolerance): no step
+            if worst[n] <= defaults.muscle_fine_depth:
+                # a fraction of an edge: the fine vertices themselves (the cage cannot take a
+                # few vertices out without moving their whole region)
+                m = met[n].rotated(self.frames.get(n))  # the ways out in the muscle's frame
+                Vn = push_apart(
+                    self.state[n][1], d.muscle.F, d.muscle.adjacency, m, self.surf[n][0],
+                    volume_target=d.muscle.volume_rest, edge=d._fine_edge,
+                )  # fmt: skip
+                if Vn is not None:
+                    new[n] = (self.state[n][0], Vn)
+                    continue
+            cage.append(n)
+            obs = self.obstacles.get(n)
+            if obs and n not in self.nears:
+                # the pose's bounds where its solve kept them (they hold wherever the vertices
+                # have moved since)
+                pose = self.results[n].pose
+                self.nears[n] = (
+                    Near(self.state[n][1], obs, self.margin) if pose is None else pose.near
+                )
+        groups = overlap_groups(cage, found) if self.joint else [[n] for n in cage]
+        for group in groups:
+            if len(group) > 1:
+                # overlapping each other: one step together (an overlap one condition on both),
+                # not a step each with its share
+                new.update(
+                    joint_round(
+                        self.deformers, self.state, self.surf, found, group,
+                        frames=self.frames,
+                        obstacles={n: as_placed(self.obstacles.get(n)) for n in group},
+                        margin=self.margin, sides=self.sides, nears=self.nears,
+                    )
+                )  # fmt: skip
+                continue
+            n = group[0]
+            d, m = self.deformers[n], met[n].rotated(self.frames.get(n))
+            points = None
+            if len(m.faces):
+                points = (d.surface_rows(m.at, m.faces, self.surf[n][0]), m.give, m.back)
+            new[n] = d.contact_round(
+                *self.state[n], m.rows, m.need, m.out, obstacles=self.obstacles.get(n),
+                margin=self.margin, sides=self.sides.get(n), near=self.nears.get(n),
+                points=points,
+            )  # fmt: skip
+        return new
 
 
 def _deepest(
