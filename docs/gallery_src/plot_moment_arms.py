@@ -3,10 +3,10 @@ Fibres and their moment arms
 ============================
 
 ``examples/lhdl_hip_sweeps.toml`` puts 100 fibres in each muscle and computes their moment arms
-about the hip's three coordinates; here the flexion sweep alone, on every few frames. Each
-fibre's moment arm is ``-dL/dq`` from the muscle deformed on either side of the frame's pose;
-the action line's own moment arm is the same difference on the path's length, and OpenSim's
-``computeMomentArm`` is drawn beside it.
+about the hip's three coordinates, each swept on its own: flexion, adduction and rotation,
+here on every few frames. Each fibre's moment arm is ``-dL/dq`` from the muscle deformed on
+either side of the frame's pose; the action line's own moment arm is the same difference on
+the path's length, and OpenSim's ``computeMomentArm`` is drawn beside it.
 """
 
 import csv
@@ -22,43 +22,70 @@ from musclewrap.scene import load_scene, read_motion, run_scene
 
 ROOT = next(p for p in [Path.cwd(), *Path.cwd().parents] if (p / "examples").is_dir())
 scene = load_scene(ROOT / "examples" / "lhdl_hip_sweeps.toml")
-flexion = next(m for m in scene.motions if m.stem == "hip_flexion")
-scene = dataclasses.replace(scene, motions=(flexion,), gif=False)
-n = read_motion(flexion).n_frames
-step = math.ceil(n / int(os.environ.get("MUSCLEWRAP_DOCS_FRAMES", str(n))))
-out = Path(tempfile.mkdtemp()) / "sweeps"
-run_scene(scene, out, frames=f"0:{n}:{step}", workers=1, progress=None, render=False)
+SWEPT = {"hip_flexion": "hip_flexion_r", "hip_adduction": "hip_adduction_r",
+         "hip_rotation": "hip_rotation_r"}  # fmt: skip
+rows: dict[str, list[dict[str, str]]] = {}
+base = Path(tempfile.mkdtemp())
+for motion in scene.motions:
+    n = read_motion(motion).n_frames
+    step = math.ceil(n / int(os.environ.get("MUSCLEWRAP_DOCS_FRAMES", str(n))))
+    out = base / motion.stem
+    sweep = dataclasses.replace(scene, motions=(motion,), gif=False)
+    run_scene(sweep, out, frames=f"0:{n}:{step}", workers=1, progress=None, render=False)
+    coordinate = SWEPT[motion.stem]
+    rows[motion.stem] = [r for r in csv.DictReader(open(out / "moment_arms.csv"))
+                         if r["coordinate"] == coordinate]  # fmt: skip
 
 # %%
-# Moment arm against the flexion angle
-# ------------------------------------
-# The fibres' range (shaded) and mean, the action line and OpenSim, per muscle, from
-# moment_arms.csv.
-rows = [r for r in csv.DictReader(open(out / "moment_arms.csv"))
-        if r["coordinate"] == "hip_flexion_r"]  # fmt: skip
-muscles = list(dict.fromkeys(r["muscle"] for r in rows))
-fig, axes = plt.subplots(1, len(muscles), figsize=(3 * len(muscles), 3), sharey=True)
-for ax, m in zip(axes, muscles):
-    q = [r for r in rows if r["muscle"] == m]
-    x = [float(r["coordinate_value"]) for r in q]
-    col = {k: [float(r[k]) for r in q] for k in ("fibre_min", "fibre_mean", "fibre_max",
-                                                 "line_moment_arm", "opensim_moment_arm")}  # fmt: skip
-    ax.fill_between(x, col["fibre_min"], col["fibre_max"], alpha=0.3, label="fibres")
-    ax.plot(x, col["fibre_mean"], label="fibres' mean")
-    ax.plot(x, col["line_moment_arm"], "k-", label="action line")
-    ax.plot(x, col["opensim_moment_arm"], "k:", lw=3, label="OpenSim")
-    ax.set_title(m.replace("_", " "), fontsize=9)
-    ax.set_xlabel("hip flexion (deg)")
-axes[0].set_ylabel("moment arm (mm)")
-axes[0].legend(fontsize=7)
-fig.tight_layout()
+# Moment arm against the swept angle
+# ----------------------------------
+# Per sweep and muscle, from moment_arms.csv: the fibres' range (shaded) and mean, the
+# action line and OpenSim. At the right of a panel, the same specimen's fibres as
+# published (Modenese & Kohout 2020, Table 2: the smallest and largest moment arm across a
+# muscle's fibres over the sweep; the eight muscle-tasks issue 48 quotes), and how much of
+# that range ours covers.
+PUBLISHED = {  # mm
+    ("hip_flexion", "psoas"): (9.0, 26.0), ("hip_flexion", "iliacus"): (13.0, 46.0),
+    ("hip_flexion", "gluteus_maximus"): (-92.0, -19.0),
+    ("hip_flexion", "gluteus_medius"): (-35.0, 15.0),
+    ("hip_adduction", "psoas"): (5.0, 21.0), ("hip_adduction", "gluteus_medius"): (-75.0, -4.0),
+    ("hip_rotation", "psoas"): (-5.0, 4.0), ("hip_rotation", "iliacus"): (-2.0, 9.0),
+}  # fmt: skip
+muscles = list(dict.fromkeys(r["muscle"] for r in rows["hip_flexion"]))
+fig, axes = plt.subplots(len(rows), len(muscles), figsize=(3 * len(muscles), 2.8 * len(rows)))
+for i, (sweep, got) in enumerate(rows.items()):
+    for j, m in enumerate(muscles):
+        ax = axes[i, j]
+        q = [r for r in got if r["muscle"] == m]
+        x = [float(r["coordinate_value"]) for r in q]
+        col = {k: [float(r[k]) for r in q] for k in ("fibre_min", "fibre_mean", "fibre_max",
+                                                     "line_moment_arm", "opensim_moment_arm")}  # fmt: skip
+        ax.fill_between(x, col["fibre_min"], col["fibre_max"], alpha=0.3, label="fibres")
+        ax.plot(x, col["fibre_mean"], label="fibres' mean")
+        ax.plot(x, col["line_moment_arm"], "k-", label="action line")
+        ax.plot(x, col["opensim_moment_arm"], "k:", lw=3, label="OpenSim")
+        pub = PUBLISHED.get((sweep, m))
+        if pub is not None:
+            at = max(x) + 0.04 * (max(x) - min(x))
+            ax.plot([at, at], pub, color="darkorange", lw=4, label="published fibres")
+            lo, hi = min(col["fibre_min"]), max(col["fibre_max"])
+            cover = max(min(hi, pub[1]) - max(lo, pub[0]), 0.0) / (pub[1] - pub[0])
+            ax.text(0.02, 0.04, f"covers {cover:.0%}", transform=ax.transAxes, fontsize=7)
+        ax.set_title(m.replace("_", " "), fontsize=9)
+        ax.set_xlabel(sweep.replace("_", " ") + " (deg)", fontsize=8)
+    axes[i, 0].set_ylabel("moment arm (mm)")
+legend = {}
+for ax in axes.flat:
+    legend.update(zip(*ax.get_legend_handles_labels()[::-1]))  # label -> handle, once each
+fig.legend(legend.values(), legend.keys(), loc="lower center", ncol=len(legend), fontsize=8)
+fig.tight_layout(rect=(0, 0.04, 1, 1))
 plt.show()
 
 # %%
 # Every fibre of one muscle
 # -------------------------
 # fibres.csv holds each fibre's length and moment arm per frame and coordinate.
-fib = [r for r in csv.DictReader(open(out / "fibres.csv"))
+fib = [r for r in csv.DictReader(open(base / "hip_flexion" / "fibres.csv"))
        if r["muscle"] == "gluteus_maximus" and r["coordinate"] == "hip_flexion_r"]  # fmt: skip
 curves: dict[str, list[tuple[float, float]]] = {}
 for r in fib:
