@@ -111,9 +111,9 @@ def facing(scene_path: str) -> None:
     rest: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     kept = _together.facing_pairs
 
-    def recorded(meshes, reach=None):  # noqa: ANN001, ANN202
+    def recorded(meshes, reach=None, cache=None):  # noqa: ANN001, ANN202
         rest.update(meshes)  # the muscles at rest in one frame, as the run has them
-        return kept(meshes, reach)
+        return kept(meshes, reach, cache)
 
     _together.facing_pairs = recorded
     try:
