@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.linalg import cho_factor, cho_solve
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
@@ -311,15 +312,20 @@ def _solve(
             if not len(sel):
                 continue
             block = (Y[sel] @ Wt[sel].T) * (Dt[sel] @ Dt[sel].T) * np.outer(s[sel], s[sel])
+            # a muscle's part of a condition comes once (its own rows, or its side of a
+            # partner's): its block adds in one go
             i = at[c[sel]]
-            np.add.at(M, (i[:, None], i[None, :]), block)
+            M[np.ix_(i, i)] += block
         M[np.arange(k), np.arange(k)] += soft[a]
         M[:k, k:] = Cv[a]
         M[k:, :k] = Cv[a].T
         M[np.arange(k, k + L), np.arange(k, k + L)] = gg
         rhs = np.concatenate([r[a], np.zeros(L)])
+        # the Gram matrix of the conditions and volumes under each H^-1, and the softness
+        # on its diagonal: positive definite where the conditions are independent, so
+        # Cholesky (half LU's work, and this solve was three quarters of a joint round)
         try:
-            sol = np.linalg.solve(M, rhs)
+            sol = cho_solve(cho_factor(M, check_finite=False), rhs, check_finite=False)
         except np.linalg.LinAlgError:
             sol = np.linalg.lstsq(M, rhs, rcond=1e-12)[0]
         mu = np.zeros(K)
