@@ -523,6 +523,26 @@ def test_killed_run_resumes_to_identical_outputs(tmp_path, workers):
     assert main(["run", *args, "-o", str(tmp_path / "ref2"), "--resume"]) == 2
 
 
+def test_a_run_is_not_resumed_under_other_code_of_the_same_version(tmp_path, monkeypatch):
+    """The run's key holds the package's own source files (`code_digest`), not only its
+    version: a checkout between releases must not resume a run another code began."""
+    import musclewrap.run._read as read
+    from musclewrap._hashing import code_digest
+    from musclewrap.scene import load_scene
+
+    _, toml = _write_demo(tmp_path, n_frames=4)
+    scene = load_scene(toml)
+
+    def key() -> str:
+        return read.read_inputs(scene, "0:4", None, True, lambda _: None, []).key
+
+    assert len(code_digest()) == 64 and code_digest() == code_digest()
+    first = key()
+    assert key() == first  # the same code, the same key
+    monkeypatch.setattr(read, "code_digest", lambda: "another checkout")
+    assert key() != first
+
+
 def _twin_scene(tmp_path, n_frames):
     """The demo scene with a second muscle (so that runs use the worker pool)."""
     sc, toml = _write_demo(tmp_path, n_frames=n_frames)

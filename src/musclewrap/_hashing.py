@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["digest", "digest_arrays"]
+__all__ = ["code_digest", "digest", "digest_arrays"]
 
 
 def digest(*parts: bytes | str | np.ndarray) -> str:
@@ -37,4 +39,21 @@ def digest_arrays(arrays: Mapping[str, np.ndarray]) -> str:
         h.update(k.encode())
         h.update(str(a.dtype).encode() + str(a.shape).encode())
         h.update(a.data)  # the same bytes as a.tobytes(), not copied
+    return h.hexdigest()
+
+
+@functools.cache
+def code_digest() -> str:
+    """SHA-256 (hex) of this package's own source files: the code, beyond its version number.
+
+    Its Python files by their paths inside the package, in path order: what a run's
+    key holds, so that a run interrupted under one code is not resumed under another
+    of the same version (a checkout between releases).
+    """
+    root = Path(__file__).resolve().parent
+    h = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        h.update(path.relative_to(root).as_posix().encode() + b"|")
+        h.update(path.read_bytes())
+        h.update(b"|")
     return h.hexdigest()

@@ -59,8 +59,9 @@ class Journal:
                 ) from None
             if old_key != key:
                 raise SceneError(
-                    f"{outdir}: the scene, a file it names or the frames changed since the "
-                    "interrupted run; run again without --resume (or into another folder)"
+                    f"{outdir}: the scene, a file it names, the frames or musclewrap itself "
+                    "changed since the interrupted run; run again without --resume (or into "
+                    "another folder)"
                 )
             self.chunks = old_chunks
             done = sum(1 for _ in self.dir.glob("chunk-*.json"))

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._cache import cached_arrays, digest
+from .._hashing import code_digest
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
 from .._version import __version__
@@ -737,12 +738,12 @@ def check_outputs_spare_inputs(scene: Scene, outdir: Path) -> None:
 
 
 def run_key(scene: Scene, drive: Drive, collisions: bool) -> str:
-    """Hash of everything a run's outputs depend on: files, settings, frames, version."""
+    """Hash of everything a run's outputs depend on: files, settings, frames, version, code."""
     files = input_files(scene)
     return digest(
         *(f.read_bytes() for f in files),
         np.asarray(drive.frames),
-        f"{__version__}|collisions={collisions}"
+        f"{__version__}|{code_digest()}|collisions={collisions}"
         + ("|together" if scene.muscle_together else "")
         + (f"|line_window={scene.line_window!r}" if scene.line_window else ""),
     )
