@@ -428,7 +428,7 @@ def test_facing_pairs_kept_in_a_cache_are_read_back_not_found_again(tmp_path, mo
     want = facing_pairs(meshes)
     made = facing_pairs(meshes, cache=tmp_path)
     assert all(np.array_equal(made[p], want[p]) for p in want)
-    assert len(list(tmp_path.glob("facing-*.npz"))) == 2
+    assert len(list(tmp_path.glob("measure-facing-*.npz"))) == 2
 
     def refused(*args, **kw):  # noqa: ANN002, ANN003, ANN202
         raise AssertionError("found again")

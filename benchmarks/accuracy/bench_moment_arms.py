@@ -57,21 +57,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-ROOT = Path(__file__).resolve().parents[2]
+from musclewrap.fibres import LHDL_FIBRE_RANGES
 
-#: The same specimen's fibres, Modenese & Kohout (2020), Table 2, as issue 48 quotes them:
-#: (swept coordinate, muscle) -> the smallest and largest moment arm across its fibres over
-#: the sweep, mm (8 of the 12 muscle-tasks; the other four are not quoted there)
-PUBLISHED = {
-    ("hip_flexion_r", "psoas"): (9.0, 26.0),
-    ("hip_flexion_r", "iliacus"): (13.0, 46.0),
-    ("hip_flexion_r", "gluteus_maximus"): (-92.0, -19.0),
-    ("hip_flexion_r", "gluteus_medius"): (-35.0, 15.0),
-    ("hip_adduction_r", "psoas"): (5.0, 21.0),
-    ("hip_adduction_r", "gluteus_medius"): (-75.0, -4.0),
-    ("hip_rotation_r", "psoas"): (-5.0, 4.0),
-    ("hip_rotation_r", "iliacus"): (-2.0, 9.0),
-}
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def line_against_opensim(scene) -> None:  # noqa: ANN001
@@ -165,11 +153,11 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
             if swept is not None:
                 print(
                     f"  about {swept}, smallest .. largest across fibres and frames (mm), mean, "
-                    "against the published fibres (PUBLISHED):"
+                    "against the published fibres (LHDL_FIBRE_RANGES):"
                 )
                 for m, (lo, hi, mean) in _ranges(folder / "fibres.csv", swept).items():
                     row = f"    {m:16s} {lo:6.1f} .. {hi:6.1f}  mean {mean:6.1f}"
-                    pub = PUBLISHED.get((swept, m))
+                    pub = LHDL_FIBRE_RANGES.get((swept, m))
                     if pub is not None:
                         over = min(hi, pub[1]) - max(lo, pub[0])
                         row += (

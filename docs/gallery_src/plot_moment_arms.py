@@ -18,6 +18,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 
+from musclewrap.fibres import LHDL_FIBRE_RANGES
 from musclewrap.scene import load_scene, read_motion, run_scene
 
 ROOT = next(p for p in [Path.cwd(), *Path.cwd().parents] if (p / "examples").is_dir())
@@ -42,15 +43,8 @@ for motion in scene.motions:
 # Per sweep and muscle, from moment_arms.csv: the fibres' range (shaded) and mean, the
 # action line and OpenSim. At the right of a panel, the same specimen's fibres as
 # published (Modenese & Kohout 2020, Table 2: the smallest and largest moment arm across a
-# muscle's fibres over the sweep; the eight muscle-tasks issue 48 quotes), and how much of
-# that range ours covers.
-PUBLISHED = {  # mm
-    ("hip_flexion", "psoas"): (9.0, 26.0), ("hip_flexion", "iliacus"): (13.0, 46.0),
-    ("hip_flexion", "gluteus_maximus"): (-92.0, -19.0),
-    ("hip_flexion", "gluteus_medius"): (-35.0, 15.0),
-    ("hip_adduction", "psoas"): (5.0, 21.0), ("hip_adduction", "gluteus_medius"): (-75.0, -4.0),
-    ("hip_rotation", "psoas"): (-5.0, 4.0), ("hip_rotation", "iliacus"): (-2.0, 9.0),
-}  # fmt: skip
+# muscle's fibres over the sweep; the eight muscle-tasks issue 48 quotes,
+# ``musclewrap.fibres.LHDL_FIBRE_RANGES``), and how much of that range ours covers.
 muscles = list(dict.fromkeys(r["muscle"] for r in rows["hip_flexion"]))
 fig, axes = plt.subplots(len(rows), len(muscles), figsize=(3 * len(muscles), 2.8 * len(rows)))
 for i, (sweep, got) in enumerate(rows.items()):
@@ -64,7 +58,7 @@ for i, (sweep, got) in enumerate(rows.items()):
         ax.plot(x, col["fibre_mean"], label="fibres' mean")
         ax.plot(x, col["line_moment_arm"], "k-", label="action line")
         ax.plot(x, col["opensim_moment_arm"], "k:", lw=3, label="OpenSim")
-        pub = PUBLISHED.get((sweep, m))
+        pub = LHDL_FIBRE_RANGES.get((SWEPT[sweep], m))
         if pub is not None:
             at = max(x) + 0.04 * (max(x) - min(x))
             ax.plot([at, at], pub, color="darkorange", lw=4, label="published fibres")

@@ -36,6 +36,7 @@ print(f"converged {r.converged} in {r.iterations} iterations, {1000 * r.seconds:
       f"skeleton fit {r.skeleton_fit_mean:.2f} mm; "
       f"shape change {muscle.shape_change(r.V).max():.2f} mean edges")  # fmt: skip
 
+
 # %%
 # Rest and deformed, side by side
 # -------------------------------

@@ -57,17 +57,22 @@ def cached_arrays(
 def cached_measure(
     cache_dir: Path | None,
     kind: str,
-    parts: list[np.ndarray],
+    parts: list[np.ndarray | str],
     build: Callable[[], dict[str, np.ndarray]],
 ) -> dict[str, np.ndarray]:
     """`cached_arrays` of a measure of arrays, keyed by the arrays themselves.
 
     ``kind`` names the measure and its version (change it where the measure changes);
-    the package's version is part of the key too. The file is
+    the package's version is part of the key too. A part may be a string (a setting, or
+    the `digest` of a large array the caller keys many measures by). The file is
     ``cache_dir/measure-<kind>-<key>.npz``; ``cache_dir`` None: no cache.
     """
     path = None
     if cache_dir is not None:
-        key = digest(*(np.ascontiguousarray(a) for a in parts), kind, __version__)
+        key = digest(
+            *(a if isinstance(a, str) else np.ascontiguousarray(a) for a in parts),
+            kind,
+            __version__,
+        )
         path = Path(cache_dir) / f"measure-{kind}-{key[:32]}.npz"
     return cached_arrays(path, build)

@@ -285,11 +285,8 @@ class _Facer:
         # one within reach, take their exact closest points (the 18 VHF muscles' 306
         # pairs at rest, 506,000 points: 6.9 s all by the compiled grid, 6.0 s all by
         # libigl's tree, 5.5 s as `_closest` chooses by their count)
-        exact = np.flatnonzero(
-            upper - self.cover <= reach
-            if normals is not None
-            else ~near & (upper - self.cover <= reach)
-        )
+        unsure = upper - self.cover <= reach
+        exact = np.flatnonzero(unsure if normals is not None else unsure & ~near)
         if len(exact):
             dist, C = _closest(Q[exact], self.V, self.F, grid=normals is None)[:2]
             near[exact] = dist <= reach
@@ -477,9 +474,6 @@ def facing_pairs(
     return _FacingOnDemand(meshes, reach, cache)
 
 
-_FACING_FORMAT = 2  # of the cached facing faces (2: a face's side)
-
-
 class _FacingOnDemand(Mapping[tuple[str, str], IntArray]):
     """`facing_pairs`: each pair's facing faces found when first asked for."""
 
@@ -504,20 +498,25 @@ class _FacingOnDemand(Mapping[tuple[str, str], IntArray]):
             if self.cache is None:
                 self.found[pair] = self._find(a, b)
             else:
-                from .._cache import cached_arrays, digest
+                from .._cache import cached_measure
 
-                for n in (a, b):
-                    if n not in self.digests:
-                        V, F = self.meshes[n]
-                        self.digests[n] = digest(
-                            np.ascontiguousarray(V, dtype=np.float64),
-                            np.ascontiguousarray(F, dtype=np.int64),
-                        )
-                key = digest(self.digests[a], self.digests[b], repr((self.reach, _FACING_FORMAT)))
-                path = Path(self.cache) / f"facing-{key[:32]}.npz"
-                got = cached_arrays(path, lambda: {"faces": self._find(a, b)})
+                # keyed by both meshes as placed (each hashed once, not once per pair)
+                parts = [self._digest(a), self._digest(b), repr(self.reach)]
+                got = cached_measure(
+                    self.cache, "facing-2", parts, lambda: {"faces": self._find(a, b)}
+                )
                 self.found[pair] = np.ascontiguousarray(got["faces"], dtype=np.int64)
         return self.found[pair]
+
+    def _digest(self, n: str) -> str:
+        if n not in self.digests:
+            from .._cache import digest
+
+            V, F = self.meshes[n]
+            self.digests[n] = digest(
+                np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64)
+            )
+        return self.digests[n]
 
     def _find(self, a: str, b: str) -> IntArray:
         if a not in self.facers:

@@ -10,8 +10,10 @@ from ._field import (
     keep_inside,
     trace_fibres,
 )
+from ._published import LHDL_FIBRE_RANGES
 
 __all__ = [
+    "LHDL_FIBRE_RANGES",
     "Fibres",
     "HarmonicField",
     "areas_on_bones",
