@@ -233,10 +233,25 @@ class Defaults:
         together (`musclewrap.solver._group.joint_round`: each overlap one condition on
         both, by its whole depth), not a step each with its share: the default of a
         scene's ``[collisions] together`` and of `musclewrap.solver.deform_together`'s
-        ``together``. Off: on the 19-muscle leg it lowers the largest shape change from 0.77 to 0.49, but its dual system is
-        dense in the thousands of conditions of a large group: the run takes 1.35-1.62x
-        as long on the 18- and 19-muscle scenes (BENCHMARKS.md, "Muscles stepped
-        together").
+        ``together``. Off: on the 19-muscle leg every 20th frame of the walk it lowers
+        ``skeleton_fit_free`` from 1.55 to 0.39 mm at 1.12x the time, but three
+        capsules stacked on a rod end up to 0.44 mean edges inside each other (a step
+        each: 0.03; ``tests/test_muscle_contact.py``), and a pose written by the live
+        view differed from the run of it by 0.18 mm (BENCHMARKS.md, "A joint step's
+        conditions pooled").
+    muscle_joint_points : int
+        In a joint step, the conditions on points of another muscle's surface are
+        pooled as a step each pools its own vertices': the deepest this many per
+        cage vertex that leads the point (while the group's conditions are at most
+        ``muscle_joint_conditions``; one past them).
+    muscle_joint_conditions : int
+        The conditions of a joint step past which they are pooled one a cage vertex:
+        its dual system is dense, its solve cubic in them, and the first round of a
+        large group held 8,264 (19 muscles: 8.8 s for that solve). The leg's walk
+        every 20th frame took 1.58x a step each with no such bound, 1.12x with 2,000
+        and 1.16x with every group pooled one a cage vertex, the same shape change
+        and misfit; at the squat's bottom the rounds a frame (median) were 6, 9 and
+        12 (BENCHMARKS.md, "A joint step's conditions pooled").
     muscle_overlap_depth : float
         The rounds stop once no vertex is deeper than this many of its muscle's
         mean edge lengths inside another muscle (or after ``muscle_rounds``); a
@@ -400,6 +415,8 @@ class Defaults:
     muscle_rounds: int = 30
     muscle_share: float = 0.5
     muscle_joint: bool = False
+    muscle_joint_points: int = 3
+    muscle_joint_conditions: int = 2000
     muscle_overlap_depth: float = 0.05
     muscle_fine_depth: float = 0.25
     muscle_finish_retry: float = 0.5

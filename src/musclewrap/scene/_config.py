@@ -147,7 +147,7 @@ class Scene:
     fibres: FibreSpec | None = None
     muscle_collisions: bool = False
     muscle_pairs: tuple[tuple[str, str], ...] | None = None
-    muscle_together: bool = False
+    muscle_together: bool = field(default_factory=lambda: defaults.muscle_joint)
     #: each action-line sample the line's mean over this many sample spacings either side
     line_window: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
@@ -295,7 +295,9 @@ def load_scene(path: PathLike) -> Scene:
         muscle_collisions=collisions and against and len(muscles) > 1,
         muscle_pairs=_pairs(coll, [m.name for m in muscles], src),
         muscle_together=(
-            _get(coll, "together", bool, "[collisions]", src) if "together" in coll else False
+            _get(coll, "together", bool, "[collisions]", src)
+            if "together" in coll
+            else defaults.muscle_joint
         ),
         line_window=_line_window(raw, src),
     )

@@ -123,8 +123,8 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "muscles": "Keep the muscles out of each other (default true with two or more).",
         "pairs": "Only these pairs of muscles are kept apart (default: every pair).",
         "together": "Muscles that overlap in a round take one step of their cages together "
-        "(each overlap one condition on both), not a step each with its share: smoother where "
-        "muscles are stacked, slower on many muscles (default false; docs: Contact).",
+        "(each overlap one condition on both), not a step each with its share: muscles held "
+        "by a bone meet where their energies say (default false; docs: Contact).",
     },
     "fibres": {
         "count": "Fibres per muscle (default 100).",
