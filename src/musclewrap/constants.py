@@ -236,9 +236,9 @@ class Defaults:
         ``together``. Off: on the 19-muscle leg every 20th frame of the walk it lowers
         ``skeleton_fit_free`` from 1.55 to 0.39 mm at 1.12x the time, but three
         capsules stacked on a rod end up to 0.44 mean edges inside each other (a step
-        each: 0.03; ``tests/test_muscle_contact.py``), and a pose written by the live
-        view differed from the run of it by 0.18 mm (BENCHMARKS.md, "A joint step's
-        conditions pooled").
+        each: 0.03; ``tests/test_muscle_contact.py``), and a pose 5e-11 deg away gave
+        surfaces 0.19 mm apart (the live view's pose against the run of it written to
+        ten decimals: BENCHMARKS.md, "A joint step's conditions pooled").
     muscle_joint_points : int
         In a joint step, the conditions on points of another muscle's surface are
         pooled as a step each pools its own vertices': the deepest this many per
