@@ -5,8 +5,8 @@
 
 Runs the scene warm in one process (``--workers 1``, one BLAS and Numba thread, no GIF),
 once per mode in turns in one sitting: ``each`` (``[collisions] together = false``, a step
-of its cage per muscle with its share of every overlap) and ``joint`` (``true``, the
-default: the muscles that overlap in a round step together,
+of its cage per muscle with its share of every overlap, the default) and ``joint``
+(``true``: the muscles that overlap in a round step together,
 `musclewrap.solver._group.joint_round`); ``jointN``: joint with ``N`` conditions a leading
 cage vertex (``defaults.muscle_joint_points``, set in this process); ``--conditions``: a
 group's conditions past which they are pooled one a cage vertex
