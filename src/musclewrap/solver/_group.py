@@ -84,6 +84,26 @@ class _Terms:
         )
 
 
+@dataclass
+class _Conditions:
+    """A joint step's conditions, as gathered.
+
+    Per muscle its parts (``terms``), the rows of its own (``own_rows``) and points of
+    its surface (``other_rows``) they are on, how far any must go (``need``); per
+    condition, in blocks, what it asks (``asks``), its slack and the muscle whose it is
+    (``owner``); ``count`` of them.
+    """
+
+    terms: dict[str, _Terms]
+    asks: list[FloatArray]
+    slack: list[FloatArray]
+    owner: list[IntArray]
+    count: int
+    own_rows: dict[str, list[IntArray]]
+    other_rows: dict[str, list[FloatArray]]
+    need: dict[str, float]
+
+
 def _rotation(frames: Mapping[str, FloatArray | None], n: str) -> FloatArray | None:
     T = frames.get(n)
     return None if T is None else T[:3, :3]
@@ -124,7 +144,7 @@ def joint_round(
     """
     names = list(group)
 
-    def gather(points: int) -> tuple[Any, ...]:
+    def gather(points: int) -> _Conditions:
         # the step's conditions, those on another muscle's surface the deepest
         # ``points`` per cage vertex that leads them
         terms = {n: _Terms() for n in names}
@@ -233,13 +253,14 @@ def joint_round(
                 owner.append(np.full(len(give), k))
                 other_rows[n].append(Wp)
                 need[n] = max(need[n], float(give.max()))
-        return terms, r_all, slack_all, owner, counts, own_rows, other_rows, need
+        return _Conditions(terms, r_all, slack_all, owner, counts, own_rows, other_rows, need)
 
     got = gather(defaults.muscle_joint_points)
-    if got[4] > defaults.muscle_joint_conditions:
+    if got.count > defaults.muscle_joint_conditions:
         # a large group (the dense solve costs the cube of its conditions): one a cage vertex
         got = gather(1)
-    terms, r_all, slack_all, owner, counts, own_rows, other_rows, need = got
+    terms, r_all, slack_all, owner = got.terms, got.asks, got.slack, got.owner
+    counts, own_rows, other_rows, need = got.count, got.own_rows, got.other_rows, got.need
     out = {n: state[n] for n in names}
     if not counts:
         return out
