@@ -143,122 +143,16 @@ def joint_round(
     not move).
     """
     names = list(group)
-
-    def gather(points: int) -> _Conditions:
-        # the step's conditions, those on another muscle's surface the deepest
-        # ``points`` per cage vertex that leads them
-        terms = {n: _Terms() for n in names}
-        r_all: list[FloatArray] = []  # what each condition asks for
-        slack_all: list[FloatArray] = []
-        owner: list[IntArray] = []  # the muscle (its place in the group) whose condition it is
-        counts = 0
-        own_rows: dict[str, list[IntArray]] = {n: [] for n in names}
-        other_rows: dict[str, list[FloatArray]] = {n: [] for n in names}
-        need = dict.fromkeys(names, 0.0)
-        inside = set(names)
-        for k, n in enumerate(names):
-            d = deformers[n]
-            mu = d.muscle
-            V = state[n][1]
-            edge = d._fine_edge
-            slack = tol.contact * edge
-            R = _rotation(frames, n)
-            # this muscle's vertex conditions: in another muscle (the whole depth where the
-            # other steps with it, else its share), near its bones; the deepest per cage vertex
-            idx, gap, N, partner = [], [], [], []
-            for o in found.get(n, ()):
-                whole = o.other in inside
-                idx.append(o.rows)
-                gap.append(slack - (o.depth if whole else share * o.depth))
-                N.append(_to_muscle(R, o.out))
-                partner.append(np.arange(len(o.rows)) if whole else np.full(len(o.rows), -1))
-            obs = obstacles.get(n)
-            if obs:
-                bi, bg, bn = contact_candidates(
-                    V, obs, margin, defaults.contact_band * edge, nears.get(n), sides.get(n)
-                )
-                idx.append(bi)
-                gap.append(bg)
-                N.append(bn)
-                partner.append(np.full(len(bi), -1))
-            # which overlap each vertex condition came from (to find its partner's point)
-            source = [np.full(len(a), j) for j, a in enumerate(idx)]
-            if idx:
-                rows_ = np.concatenate(idx).astype(np.int64)
-                G_ = np.concatenate(gap)
-                NN = np.vstack(N)
-                P_ = np.concatenate(partner)
-                S_ = np.concatenate(source)
-                keep = _deepest_per_group(G_, d._dominant[rows_], 1)
-                # and, as a round on its own takes the other's vertices inside it, the deepest
-                # few per cage vertex of the other muscle that leads the point behind them
-                lead = np.full(len(rows_), -1, dtype=np.int64)
-                for j, o in enumerate(found.get(n, ())):
-                    sel = np.flatnonzero((S_ == j) & (P_ >= 0))
-                    if len(sel):
-                        mb = deformers[o.other].muscle
-                        # the cage vertex that leads the triangle's rows, numbered apart per muscle
-                        rows = mb.W[mb.F[o.face[P_[sel]]]].sum(axis=1)
-                        lead[sel] = np.argmax(np.abs(rows), axis=1) + names.index(o.other) * (
-                            1 << 32
-                        )
-                coupled = np.flatnonzero(lead >= 0)
-                if len(coupled):
-                    more = coupled[_deepest_per_group(G_[coupled], lead[coupled], points)]
-                    keep = np.union1d(keep, more)
-                rows_, G_, NN, P_, S_ = rows_[keep], G_[keep], NN[keep], P_[keep], S_[keep]
-                ids = counts + np.arange(len(rows_))
-                counts += len(rows_)
-                terms[n].add(mu.W[rows_], NN, 1.0, ids)
-                r_all.append(slack - G_)
-                slack_all.append(np.full(len(rows_), slack))
-                owner.append(np.full(len(rows_), k))
-                own_rows[n].append(rows_)
-                need[n] = max(need[n], float((slack - G_).max(initial=0.0)))
-                # the partners' parts: the point of the other's surface behind the vertex
-                for j, o in enumerate(found.get(n, ())):
-                    if o.other not in inside:
-                        continue
-                    sel = np.flatnonzero((S_ == j) & (P_ >= 0))
-                    if not len(sel):
-                        continue
-                    at = P_[sel]
-                    b = o.other
-                    db = deformers[b]
-                    Wp = db.surface_rows(o.point[at], o.face[at], surf[b][0])
-                    Db = _to_muscle(_rotation(frames, b), o.out[at])
-                    terms[b].add(Wp, Db, -1.0, ids[sel])
-                    other_rows[b].append(Wp)
-                    need[b] = max(need[b], float((slack - G_[sel]).max(initial=0.0)))
-            # another muscle's vertices inside this one, where that one steps apart: this
-            # muscle's surface gives the rest of their depth there, as a round on its own
-            gi, gW, gD = [], [], []
-            for m in sorted(found):
-                if m in inside:
-                    continue
-                for o in found[m]:
-                    if o.other == n and len(o.rows):
-                        gi.append((1.0 - share) * o.depth)
-                        gW.append(d.surface_rows(o.point, o.face, surf[n][0]))
-                        gD.append(_to_muscle(R, -o.out))
-            if gi:
-                give, Wp, Dp = np.concatenate(gi), np.vstack(gW), np.vstack(gD)
-                keep = _deepest_per_group(-give, np.argmax(np.abs(Wp), axis=1), points)
-                give, Wp, Dp = give[keep], Wp[keep], Dp[keep]
-                ids = counts + np.arange(len(give))
-                counts += len(give)
-                terms[n].add(Wp, Dp, 1.0, ids)
-                r_all.append(give)
-                slack_all.append(np.full(len(give), slack))
-                owner.append(np.full(len(give), k))
-                other_rows[n].append(Wp)
-                need[n] = max(need[n], float(give.max()))
-        return _Conditions(terms, r_all, slack_all, owner, counts, own_rows, other_rows, need)
-
-    got = gather(defaults.muscle_joint_points)
+    pools = {
+        n: _candidates(
+            deformers, state, found, names, n, frames, obstacles, margin, sides, nears, share
+        )
+        for n in names
+    }
+    got = _select(deformers, surf, found, names, frames, pools, share, defaults.muscle_joint_points)
     if got.count > defaults.muscle_joint_conditions:
         # a large group (the dense solve costs the cube of its conditions): one a cage vertex
-        got = gather(1)
+        got = _select(deformers, surf, found, names, frames, pools, share, 1)
     terms, r_all, slack_all, owner = got.terms, got.asks, got.slack, got.owner
     counts, own_rows, other_rows, need = got.count, got.own_rows, got.other_rows, got.need
     out = {n: state[n] for n in names}
@@ -279,6 +173,162 @@ def joint_round(
         if step is not None:
             out[n] = step
     return out
+
+
+@dataclass
+class _Pool:
+    """One muscle's vertex conditions in a joint step, before they are pooled.
+
+    Per candidate: its fine vertex ``rows``, gap ``G``, way out ``N`` (the muscle's
+    frame), the overlap it came from ``S`` and its place there ``P`` (-1: no partner
+    in the group), and ``lead``: the partner's cage vertex that leads the point behind
+    it, numbered apart per muscle (-1: none).
+    """
+
+    rows: IntArray
+    G: FloatArray
+    N: FloatArray
+    P: IntArray
+    S: IntArray
+    lead: IntArray
+
+
+def _candidates(
+    deformers: Mapping[str, Deformer],
+    state: Mapping[str, tuple[FloatArray, FloatArray]],
+    found: Mapping[str, Sequence[Overlap]],
+    names: Sequence[str],
+    n: str,
+    frames: Mapping[str, FloatArray | None],
+    obstacles: Mapping[str, Sequence[Any] | None],
+    margin: float,
+    sides: Mapping[str, Any],
+    nears: Mapping[str, Any],
+    share: float,
+) -> _Pool | None:
+    """Muscle ``n``'s vertex conditions before pooling; None where there are none.
+
+    In another muscle (the whole depth where the other steps with it, else its
+    ``share``) and near its bones. Found once per step, whatever the pooling.
+    """
+    d = deformers[n]
+    edge = d._fine_edge
+    slack = tol.contact * edge
+    R = _rotation(frames, n)
+    idx, gap, N, partner = [], [], [], []
+    for o in found.get(n, ()):
+        whole = o.other in names
+        idx.append(o.rows)
+        gap.append(slack - (o.depth if whole else share * o.depth))
+        N.append(_to_muscle(R, o.out))
+        partner.append(np.arange(len(o.rows)) if whole else np.full(len(o.rows), -1))
+    obs = obstacles.get(n)
+    if obs:
+        bi, bg, bn = contact_candidates(
+            state[n][1], obs, margin, defaults.contact_band * edge, nears.get(n), sides.get(n)
+        )
+        idx.append(bi)
+        gap.append(bg)
+        N.append(bn)
+        partner.append(np.full(len(bi), -1))
+    if not idx:
+        return None
+    # which overlap each vertex condition came from (to find its partner's point)
+    S = np.concatenate([np.full(len(a), j) for j, a in enumerate(idx)])
+    P = np.concatenate(partner)
+    lead = np.full(len(S), -1, dtype=np.int64)
+    for j, o in enumerate(found.get(n, ())):
+        sel = np.flatnonzero((S == j) & (P >= 0))
+        if len(sel):
+            mb = deformers[o.other].muscle
+            # the cage vertex that leads the triangle's rows, numbered apart per muscle
+            rows = mb.W[mb.F[o.face[P[sel]]]].sum(axis=1)
+            lead[sel] = np.argmax(np.abs(rows), axis=1) + names.index(o.other) * (1 << 32)
+    return _Pool(
+        np.concatenate(idx).astype(np.int64), np.concatenate(gap), np.vstack(N), P, S, lead
+    )
+
+
+def _select(
+    deformers: Mapping[str, Deformer],
+    surf: Mapping[str, tuple[FloatArray, IntArray]],
+    found: Mapping[str, Sequence[Overlap]],
+    names: Sequence[str],
+    frames: Mapping[str, FloatArray | None],
+    pools: Mapping[str, _Pool | None],
+    share: float,
+    points: int,
+) -> _Conditions:
+    """The step's conditions from the muscles' ``pools``.
+
+    The deepest vertex per cage vertex, and on another muscle's surface the deepest
+    ``points`` per cage vertex that leads them.
+    """
+    terms = {n: _Terms() for n in names}
+    r_all: list[FloatArray] = []  # what each condition asks for
+    slack_all: list[FloatArray] = []
+    owner: list[IntArray] = []  # the muscle (its place in the group) whose condition it is
+    counts = 0
+    own_rows: dict[str, list[IntArray]] = {n: [] for n in names}
+    other_rows: dict[str, list[FloatArray]] = {n: [] for n in names}
+    need = dict.fromkeys(names, 0.0)
+    for k, n in enumerate(names):
+        d = deformers[n]
+        slack = tol.contact * d._fine_edge
+        pool = pools[n]
+        if pool is not None:
+            keep = _deepest_per_group(pool.G, d._dominant[pool.rows], 1)
+            # and, as a round on its own takes the other's vertices inside it, the deepest
+            # few per cage vertex of the other muscle that leads the point behind them
+            coupled = np.flatnonzero(pool.lead >= 0)
+            if len(coupled):
+                more = coupled[_deepest_per_group(pool.G[coupled], pool.lead[coupled], points)]
+                keep = np.union1d(keep, more)
+            rows_, G_, P_, S_ = pool.rows[keep], pool.G[keep], pool.P[keep], pool.S[keep]
+            ids = counts + np.arange(len(rows_))
+            counts += len(rows_)
+            terms[n].add(d.muscle.W[rows_], pool.N[keep], 1.0, ids)
+            r_all.append(slack - G_)
+            slack_all.append(np.full(len(rows_), slack))
+            owner.append(np.full(len(rows_), k))
+            own_rows[n].append(rows_)
+            need[n] = max(need[n], float((slack - G_).max(initial=0.0)))
+            # the partners' parts: the point of the other's surface behind the vertex
+            for j, o in enumerate(found.get(n, ())):
+                sel = np.flatnonzero((S_ == j) & (P_ >= 0))
+                if o.other not in names or not len(sel):
+                    continue
+                at, b = P_[sel], o.other
+                Wp = deformers[b].surface_rows(o.point[at], o.face[at], surf[b][0])
+                Db = _to_muscle(_rotation(frames, b), o.out[at])
+                terms[b].add(Wp, Db, -1.0, ids[sel])
+                other_rows[b].append(Wp)
+                need[b] = max(need[b], float((slack - G_[sel]).max(initial=0.0)))
+        # another muscle's vertices inside this one, where that one steps apart: this
+        # muscle's surface gives the rest of their depth there, as a round on its own
+        R = _rotation(frames, n)
+        gi, gW, gD = [], [], []
+        for m in sorted(found):
+            if m in names:
+                continue
+            for o in found[m]:
+                if o.other == n and len(o.rows):
+                    gi.append((1.0 - share) * o.depth)
+                    gW.append(d.surface_rows(o.point, o.face, surf[n][0]))
+                    gD.append(_to_muscle(R, -o.out))
+        if gi:
+            give, Wp, Dp = np.concatenate(gi), np.vstack(gW), np.vstack(gD)
+            keep = _deepest_per_group(-give, np.argmax(np.abs(Wp), axis=1), points)
+            give, Wp, Dp = give[keep], Wp[keep], Dp[keep]
+            ids = counts + np.arange(len(give))
+            counts += len(give)
+            terms[n].add(Wp, Dp, 1.0, ids)
+            r_all.append(give)
+            slack_all.append(np.full(len(give), slack))
+            owner.append(np.full(len(give), k))
+            other_rows[n].append(Wp)
+            need[n] = max(need[n], float(give.max()))
+    return _Conditions(terms, r_all, slack_all, owner, counts, own_rows, other_rows, need)
 
 
 def _solve(
