@@ -106,6 +106,45 @@ def test_fibres_in_a_line_csv_scene(tmp_path):
     assert len(list((tmp_path / "cache").glob("fibres-*.npz"))) == 1
 
 
+def test_fibres_attached_areas_ride_with_their_lines_ends(tmp_path):
+    """``[fibres] attached = true``: the run's deformation holds the fibres' areas on
+    their lines' ends (plain lines: the ends' sample rotations), said in the notes; the
+    insertion's cap then follows the line's end more closely, the volume exact; a value
+    that is not true or false is refused."""
+    from musclewrap.mesh import read_mesh
+
+    sc, toml = _write_demo(tmp_path)
+    base = toml.read_text() + "[fibres]\ncount = 10\npoints = 5\n"
+    runs = {}
+    for held in (False, True):
+        toml.write_text(base + f"attached = {str(held).lower()}\n")
+        scene = load_scene(toml)
+        assert scene.fibres.attached is held
+        out = tmp_path / f"out{held}"
+        s = run_scene(scene, out, workers=1, cache_dir=tmp_path / "cache", progress=None)
+        assert s.unconverged == 0
+        said = any("held on the bodies of its paths' first and last points" in n for n in s.notes)
+        assert said is held, s.notes
+        runs[held] = out
+    V0, _ = read_mesh(runs[False] / "fusiform" / "fusiform_0000.vtp")
+    rows = _rows(runs[True] / "report.csv")
+    assert max(abs(float(r["relative_volume_error"])) for r in rows) < 1e-9
+    # the last frame: the insertion's cap (the fibres' area, cached) kept its shape, its
+    # pairwise distances, better
+    (cached,) = (tmp_path / "cache").glob("fibres-*.npz")
+    ins = np.load(cached)["insertion"]
+    spread = {}
+    for held, out in runs.items():
+        V, _ = read_mesh(out / "fusiform" / "fusiform_0006.vtp")
+        D0 = np.linalg.norm(V0[ins][:, None] - V0[ins][None], axis=2)
+        D = np.linalg.norm(V[ins][:, None] - V[ins][None], axis=2)
+        spread[held] = float(np.abs(D - D0).mean())
+    assert spread[True] < 0.8 * spread[False], spread
+    toml.write_text(base + 'attached = "yes"\n')
+    with pytest.raises(SceneError, match="attached"):
+        load_scene(toml)
+
+
 def test_fibre_attachments_given_as_landmarks_or_vertex_indices(tmp_path):
     """A muscle's attachment areas from the scene: landmark points (the surface within
     landmark_radius of them) or vertex indices of its mesh file; the fibres start and end

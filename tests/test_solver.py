@@ -226,3 +226,60 @@ def test_an_unsettled_direction_falls_back_to_the_exact_iteration(small_muscle, 
     # near the default solve's mesh (the fine gradient's fixed point is not the proxy's:
     # 0.011 mm apart on this 208 mm capsule, 5e-5 of its size)
     assert np.abs(r.V - plain.V).max() <= 2e-4 * np.linalg.norm(np.ptp(small_muscle.V, axis=0))
+
+
+def test_attached_areas_ride_on_the_bodies_of_their_paths_ends(small_muscle):
+    """``attached``: the end caps held on the bodies of the line's first and last points.
+
+    A rigid motion of lines and bodies moves the muscle rigidly, volume exact; bent at
+    mid-length (the second half's body turned 30 degrees), the insertion's cap follows
+    its body's rigid motion far closer than without, and the origin's stays put.
+    """
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import PathLines
+    from musclewrap.fibres import attachment_areas
+
+    mu = small_muscle
+    rest, bent = capsule_scenario("bend")
+    origin, insertion = attachment_areas(mu.V, rest)
+    d = mu.bind(rest, attached=(origin, insertion))
+    plain = mu.bind(rest)
+    assert d.S.shape[0] == plain.S.shape[0] + len(origin) + len(insertion)
+
+    R = Rotation.from_rotvec([0.3, -0.5, 0.2]).as_matrix()
+    t = np.array([4.0, -2.0, 7.0])
+    moved = PathLines(
+        {k: np.asarray(v) @ R.T + t for k, v in rest.items()},
+        {k: np.repeat(R[None], len(v), 0) for k, v in rest.items()},
+    )
+    r = d.deform(moved)
+    assert r.converged, r.reason
+    assert np.abs(r.V - (mu.V @ R.T + t)).max() < 1e-6 * np.ptp(mu.V)
+    assert abs(r.relative_volume_error) < 1e-9
+
+    a = np.radians(30.0)
+    turn = Rotation.from_rotvec([0.0, a, 0.0]).as_matrix()
+    P = bent["axis"]
+    lines = PathLines({"axis": P}, {"axis": np.stack([np.eye(3), np.eye(3), turn])})
+    end_rest, end_now = rest["axis"][-1], P[-1]
+    ride = (mu.V[insertion] - end_rest) @ turn.T + end_now
+
+    def off(res):  # noqa: ANN001, ANN202
+        return (
+            float(np.linalg.norm(res.V[insertion] - ride, axis=1).mean()),
+            float(np.linalg.norm(res.V[origin] - mu.V[origin], axis=1).mean()),
+        )
+
+    held, free = d.deform(lines), plain.deform(lines)
+    assert held.converged and free.converged
+    assert abs(held.relative_volume_error) < 1e-9
+    (ins_held, org_held), (ins_free, org_free) = off(held), off(free)
+    assert ins_held < 0.5 * ins_free, (ins_held, ins_free)
+    assert org_held < org_free
+    # plain lines: the end samples' own rotations stand in for the bodies'
+    flat = d.deform({"axis": P})
+    assert flat.converged and off(flat)[0] < ins_free
+
+    with pytest.raises(ValueError, match="attached vertices must index the"):
+        mu.bind(rest, attached=(origin, np.array([len(mu.V)])))

@@ -2,7 +2,7 @@
 
     python benchmarks/accuracy/bench_moment_arms.py [SCENE] [--steps 0.5,1,2,4] [--repeats 3]
     python benchmarks/accuracy/bench_moment_arms.py SCENE --smoothness [--fibres-of SCENE2]
-        [--attachments ends|bones] [--count N] [--line-window W]
+        [--attachments ends|bones] [--attached] [--count N] [--line-window W]
     python benchmarks/accuracy/bench_moment_arms.py SCENE --scan MUSCLE [--about START:STOP:STEP]
         [--span DEG] [--by DEG] [--line-reach X|none] [--fibres-of SCENE2]
 
@@ -123,6 +123,7 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
 
     from musclewrap.scene import run_scene
 
+    covers = []
     with tempfile.TemporaryDirectory() as tmp:
         for motion in scene.motions:
             one = dataclasses.replace(scene, motions=(motion,), gif=False)
@@ -160,6 +161,7 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
                     pub = LHDL_FIBRE_RANGES.get((swept, m))
                     if pub is not None:
                         over = min(hi, pub[1]) - max(lo, pub[0])
+                        covers.append(max(over, 0.0) / (pub[1] - pub[0]))
                         row += (
                             f"   published {pub[0]:6.1f} .. {pub[1]:6.1f}: width "
                             f"{(hi - lo) / (pub[1] - pub[0]):.2f}, covers "
@@ -172,6 +174,8 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
                     print(
                         f"    {m:16s} r: {pos[0]:6.1f} .. {pos[1]:6.1f}   -r: {neg[0]:6.1f} .. {neg[1]:6.1f}"
                     )
+    if covers:
+        print(f"the published ranges covered: {np.mean(covers):.1%} on average ({len(covers)})")
 
 
 def _series(path: Path, coord: str) -> dict[tuple[str, str], NDArray[np.float64]]:
@@ -353,6 +357,7 @@ def main() -> None:
     p.add_argument("--smoothness", action="store_true", help="only item 4")
     p.add_argument("--fibres-of", help="a scene whose [fibres] table to use")
     p.add_argument("--attachments", choices=("ends", "bones"), help="[fibres] attachments")
+    p.add_argument("--attached", action="store_true", help="[fibres] attached = true")
     p.add_argument("--count", type=int, help="[fibres] count")
     p.add_argument("--line-window", type=float, help="the scene's line_window")
     p.add_argument("--scan", metavar="MUSCLE", help="only item 5 (or 6), for this muscle")
@@ -374,6 +379,8 @@ def main() -> None:
         scene = dataclasses.replace(
             scene, fibres=dataclasses.replace(scene.fibres, attachments=a.attachments)
         )
+    if a.attached:
+        scene = dataclasses.replace(scene, fibres=dataclasses.replace(scene.fibres, attached=True))
     if a.count:
         scene = dataclasses.replace(scene, fibres=dataclasses.replace(scene.fibres, count=a.count))
     if a.line_window is not None:

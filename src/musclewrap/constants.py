@@ -108,6 +108,15 @@ class Defaults:
         point is kept: an attachment, where the muscle starts on the bone, not a
         bone the muscle merely lies on at rest and slides over (the psoas on the
         pelvic brim).
+    attached_weight : float
+        Weight of the fibres' attachment areas held on the bodies of their paths'
+        first and last points (``[fibres] attached = true``), relative to the
+        Laplacian and scaled as the skeleton's by ``sqrt(m / k)`` for ``k`` such
+        vertices. On the LHDL hip sweeps (BENCHMARKS.md, "Attachment areas on their
+        bodies") the mean cover of the published fibre moment-arm ranges is 62.6 /
+        69.2 / 72.0 % at 0.6 / 1.8 / 3.6 (53.5 % without), the largest shape change
+        0.335 / 0.343 / 0.372; past 1.8 the psoas's rotation range grows wider than
+        the published one (1.54 and 1.90 of its width).
     fibre_area_reach : float
         The fibres' attachment areas from the anatomy
         (`musclewrap.fibres.areas_on_bones`): a muscle vertex within this many of
@@ -386,6 +395,7 @@ class Defaults:
     anchor_feather: int = 4
     anchor_reach: float = 0.5
     anchor_end_reach: float = 0.15
+    attached_weight: float = 1.8
     fibre_area_reach: float = 1.0
     fibre_area_end_reach: float = 0.15
     fibre_area_end_part: float = 0.3

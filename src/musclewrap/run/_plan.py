@@ -91,6 +91,7 @@ def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
                 on[0],
                 on[1],
                 f.attachments,
+                f.attached,
             )
         ma = drive.moment_arms
         jobs.append(

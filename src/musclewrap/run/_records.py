@@ -101,6 +101,8 @@ class FibreSettings:
     origin_bones: tuple[tuple[str, FloatArray], ...] = ()
     insertion_bones: tuple[tuple[str, FloatArray], ...] = ()
     attachments: str = "ends"
+    #: the deformation holds the areas on their paths' end bodies (`musclewrap.Deformer`)
+    attached: bool = False
 
 
 @dataclass(frozen=True)

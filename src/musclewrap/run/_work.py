@@ -164,12 +164,18 @@ def _deformer(job: MuscleJob, keep: int = 1) -> tuple[Muscle, Deformer, bool, st
     t0 = time.perf_counter()
     muscle, hit, note = _prepare(job)
     seconds = time.perf_counter() - t0
+    attached = None
+    if job.fibres is not None and job.fibres.attached:
+        # the fibres' areas (cached with the preparation) held on their paths' end bodies
+        fb, _ = _fibres(job, muscle)
+        attached = None if fb is None else (fb.origin, fb.insertion)
     d = muscle.bind(
         job.rest_lines,
         reference_point=job.rest_reference,
         anchors=job.anchors,
         line_reach=defaults.line_reach,
         line_window=job.line_window,
+        attached=attached,
     )
     while len(_deformers) >= max(1, keep):
         del _deformers[next(iter(_deformers))]  # the one used longest ago

@@ -88,7 +88,10 @@ class FibreSpec:
     (`musclewrap.fibres.areas_on_bones`). ``moment_arm_contact``: the
     poses on either side of a frame are deformed with the bones' contact (False by
     default: the contact's cage step is not smooth in the pose, and its jumps over a
-    step of 1 degree dominated the differences on the LHDL sweeps).
+    step of 1 degree dominated the differences on the LHDL sweeps). ``attached``: the
+    muscle's deformation holds its fibres' attachment areas on the bodies of its
+    paths' first and last points (`musclewrap.Deformer`'s ``attached``), for the
+    surface and the fibres alike.
     """
 
     count: int = 100
@@ -99,6 +102,7 @@ class FibreSpec:
     moment_arm_contact: bool = False
     landmark_radius: float = 10.0
     attachments: str = "ends"
+    attached: bool = False
 
 
 @dataclass(frozen=True)
@@ -674,8 +678,9 @@ def _fibres(raw: dict[str, Any], src: Path, osim: Path | None) -> FibreSpec | No
         kw["landmark_radius"] = _get(t, "landmark_radius", float, "[fibres]", src)
         if not kw["landmark_radius"] > 0:
             raise SceneError(f"{src}: [fibres] landmark_radius must be > 0 (mesh units)")
-    if "moment_arm_contact" in t:
-        kw["moment_arm_contact"] = _get(t, "moment_arm_contact", bool, "[fibres]", src)
+    for key in ("moment_arm_contact", "attached"):
+        if key in t:
+            kw[key] = _get(t, key, bool, "[fibres]", src)
     if "attachments" in t:
         kw["attachments"] = _get(t, "attachments", str, "[fibres]", src)
         if kw["attachments"] not in ("ends", "bones"):

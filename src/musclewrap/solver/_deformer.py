@@ -129,6 +129,13 @@ class Deformer(ContactSteps, PaperSteps):
     line_window : float, optional
         Half-width of each current sample's window along its line, in sample spacings
         (`Muscle.bind`); 0: the line's point.
+    attached : (origin, insertion) int array_likes, optional
+        Fine vertices where the muscle attaches (its fibres' areas): each one rides
+        on the body of the nearest first point (origin) or last point (insertion) of
+        the rest lines, by a soft condition like the skeleton's (weight
+        ``defaults.attached_weight * sqrt(m / k)``, ``k`` such vertices): in a pose it
+        is turned by that point's body rotation (a `PathLines`; plain lines: the
+        rotation of that line's end sample) about the point and moved with it.
 
     Attributes
     ----------
@@ -147,6 +154,7 @@ class Deformer(ContactSteps, PaperSteps):
         anchors: npt.ArrayLike | None = None,
         line_reach: float | None = defaults.line_reach,
         line_window: float = defaults.line_window,
+        attached: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
     ) -> None:
         if not skeleton_weight > 0:
             raise ValueError(f"skeleton_weight must be positive, got {skeleton_weight}")
@@ -189,6 +197,11 @@ class Deformer(ContactSteps, PaperSteps):
         self.S = mean_value_coordinates(self.rest_samples, C, CF)
         m, k = len(C), len(self.rest_samples)
         self.weight = skeleton_weight * np.sqrt(m / k)
+        # the attachment areas, riding on their paths' end bodies: rows of S after the
+        # lines' samples, scaled to their own weight (their targets: `_attached_targets`)
+        self._attached = self._attachments(attached, rest, m)
+        if self._attached:
+            self.S = np.vstack([self.S, *(a[3] for a in self._attached)])
         L = muscle.L
         self.H = L.T @ L + self.weight**2 * (self.S.T @ self.S)
         # anchors: fine vertices held at their rest positions (an origin on a bone)
@@ -240,6 +253,63 @@ class Deformer(ContactSteps, PaperSteps):
             slice(int(idx[0]), int(idx[-1]) + 1)
             for idx in (np.flatnonzero(self.sample_line == i) for i in range(len(rest)))
         )
+
+    def _attachments(
+        self,
+        attached: tuple[npt.ArrayLike, npt.ArrayLike] | None,
+        rest: Mapping[str, FloatArray],
+        m: int,
+    ) -> list[tuple[str, int, FloatArray, FloatArray, float]]:
+        """Per line end with attached vertices: (line, 0 or -1, offsets, scaled rows, scale).
+
+        The offsets are the vertices' rest positions from the line's rest end point;
+        the rows their coordinates times their weight over the skeleton's.
+        """
+        if attached is None:
+            return []
+        mu = self.muscle
+        sides = [np.unique(np.asarray(a, dtype=np.int64).ravel()) for a in attached]
+        if len(sides) != 2:
+            raise ValueError("attached must be two vertex lists: the origin's and the insertion's")
+        k = sum(len(a) for a in sides)
+        if not k:
+            return []
+        if min(int(a.min(initial=0)) for a in sides) < 0 or max(
+            int(a.max(initial=0)) for a in sides
+        ) >= len(mu.V):
+            raise ValueError(f"attached vertices must index the {len(mu.V)} fine vertices")
+        scale = defaults.attached_weight * np.sqrt(m / k) / self.weight
+        names = list(rest)
+        out = []
+        for side, idx in zip((0, -1), sides, strict=True):
+            if not len(idx):
+                continue
+            ends = np.array([rest[n][side] for n in names])
+            nearest = np.argmin(
+                np.linalg.norm(mu.V[idx][:, None, :] - ends[None, :, :], axis=2), axis=1
+            )
+            for j, n in enumerate(names):
+                r = idx[nearest == j]
+                if len(r):
+                    out.append((n, side, mu.V[r] - ends[j], scale * mu.W[r], scale))
+        return out
+
+    def _attached_targets(
+        self, current_lines: Mapping[str, npt.ArrayLike], R_s: FloatArray
+    ) -> FloatArray:
+        """The attached vertices' targets in a pose (scaled as their rows of ``S``)."""
+        body = getattr(current_lines, "rotations", None)
+        names = list(self.rest_lines)
+        out = []
+        for n, side, offset, _, scale in self._attached:
+            P = np.asarray(current_lines[n], dtype=np.float64)
+            if body is not None:
+                R = np.asarray(body[n][side], dtype=np.float64)
+            else:
+                rows = self._line_slices[names.index(n)]
+                R = R_s[rows.start if side == 0 else rows.stop - 1]
+            out.append(scale * (offset @ R.T + P[side]))
+        return np.concatenate(out)
 
     def _proxy_matrices(self, dtype: type) -> Deformer:
         """Make the proxy's matrices that steer the default solve, in ``dtype``.
@@ -305,6 +375,8 @@ class Deformer(ContactSteps, PaperSteps):
                 self.sampling.halfwidths,
             )
             s_cur = self._offset(s_cur, R_s)
+            if self._attached:
+                s_cur = np.vstack([s_cur, self._attached_targets(current_lines, R_s)])
             return cur, s_cur, self.rotation_field.rotate(R_s, self.muscle.delta_rest)
         if (reference_point is None) != (self.reference_rest is None):
             raise ValueError(
@@ -316,6 +388,8 @@ class Deformer(ContactSteps, PaperSteps):
         R_s = self._sample_rotations(s_cur, reference_current=ref_cur)
         s_cur = self._offset(s_cur, R_s)
         d_L = self.rotation_field.rotate(R_s, self.muscle.delta_rest)
+        if self._attached:
+            s_cur = np.vstack([s_cur, self._attached_targets(cur, R_s)])
         return cur, s_cur, d_L
 
     def _offset(self, means: FloatArray, R_s: FloatArray) -> FloatArray:

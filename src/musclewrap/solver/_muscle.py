@@ -255,6 +255,7 @@ class Muscle(PreparedMuscle):
         anchors: npt.ArrayLike | None = None,
         line_reach: float | None = defaults.line_reach,
         line_window: float = defaults.line_window,
+        attached: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
     ) -> Deformer:
         """Attach the rest-pose action lines; returns the per-pose solver.
 
@@ -282,6 +283,9 @@ class Muscle(PreparedMuscle):
             sample spacings either side (`musclewrap.conditions.window_mean`): the
             deformation then has no kink where a point of the path slides past a sample
             (the fibres' moment arms no step); 0 (the default): the line's point.
+        attached : (origin, insertion) int array_likes, optional
+            Fine vertices that ride on the bodies of the lines' first (origin) and last
+            (insertion) points: the muscle's attachment areas (`Deformer`).
 
         Returns
         -------
@@ -295,6 +299,7 @@ class Muscle(PreparedMuscle):
             anchors=anchors,
             line_reach=line_reach,
             line_window=line_window,
+            attached=attached,
         )
 
 
