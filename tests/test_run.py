@@ -106,7 +106,7 @@ def test_fibres_in_a_line_csv_scene(tmp_path):
     assert len(list((tmp_path / "cache").glob("fibres-*.npz"))) == 1
 
 
-def test_fibres_attached_areas_ride_with_their_lines_ends(tmp_path):
+def test_fibres_attached_areas_ride_with_their_lines_ends(tmp_path, capsys):
     """``[fibres] attached = true``: the run's deformation holds the fibres' areas on
     their lines' ends (plain lines: the ends' sample rotations), said in the notes; the
     insertion's cap then follows the line's end more closely, the volume exact; a value
@@ -140,6 +140,17 @@ def test_fibres_attached_areas_ride_with_their_lines_ends(tmp_path):
         D = np.linalg.norm(V[ins][:, None] - V[ins][None], axis=2)
         spread[held] = float(np.abs(D - D0).mean())
     assert spread[True] < 0.8 * spread[False], spread
+    # --no-fibres lets the held areas go with the fibres: said, and the surfaces are those
+    # of the run without them
+    from musclewrap.cli import main
+
+    toml.write_text(base + "attached = true\n")
+    plain = tmp_path / "plain"
+    args = ["run", str(toml), "-o", str(plain), "--no-fibres", "--workers", "1", "--no-check"]
+    assert main([*args, "--cache-dir", str(tmp_path / "cache")]) == 0
+    assert "--no-fibres also lets the attachment areas go" in capsys.readouterr().err
+    last = "fusiform/fusiform_0006.vtp"
+    assert (plain / last).read_bytes() == (runs[False] / last).read_bytes()
     toml.write_text(base + 'attached = "yes"\n')
     with pytest.raises(SceneError, match="attached"):
         load_scene(toml)

@@ -481,6 +481,13 @@ def _cmd_run(a: argparse.Namespace) -> int:
     runs, folders = [], []
     for scene, out in zip(scenes, outs, strict=True):
         if a.no_fibres:
+            if scene.fibres is not None and scene.fibres.attached:
+                print(
+                    f"note: {scene.path}: --no-fibres also lets the attachment areas go "
+                    "([fibres] attached = true holds them): the surfaces differ from a run "
+                    "with the fibres",
+                    file=sys.stderr,
+                )
             scene = dataclasses.replace(scene, fibres=None)
         # several motions (e.g. sweeps): one output folder each
         if len(scene.motions) <= 1:
