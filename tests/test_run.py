@@ -123,7 +123,10 @@ def test_fibres_attached_areas_ride_with_their_lines_ends(tmp_path, capsys):
         out = tmp_path / f"out{held}"
         s = run_scene(scene, out, workers=1, cache_dir=tmp_path / "cache", progress=None)
         assert s.unconverged == 0
-        said = any("held on the bodies of its paths' first and last points" in n for n in s.notes)
+        said = any(
+            "the attachment areas held ([fibres] attached = true): its origin's" in n
+            for n in s.notes
+        )
         assert said is held, s.notes
         runs[held] = out
     V0, _ = read_mesh(runs[False] / "fusiform" / "fusiform_0000.vtp")

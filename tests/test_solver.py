@@ -281,5 +281,12 @@ def test_attached_areas_ride_on_the_bodies_of_their_paths_ends(small_muscle):
     flat = d.deform({"axis": P})
     assert flat.converged and off(flat)[0] < ins_free
 
+    assert d.attached_held == (len(origin), len(insertion))
+    # a path that runs on 200 past the muscle's end (a tendon the mesh does not hold): the
+    # insertion's area is not on that bone, and is left free
+    tendon = {"axis": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 400.0]])}
+    long = mu.bind(tendon, attached=(origin, insertion))
+    assert long.unbound and long.attached_held == (len(origin), 0)
+    assert long.S.shape[0] == mu.bind(tendon).S.shape[0] + len(origin)
     with pytest.raises(ValueError, match="attached vertices must index the"):
         mu.bind(rest, attached=(origin, np.array([len(mu.V)])))

@@ -138,15 +138,9 @@ def _areas_note(job: MuscleJob, rules: tuple[str, str], sizes: tuple[int, int]) 
         " or ".join(b for b, _ in bones) for bones in (spec.origin_bones, spec.insertion_bones)
     ]
     given = (spec.origin is not None, spec.insertion is not None)
-    note = f"{job.name}: " + describe_areas(
+    return f"{job.name}: " + describe_areas(
         rules, given, (names[0], names[1]), sizes, spec.attachments
     )
-    if spec.attached:
-        note += (
-            "; held on the bodies of its paths' first and last points through the motion "
-            "([fibres] attached = true)"
-        )
-    return note
 
 
 def fibres_of(

@@ -134,6 +134,21 @@ def _side_poses_note(job: MuscleJob) -> str | None:
     )
 
 
+def _attached_note(job: MuscleJob, d: Deformer) -> str | None:
+    """Which of the muscle's attachment areas its deformation holds on a body, or None."""
+    if job.fibres is None or not job.fibres.attached:
+        return None
+    parts = []
+    for side, end, n in zip(
+        ("origin", "insertion"), ("first", "last"), d.attached_held, strict=True
+    ):
+        if n:
+            parts.append(f"its {side}'s on the body of its paths' {end} points ({n} vertices)")
+        else:
+            parts.append(f"not its {side}'s: its paths run on past the muscle there")
+    return f"{job.name}: the attachment areas held ([fibres] attached = true): " + "; ".join(parts)
+
+
 def _unbound_note(name: str, unbound: dict[str, tuple[float, float, float]]) -> str | None:
     """What of a muscle's lines is not bound to it (`musclewrap.Deformer.unbound`), or None."""
     if not unbound:
@@ -431,8 +446,10 @@ class _MuscleFrames:
             self.result.fibre_share = [float(x) for x in self.fb.share]
             self.result.fibre_area = [float(x) for x in self.fb.area]
         unbound = _unbound_note(job.name, d.unbound)
+        held = _attached_note(job, d)
         sides = _side_poses_note(job) if self.fb is not None else None
-        self.result.note = "; ".join(n for n in (note, unbound, fibre_note, sides) if n) or None
+        notes = (note, unbound, fibre_note, held, sides)
+        self.result.note = "; ".join(n for n in notes if n) or None
         self.kw: dict[str, Any] = {"method": job.method, "max_iterations": job.max_iterations}
         if self.contact is not None:
             self.kw["margin"] = job.margin

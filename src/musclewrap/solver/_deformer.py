@@ -135,13 +135,19 @@ class Deformer(ContactSteps, PaperSteps):
         the rest lines, by a soft condition like the skeleton's (weight
         ``defaults.attached_weight * sqrt(m / k)``, ``k`` such vertices): in a pose it
         is turned by that point's body rotation (a `PathLines`; plain lines: the
-        rotation of that line's end sample) about the point and moved with it.
+        rotation of that line's end sample) about the point and moved with it. Only
+        ends the muscle reaches (a line whose samples there are bound, ``line_reach``):
+        where a path runs on past the mesh (a tendon it does not hold) the area is not
+        on that bone, and is left free (`attached_held` says how many were held).
 
     Attributes
     ----------
     unbound : dict of str to (float, float, float)
         Per line with samples not bound: the arc-length fractions left out at its
         start and at its end, and the farthest of them from the muscle (mesh units).
+    attached_held : (int, int)
+        The origin's and the insertion's attached vertices held on a body (those of
+        an end no bound line reaches are left free).
     """
 
     def __init__(
@@ -265,6 +271,7 @@ class Deformer(ContactSteps, PaperSteps):
         The offsets are the vertices' rest positions from the line's rest end point;
         the rows their coordinates times their weight over the skeleton's.
         """
+        self.attached_held = (0, 0)
         if attached is None:
             return []
         mu = self.muscle
@@ -278,10 +285,18 @@ class Deformer(ContactSteps, PaperSteps):
             int(a.max(initial=0)) for a in sides
         ) >= len(mu.V):
             raise ValueError(f"attached vertices must index the {len(mu.V)} fine vertices")
-        scale = defaults.attached_weight * np.sqrt(m / k) / self.weight
-        names = list(rest)
-        out = []
+        held = []
         for side, idx in zip((0, -1), sides, strict=True):
+            # the lines that reach the muscle at this end: their samples there are bound
+            names = [n for n in rest if self.unbound.get(n, (0.0, 0.0, 0.0))[-side] == 0.0]
+            held.append((side, idx if names else idx[:0], names))
+        k = sum(len(idx) for _, idx, _ in held)
+        self.attached_held = (len(held[0][1]), len(held[1][1]))
+        if not k:
+            return []
+        scale = defaults.attached_weight * np.sqrt(m / k) / self.weight
+        out = []
+        for side, idx, names in held:
             if not len(idx):
                 continue
             ends = np.array([rest[n][side] for n in names])
