@@ -229,11 +229,13 @@ def test_an_unsettled_direction_falls_back_to_the_exact_iteration(small_muscle, 
 
 
 def test_attached_areas_ride_on_the_bodies_of_their_paths_ends(small_muscle):
-    """``attached``: the end caps held on the bodies of the line's first and last points.
+    """``attached``: the end caps held to the line's first and last points.
 
     A rigid motion of lines and bodies moves the muscle rigidly, volume exact; bent at
     mid-length (the second half's body turned 30 degrees), the insertion's cap follows
-    its body's rigid motion far closer than without, and the origin's stays put.
+    its body's rigid motion far closer than without, and the origin's stays put; a path
+    that runs on past the mesh leaves that end free; across a tendon the cap pivots with
+    the line's end segment, not with the body.
     """
     from scipy.spatial.transform import Rotation
 
@@ -282,6 +284,25 @@ def test_attached_areas_ride_on_the_bodies_of_their_paths_ends(small_muscle):
     assert flat.converged and off(flat)[0] < ins_free
 
     assert d.attached_held == (len(origin), len(insertion))
+    # a tendon between the line's first point and the area (the rectus femoris below its
+    # origin): the point's body turns 30 degrees but the line's first segment does not;
+    # the area pivots with the segment, not with the body, and twists with the body
+    # about the segment
+    tendon = {"axis": np.array([[0.0, 0.0, -20.0], [0.0, 0.0, 200.0]])}
+    d2 = mu.bind(tendon, attached=(origin, insertion))
+    assert d2.attached_held == (len(origin), len(insertion))
+    swing = Rotation.from_rotvec([0.0, np.radians(30.0), 0.0]).as_matrix()
+    twist = Rotation.from_rotvec([0.0, 0.0, np.radians(30.0)]).as_matrix()
+    for R, expect in ((swing, np.eye(3)), (twist, twist)):
+        r = d2.deform(PathLines(tendon, {"axis": np.stack([R, np.eye(3)])}))
+        assert r.converged, r.reason
+        p0 = tendon["axis"][0]
+        want = (mu.V[origin] - p0) @ expect.T + p0
+        got = float(np.linalg.norm(r.V[origin] - want, axis=1).mean())
+        body = (mu.V[origin] - p0) @ R.T + p0
+        assert got < 1.0, got
+        if R is swing:  # the body's rotation alone would have swung it 10 mm and more
+            assert float(np.linalg.norm(body - want, axis=1).mean()) > 10.0
     # a path that runs on 200 past the muscle's end (a tendon the mesh does not hold): the
     # insertion's area is not on that bone, and is left free
     tendon = {"axis": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 400.0]])}

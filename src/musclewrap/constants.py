@@ -109,14 +109,14 @@ class Defaults:
         bone the muscle merely lies on at rest and slides over (the psoas on the
         pelvic brim).
     attached_weight : float
-        Weight of the fibres' attachment areas held on the bodies of their paths'
-        first and last points (``[fibres] attached = true``), relative to the
-        Laplacian and scaled as the skeleton's by ``sqrt(m / k)`` for ``k`` such
-        vertices. On the LHDL hip sweeps (BENCHMARKS.md, "Attachment areas on their
-        bodies") the mean cover of the published fibre moment-arm ranges is 62.6 /
-        69.2 / 72.0 % at 0.6 / 1.8 / 3.6 (53.5 % without), the largest shape change
-        0.335 / 0.343 / 0.372; past 1.8 the psoas's rotation range grows wider than
-        the published one (1.54 and 1.90 of its width).
+        Weight of the fibres' attachment areas held to their paths' first and last
+        points (``[fibres] attached``, the default), relative to the Laplacian and
+        scaled as the skeleton's by ``sqrt(m / k)`` for ``k`` such vertices. On the
+        LHDL hip sweeps (BENCHMARKS.md, "Attachment areas held to their paths' ends")
+        the mean cover of the published fibre moment-arm ranges is 61.7 / 68.5 / 70.5 %
+        at 0.6 / 1.8 / 3.6 (53.5 % free), every interior frame within 2.67 / 2.78 /
+        2.85 mm of its neighbours' median; past 1.8 the psoas's rotation range grows
+        wider than the published one.
     fibre_area_reach : float
         The fibres' attachment areas from the anatomy
         (`musclewrap.fibres.areas_on_bones`): a muscle vertex within this many of

@@ -88,9 +88,9 @@ class FibreSpec:
     (`musclewrap.fibres.areas_on_bones`). ``moment_arm_contact``: the
     poses on either side of a frame are deformed with the bones' contact (False by
     default: the contact's cage step is not smooth in the pose, and its jumps over a
-    step of 1 degree dominated the differences on the LHDL sweeps). ``attached``: the
-    muscle's deformation holds its fibres' attachment areas on the bodies of its
-    paths' first and last points (`musclewrap.Deformer`'s ``attached``), for the
+    step of 1 degree dominated the differences on the LHDL sweeps). ``attached``
+    (True by default): the muscle's deformation holds its fibres' attachment areas to
+    its paths' first and last points (`musclewrap.Deformer`'s ``attached``), for the
     surface and the fibres alike.
     """
 
@@ -102,7 +102,7 @@ class FibreSpec:
     moment_arm_contact: bool = False
     landmark_radius: float = 10.0
     attachments: str = "ends"
-    attached: bool = False
+    attached: bool = True
 
 
 @dataclass(frozen=True)

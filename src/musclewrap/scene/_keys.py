@@ -140,9 +140,9 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "attachments": "Where the fibres attach where a muscle gives no areas: ``ends`` (its "
         "end caps along its lines, the default) or ``bones`` (where it lies on a bone of its "
         "origin's or insertion's body near its paths' ends; docs/fibres.md).",
-        "attached": "Hold each muscle's attachment areas on the bodies of its paths' first "
-        "and last points through the motion, for its surface and fibres (default false; "
-        "docs/fibres.md).",
+        "attached": "Hold each muscle's attachment areas to its paths' first and last points "
+        "through the motion, turning with their bodies and the paths' end segments, for its "
+        "surface and fibres (default true; docs/fibres.md).",
     },
 }
 

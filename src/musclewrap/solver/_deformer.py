@@ -19,6 +19,7 @@ from ..conditions import (
     RotationField,
     SampleRotations,
     check_lines,
+    minimal_rotation,
     path_rotations,
     placement_problem,
     sample_lines,
@@ -130,15 +131,15 @@ class Deformer(ContactSteps, PaperSteps):
         Half-width of each current sample's window along its line, in sample spacings
         (`Muscle.bind`); 0: the line's point.
     attached : (origin, insertion) int array_likes, optional
-        Fine vertices where the muscle attaches (its fibres' areas): each one rides
-        on the body of the nearest first point (origin) or last point (insertion) of
-        the rest lines, by a soft condition like the skeleton's (weight
+        Fine vertices where the muscle attaches (its fibres' areas): each one is held
+        to the nearest first point (origin) or last point (insertion) of the rest
+        lines, by a soft condition like the skeleton's (weight
         ``defaults.attached_weight * sqrt(m / k)``, ``k`` such vertices): in a pose it
-        is turned by that point's body rotation (a `PathLines`; plain lines: the
-        rotation of that line's end sample) about the point and moved with it. Only
-        ends the muscle reaches (a line whose samples there are bound, ``line_reach``):
-        where a path runs on past the mesh (a tendon it does not hold) the area is not
-        on that bone, and is left free (`attached_held` says how many were held).
+        moves with that point and turns as the line's end segment does (the least
+        rotation from where its body turned it; `_attached_targets`). Only ends the muscle
+        reaches (a line whose samples there are bound, ``line_reach``): where a path
+        runs on past the mesh (a tendon it does not hold) the area is not at that
+        point, and is left free (`attached_held` says how many were held).
 
     Attributes
     ----------
@@ -310,20 +311,36 @@ class Deformer(ContactSteps, PaperSteps):
         return out
 
     def _attached_targets(
-        self, current_lines: Mapping[str, npt.ArrayLike], R_s: FloatArray
+        self,
+        current_lines: Mapping[str, npt.ArrayLike],
+        cur: Mapping[str, FloatArray],
+        R_s: FloatArray,
     ) -> FloatArray:
-        """The attached vertices' targets in a pose (scaled as their rows of ``S``)."""
+        """The attached vertices' targets in a pose (scaled as their rows of ``S``).
+
+        Each area moves with its line's end point and turns with the body of that point
+        (a `PathLines`; plain lines: the line's end sample's rotation ``R_s``), then by
+        the least rotation that takes the end segment, so turned, onto where it runs
+        now. Under a rigid motion that is the motion; where the path's end segment lies
+        on the bone it is the body's rotation; where a tendon joins the area to the
+        bone (the rectus femoris below its origin) the area pivots there as the muscle
+        does, instead of shearing away from it. ``cur``: the lines validated
+        (`check_lines`).
+        """
         body = getattr(current_lines, "rotations", None)
         names = list(self.rest_lines)
         out = []
         for n, side, offset, _, scale in self._attached:
-            P = np.asarray(current_lines[n], dtype=np.float64)
+            P, P0 = cur[n], self.rest_lines[n]
             if body is not None:
                 R = np.asarray(body[n][side], dtype=np.float64)
             else:
                 rows = self._line_slices[names.index(n)]
                 R = R_s[rows.start if side == 0 else rows.stop - 1]
-            out.append(scale * (offset @ R.T + P[side]))
+            a, b = (P0[1] - P0[0], P[1] - P[0]) if side == 0 else (P0[-1] - P0[-2], P[-1] - P[-2])
+            a = R @ a
+            swing = minimal_rotation((a / np.linalg.norm(a))[None], (b / np.linalg.norm(b))[None])
+            out.append(scale * (offset @ (swing[0] @ R).T + P[side]))
         return np.concatenate(out)
 
     def _proxy_matrices(self, dtype: type) -> Deformer:
@@ -391,7 +408,7 @@ class Deformer(ContactSteps, PaperSteps):
             )
             s_cur = self._offset(s_cur, R_s)
             if self._attached:
-                s_cur = np.vstack([s_cur, self._attached_targets(current_lines, R_s)])
+                s_cur = np.vstack([s_cur, self._attached_targets(current_lines, cur, R_s)])
             return cur, s_cur, self.rotation_field.rotate(R_s, self.muscle.delta_rest)
         if (reference_point is None) != (self.reference_rest is None):
             raise ValueError(
@@ -404,7 +421,7 @@ class Deformer(ContactSteps, PaperSteps):
         s_cur = self._offset(s_cur, R_s)
         d_L = self.rotation_field.rotate(R_s, self.muscle.delta_rest)
         if self._attached:
-            s_cur = np.vstack([s_cur, self._attached_targets(cur, R_s)])
+            s_cur = np.vstack([s_cur, self._attached_targets(cur, cur, R_s)])
         return cur, s_cur, d_L
 
     def _offset(self, means: FloatArray, R_s: FloatArray) -> FloatArray:

@@ -284,8 +284,9 @@ class Muscle(PreparedMuscle):
             deformation then has no kink where a point of the path slides past a sample
             (the fibres' moment arms no step); 0 (the default): the line's point.
         attached : (origin, insertion) int array_likes, optional
-            Fine vertices that ride on the bodies of the lines' first (origin) and last
-            (insertion) points: the muscle's attachment areas (`Deformer`).
+            Fine vertices held to the lines' first (origin) and last (insertion) points,
+            turning with the lines' end segments: the muscle's attachment areas
+            (`Deformer`).
 
         Returns
         -------
