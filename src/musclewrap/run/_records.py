@@ -101,8 +101,9 @@ class FibreSettings:
     origin_bones: tuple[tuple[str, FloatArray], ...] = ()
     insertion_bones: tuple[tuple[str, FloatArray], ...] = ()
     attachments: str = "ends"
-    #: the deformation holds the areas on their paths' end bodies (`musclewrap.Deformer`)
-    attached: bool = False
+    #: the deformation holds the areas to their paths' ends (`musclewrap.Deformer`), as
+    #: ``[fibres] attached`` (true by default) says
+    attached: bool = True
 
 
 @dataclass(frozen=True)

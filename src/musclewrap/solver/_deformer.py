@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Mapping, Sequence
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -19,6 +20,7 @@ from ..conditions import (
     RotationField,
     SampleRotations,
     check_lines,
+    distinct_mask,
     minimal_rotation,
     path_rotations,
     placement_problem,
@@ -99,6 +101,28 @@ def _energy_kernel(indptr, indices, data, S, x, d_L, s_cur, w2):  # noqa: ANN001
         for k in range(3):
             e2 += (Sx[r, k] - s_cur[r, k]) ** 2
     return e1 + w2 * e2, Sx
+
+
+class _Held(NamedTuple):
+    """Attached vertices held to one line end (`Deformer`'s ``attached``).
+
+    ``line``: the line's index; ``side``: 0 (its first point) or -1 (its last);
+    ``offset``: the vertices' rest positions from that point; ``segment``: the line's
+    end segment's unit direction at rest, away from that point; ``scale``: their
+    weight over the skeleton's.
+    """
+
+    line: int
+    side: int
+    offset: FloatArray
+    segment: FloatArray
+    scale: float
+
+
+def _end_segment(P: FloatArray, side: int) -> FloatArray:
+    """Unit direction of a line's (distinct points ``P``) segment at its first or last end."""
+    d = P[1] - P[0] if side == 0 else P[-2] - P[-1]
+    return d / np.linalg.norm(d)
 
 
 class Deformer(ContactSteps, PaperSteps):
@@ -206,9 +230,9 @@ class Deformer(ContactSteps, PaperSteps):
         self.weight = skeleton_weight * np.sqrt(m / k)
         # the attachment areas, riding on their paths' end bodies: rows of S after the
         # lines' samples, scaled to their own weight (their targets: `_attached_targets`)
-        self._attached = self._attachments(attached, rest, m)
-        if self._attached:
-            self.S = np.vstack([self.S, *(a[3] for a in self._attached)])
+        self._attached, rows = self._attachments(attached, rest, m)
+        if rows:
+            self.S = np.vstack([self.S, *rows])
         L = muscle.L
         self.H = L.T @ L + self.weight**2 * (self.S.T @ self.S)
         # anchors: fine vertices held at their rest positions (an origin on a bone)
@@ -266,49 +290,50 @@ class Deformer(ContactSteps, PaperSteps):
         attached: tuple[npt.ArrayLike, npt.ArrayLike] | None,
         rest: Mapping[str, FloatArray],
         m: int,
-    ) -> list[tuple[str, int, FloatArray, FloatArray, float]]:
-        """Per line end with attached vertices: (line, 0 or -1, offsets, scaled rows, scale).
+    ) -> tuple[list[_Held], list[FloatArray]]:
+        """The attached vertices per line end (`_Held`), and their rows of ``S``.
 
-        The offsets are the vertices' rest positions from the line's rest end point;
-        the rows their coordinates times their weight over the skeleton's.
+        Sets `attached_held`. The rows are the vertices' coordinates times their weight
+        over the skeleton's.
         """
         self.attached_held = (0, 0)
         if attached is None:
-            return []
+            return [], []
         mu = self.muscle
         sides = [np.unique(np.asarray(a, dtype=np.int64).ravel()) for a in attached]
         if len(sides) != 2:
             raise ValueError("attached must be two vertex lists: the origin's and the insertion's")
-        k = sum(len(a) for a in sides)
-        if not k:
-            return []
-        if min(int(a.min(initial=0)) for a in sides) < 0 or max(
-            int(a.max(initial=0)) for a in sides
-        ) >= len(mu.V):
+        if any(len(a) and (a[0] < 0 or a[-1] >= len(mu.V)) for a in sides):
             raise ValueError(f"attached vertices must index the {len(mu.V)} fine vertices")
-        held = []
-        for side, idx in zip((0, -1), sides, strict=True):
-            # the lines that reach the muscle at this end: their samples there are bound
-            names = [n for n in rest if self.unbound.get(n, (0.0, 0.0, 0.0))[-side] == 0.0]
-            held.append((side, idx if names else idx[:0], names))
-        k = sum(len(idx) for _, idx, _ in held)
-        self.attached_held = (len(held[0][1]), len(held[1][1]))
+        # per end, the lines that reach the muscle there (their samples there are bound);
+        # none: the area is left free. Lines by their index in the samples' order
+        names = self.sampling.names
+        reach = [
+            [i for i, n in enumerate(names) if self.unbound.get(n, (0.0, 0.0, 0.0))[-side] == 0]
+            for side in (0, -1)
+        ]
+        sides = [idx if lines else idx[:0] for idx, lines in zip(sides, reach, strict=True)]
+        self.attached_held = (len(sides[0]), len(sides[1]))
+        k = sum(self.attached_held)
         if not k:
-            return []
+            return [], []
         scale = defaults.attached_weight * np.sqrt(m / k) / self.weight
-        out = []
-        for side, idx, names in held:
+        held, rows = [], []
+        for side, idx, lines in zip((0, -1), sides, reach, strict=True):
             if not len(idx):
                 continue
-            ends = np.array([rest[n][side] for n in names])
+            ends = np.array([rest[names[i]][side] for i in lines])
             nearest = np.argmin(
                 np.linalg.norm(mu.V[idx][:, None, :] - ends[None, :, :], axis=2), axis=1
             )
-            for j, n in enumerate(names):
+            for j, i in enumerate(lines):
                 r = idx[nearest == j]
                 if len(r):
-                    out.append((n, side, mu.V[r] - ends[j], scale * mu.W[r], scale))
-        return out
+                    held.append(
+                        _Held(i, side, mu.V[r] - ends[j], _end_segment(rest[names[i]], side), scale)
+                    )
+                    rows.append(scale * mu.W[r])
+        return held, rows
 
     def _attached_targets(
         self,
@@ -328,19 +353,20 @@ class Deformer(ContactSteps, PaperSteps):
         (`check_lines`).
         """
         body = getattr(current_lines, "rotations", None)
-        names = list(self.rest_lines)
+        names = self.sampling.names
         out = []
-        for n, side, offset, _, scale in self._attached:
-            P, P0 = cur[n], self.rest_lines[n]
+        for h in self._attached:
+            n = names[h.line]
+            P = cur[n]
             if body is not None:
-                R = np.asarray(body[n][side], dtype=np.float64)
+                # the rotations of the points `check_lines` kept, as `path_rotations` takes them
+                raw = np.asarray(current_lines[n], dtype=np.float64)
+                R = np.asarray(body[n], dtype=np.float64)[distinct_mask(raw)][h.side]
             else:
-                rows = self._line_slices[names.index(n)]
-                R = R_s[rows.start if side == 0 else rows.stop - 1]
-            a, b = (P0[1] - P0[0], P[1] - P[0]) if side == 0 else (P0[-1] - P0[-2], P[-1] - P[-2])
-            a = R @ a
-            swing = minimal_rotation((a / np.linalg.norm(a))[None], (b / np.linalg.norm(b))[None])
-            out.append(scale * (offset @ (swing[0] @ R).T + P[side]))
+                rows = self._line_slices[h.line]
+                R = R_s[rows.start if h.side == 0 else rows.stop - 1]
+            swing = minimal_rotation((R @ h.segment)[None], _end_segment(P, h.side)[None])[0]
+            out.append(h.scale * (h.offset @ (swing @ R).T + P[h.side]))
         return np.concatenate(out)
 
     def _proxy_matrices(self, dtype: type) -> Deformer:
