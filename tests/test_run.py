@@ -864,10 +864,12 @@ def test_a_renderer_that_hangs_is_stopped(tmp_path, monkeypatch):
     assert not r.alive
 
 
-def _via_capsule_scene(tmp_path, via_range=(19.3, 90.0)):
+def _via_capsule_scene(tmp_path, via_range=(19.3, 90.0), via_body="ground"):
     """A capsule from a ground origin to an insertion on a thigh hinged 30 mm behind it, and
     a conditional via point in front of the hinge, active from 19.3 deg of flexion: the path
-    gains it halfway through a sweep of 0-40 deg in 2 deg frames (OpenSim built in the test)."""
+    gains it halfway through a sweep of 0-40 deg in 2 deg frames (OpenSim built in the test).
+    ``via_body``: the via point fixed in the ground (with the origin) or in the thigh (with
+    the insertion, as gait2392's vasti have theirs in the femur)."""
     import opensim as osim
 
     model = osim.Model()
@@ -888,7 +890,9 @@ def _via_capsule_scene(tmp_path, via_range=(19.3, 90.0)):
     via.setRangeMin(math.radians(via_range[0]))
     via.setRangeMax(math.radians(via_range[1]))
     via.updSocket("coordinate").setConnecteePath("/jointset/knee/flex")
-    via.updSocket("parent_frame").setConnecteePath("/ground")
+    via.updSocket("parent_frame").setConnecteePath(
+        "/ground" if via_body == "ground" else "/bodyset/thigh"
+    )
     gp.updPathPointSet().cloneAndAppend(via)
     gp.appendNewPathPoint("insertion", thigh, osim.Vec3(0.0, 0.0, 0.01))
     model.addForce(muscle)

@@ -303,6 +303,79 @@ def test_a_via_point_gained_mid_sweep_gives_a_kink_not_a_spike(tmp_path, capsys)
     )
 
 
+def test_a_via_point_in_the_moving_body_does_not_turn_the_muscle_when_it_switches(tmp_path):
+    """The via point fixed in the thigh (gait2392's vasti have theirs in the femur): on or
+    off, the samples before it turn with the ground and those past it towards the thigh,
+    so the samples' rotations change across the frame that gains it as on any other. From
+    the active points alone they jumped there: the whole path from a turn blended across
+    the hinge to the thigh's past the via point at once."""
+    from musclewrap.conditions import path_rotations
+    from musclewrap.scene import drive_scene
+
+    toml, q = _via_capsule_scene(tmp_path, via_body="thigh")
+    drive = drive_scene(load_scene(toml), None, {})
+    assert np.flatnonzero(drive.moment_arms.switch["line"][:, 0]).tolist() == [10]
+    t = np.linspace(0.0, 1.0, 41)
+
+    def turned(keys):
+        got = []
+        for L in drive.lines["capsule"]:
+            R = path_rotations(L, L.rotations, ("line",), (t,), None, L.keys if keys else None)
+            got.append(R)
+        # per frame, the largest turn of a sample since the frame before
+        return np.array([
+            _angle(np.einsum("kab,kcb->kac", b, a)).max() for a, b in zip(got[:-1], got[1:])
+        ])  # fmt: skip
+
+    with_keys, points_only = turned(True), turned(False)
+    assert points_only[9] > 5 * np.delete(points_only, 9).max()  # the jump it was
+    assert with_keys[9] <= 1.2 * np.delete(with_keys, 9).max(), np.round(with_keys, 2)
+    assert with_keys.max() < 2.5  # 2 deg of flexion a frame
+    # the muscle's own rotation field is unchanged where the via point is on
+    for L in drive.lines["capsule"][10:]:
+        assert "line" not in L.keys
+
+
+@pytest.mark.realdata
+def test_the_vastus_lateralis_fibres_keep_their_knee_moment_arms_where_its_via_point_switches(
+    data_dir, tmp_path
+):
+    """gait2392's vas_lat_r gains a via point in the femur at -69.4 deg of the knee (frames
+    61-62 of the walk). Its fibres' knee moment arms stay within 3 mm of their 5-frame
+    median there; when the active points alone turned the muscle, they jumped from 6-25 mm
+    to 25-28 mm on those two frames and back (the fibres 18 mm longer at the switch)."""
+    import re
+
+    text = (EXAMPLES / "gait2392_leg.toml").read_text()
+    parts = re.split(r"(?m)^(?=\[)", text)
+    keep = [
+        p
+        for p in parts
+        if not p.startswith("[muscles.") or p.startswith("[muscles.vastus_lateralis]")
+    ]
+    scene = "".join(keep).replace("../../shared/data", str(data_dir))
+    scene += '\n[fibres]\ncount = 20\npoints = 9\nmoment_arms = ["knee_angle_r"]\n'
+    toml = tmp_path / "vl.toml"
+    toml.write_text(scene)
+    out = tmp_path / "out"
+    argv = ["run", str(toml), "-o", str(out), "--frames", "56:68", "--no-gif", "--no-collisions"]
+    assert main([*argv, "--cache-dir", str(tmp_path / "c")]) == 0
+    arms: dict[int, list[float]] = {}
+    for r in _rows(out / "fibres.csv"):
+        arms.setdefault(int(r["fibre"]), []).append(float(r["moment_arm"]))
+    assert len(arms) == 20 and all(len(a) == 12 for a in arms.values())
+    line = np.array([float(r["line_moment_arm"]) for r in _rows(out / "moment_arms.csv")])
+
+    def off(a):  # issue 48's measure: each interior frame's distance from its 5-frame median
+        return np.array([abs(a[k] - np.median(a[k - 2 : k + 3])) for k in range(2, len(a) - 2)])
+
+    # the line's own moment arm steps with its via point (OpenSim's: 34.5 -> 37.3 -> 34.1
+    # mm): a fibre may step as far as the line does, and 3 mm more
+    assert 2.0 < off(line).max() < 3.5
+    worst = max((off(np.asarray(a)) - off(line)).max() for a in arms.values())
+    assert worst <= 3.0, {i: np.round(a, 1) for i, a in arms.items()}
+
+
 def test_a_via_point_on_for_less_than_two_steps_keeps_the_central_difference(tmp_path):
     """A via point on only between 19.5 and 20.5 deg: at 20 deg both side poses lack it, so
     no side is free of the change; the central difference is kept there and said."""
@@ -327,6 +400,11 @@ def _outside_neighbours(r):
 
 def _length(P):
     return float(np.linalg.norm(np.diff(np.asarray(P), axis=0), axis=1).sum())
+
+
+def _angle(R):
+    """Rotation angles (degrees) of rotation matrices (..., 3, 3)."""
+    return np.degrees(np.arccos(np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1, 1)))
 
 
 def test_the_documented_columns_are_the_files_columns_and_the_keys_the_readers():

@@ -12,6 +12,7 @@ from ._lines import (
     polyline_at,
     read_lines_csv,
     sample_lines,
+    set_point_params,
     window_mean,
     within_reach,
 )
@@ -46,6 +47,7 @@ __all__ = [
     "read_lines_csv",
     "sample_lines",
     "sample_rotations",
+    "set_point_params",
     "window_mean",
     "within_reach",
 ]

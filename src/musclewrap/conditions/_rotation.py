@@ -146,6 +146,7 @@ def path_rotations(
     names: Sequence[str],
     params: Sequence[FloatArray],
     halfwidths: Sequence[FloatArray] | None = None,
+    keys: Mapping[str, tuple[FloatArray, FloatArray]] | None = None,
 ) -> FloatArray:
     """Rotation of every sample from the bodies its path's points are fixed in.
 
@@ -170,6 +171,11 @@ def path_rotations(
         then that of the mean over its window of the points' quaternions joined linearly
         (`musclewrap.conditions.window_mean`), continuously differentiable in the pose
         as the samples' points are.
+    keys : mapping of str to ((n,), (n, 3, 3)) float64 arrays, optional
+        Per line, rotations at normalized arc lengths to interpolate instead of its
+        points' (`PathLines` ``keys``: every point the path is defined by, active or
+        not): where a conditional via point switches, the samples' rotations stay
+        continuous.
 
     Returns
     -------
@@ -189,20 +195,46 @@ def path_rotations(
                 f"current lines: line '{n}' needs one finite 3x3 rotation per point "
                 f"({len(P)}), got {None if R is None else np.shape(R)}"
             )
-        keep = distinct_mask(P)
-        q = matrix_to_quaternion(R[keep])
+        if keys is not None and n in keys:
+            # the keys' parameters as a poly-line along x, its arc length theirs
+            s, Rk = _key_rotations(*keys[n])
+            X = np.zeros((len(s), 3))
+            X[:, 0] = s
+            q = matrix_to_quaternion(Rk)
+        else:
+            keep = distinct_mask(P)
+            X = P[keep]
+            q = matrix_to_quaternion(R[keep])
+            s = _arclength(X) if halfwidths is None else None
         # each quaternion on its predecessor's side: the interpolation takes the shorter way
         flip = np.cumprod(np.where(np.sum(q[1:] * q[:-1], axis=1) < 0.0, -1.0, 1.0))
         q[1:] *= flip[:, None]
         if halfwidths is not None:
-            m = window_mean(P[keep], t, halfwidths[i], q)
+            m = window_mean(X, t, halfwidths[i], q)
             out.append(quaternion_to_matrix(m / np.linalg.norm(m, axis=1)[:, None]))
             continue
-        s = _arclength(P[keep])
         j = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(s) - 2)
-        f = np.clip((t - s[j]) / (s[j + 1] - s[j]), 0.0, 1.0)
+        h = s[j + 1] - s[j]
+        # a key's own parameter gives its rotation; keys at one parameter: the last's
+        f = np.clip((t - s[j]) / np.where(h > 0, h, 1.0), 0.0, 1.0)
+        f[h <= 0] = 1.0
         out.append(quaternion_to_matrix(_slerp(q[j], q[j + 1], f)))
     return np.ascontiguousarray(np.concatenate(out))
+
+
+def _key_rotations(t: FloatArray, R: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Keys as a non-decreasing partition of [0, 1] (`path_rotations`'s ``keys``).
+
+    The first at 0, the last at 1. Keys at one parameter stay (a rotation there steps
+    from one to the next): dropping one would make the field jump as another key's
+    parameter reaches it (a via point projected past the path's end), where keeping
+    both lets it change continuously.
+    """
+    t = np.clip(np.maximum.accumulate(np.asarray(t, dtype=np.float64)), 0.0, 1.0)
+    if len(t) < 2:
+        raise LineError(f"a path's rotation keys need two or more, got {len(t)}")
+    t[0], t[-1] = 0.0, 1.0
+    return t, np.asarray(R, dtype=np.float64)
 
 
 def _slerp(q0: FloatArray, q1: FloatArray, f: FloatArray) -> FloatArray:

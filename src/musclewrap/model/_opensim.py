@@ -206,6 +206,25 @@ class OpenSimModel:
         arr = self._paths[name].getCurrentPath(self.state)
         return [arr.get(k).getParentFrame().findBaseFrame().getName() for k in range(arr.getSize())]
 
+    def path_set_points(self, name: str, frame: str) -> tuple[FloatArray, list[str]]:
+        """Every point a muscle's path is defined by, active or not, in ``frame``, and bodies.
+
+        The path's point set in its order (`path_points` gives the active ones and the
+        wraps' points): a conditional via point outside its coordinate's range is
+        still where its body holds it. Model units.
+        """
+        target = self._frame(frame)
+        ps = self._paths[name].getPathPointSet()
+        out = np.empty((ps.getSize(), 3))
+        bodies = []
+        for k in range(ps.getSize()):
+            pp = ps.get(k)
+            loc = pp.getLocation(self.state)
+            g = pp.getParentFrame().findStationLocationInAnotherFrame(self.state, loc, target)
+            out[k] = (g.get(0), g.get(1), g.get(2))
+            bodies.append(pp.getParentFrame().findBaseFrame().getName())
+        return out, bodies
+
     def moment_arm(self, path: str, coordinate: str) -> float:
         """OpenSim's moment arm of a muscle path about a coordinate in the current pose.
 

@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
-from ..conditions import PathLines, csv_rows
+from ..conditions import PathLines, csv_rows, set_point_params
 from ..constants import defaults
 from ..errors import SceneError, suggest
 from ..mesh import apply_transform, invert_rigid, read_mesh, tidy_mesh
@@ -437,12 +437,25 @@ class Poser:
         for m in scene.muscles:
             # per point, its body's rotation from the rest pose in the muscle's body frame
             mb = rest_R[m.body].T @ turn(m.body).T
+            pts = {p: model.path_points(p, m.body) * s for p in m.paths}
+            keys = {}
+            for p in m.paths:
+                # every point of the path's set, active or not, turns the samples near it
+                # (where they are the path's points, those turn them as they are)
+                X, bodies = model.path_set_points(p, m.body)
+                X *= s
+                if len(X) >= 2 and (X.shape != pts[p].shape or np.any(X != pts[p])):
+                    keys[p] = (
+                        set_point_params(pts[p], X),
+                        np.array([mb @ turn(b) @ rest_R[m.body] for b in bodies]),
+                    )
             L[m.name] = PathLines(
-                {p: model.path_points(p, m.body) * s for p in m.paths},
+                pts,
                 {
                     p: np.array([mb @ turn(b) @ rest_R[m.body] for b in model.path_point_bodies(p)])
                     for p in m.paths
                 },
+                keys,
             )
             R[m.name] = None  # the points' bodies turn it: no reference point
         return L, R, to_g

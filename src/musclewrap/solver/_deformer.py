@@ -431,6 +431,7 @@ class Deformer(ContactSteps, PaperSteps):
                 self.sampling.names,
                 self.sampling.params,
                 self.sampling.halfwidths,
+                getattr(current_lines, "keys", None),
             )
             s_cur = self._offset(s_cur, R_s)
             if self._attached:
