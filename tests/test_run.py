@@ -143,17 +143,20 @@ def test_fibres_attached_areas_ride_with_their_lines_ends(tmp_path, capsys):
         D = np.linalg.norm(V[ins][:, None] - V[ins][None], axis=2)
         spread[held] = float(np.abs(D - D0).mean())
     assert spread[True] < 0.8 * spread[False], spread
-    # --no-fibres lets the held areas go with the fibres: said, and the surfaces are those
-    # of the run without them
+    # --no-fibres writes no fibres but still holds their areas: the surfaces are the run's
+    # with them, the same bytes; with attached = false, those of the free run
     from musclewrap.cli import main
 
-    toml.write_text(base + "attached = true\n")
-    plain = tmp_path / "plain"
-    args = ["run", str(toml), "-o", str(plain), "--no-fibres", "--workers", "1", "--no-check"]
-    assert main([*args, "--cache-dir", str(tmp_path / "cache")]) == 0
-    assert "--no-fibres also lets the attachment areas go" in capsys.readouterr().err
     last = "fusiform/fusiform_0006.vtp"
-    assert (plain / last).read_bytes() == (runs[False] / last).read_bytes()
+    for held in (True, False):
+        toml.write_text(base + f"attached = {str(held).lower()}\n")
+        plain = tmp_path / f"plain{held}"
+        args = ["run", str(toml), "-o", str(plain), "--no-fibres", "--workers", "1", "--no-check"]
+        assert main([*args, "--cache-dir", str(tmp_path / "cache")]) == 0
+        assert (plain / last).read_bytes() == (runs[held] / last).read_bytes()
+        assert not list(plain.rglob("*fibres*")) and not (plain / "moment_arms.csv").exists()
+        said = capsys.readouterr().out
+        assert ("the attachment areas held" in said) is held
     toml.write_text(base + 'attached = "yes"\n')
     with pytest.raises(SceneError, match="attached"):
         load_scene(toml)

@@ -147,7 +147,9 @@ def _add_run(sub: _Commands) -> None:
     ru.add_argument(
         "--no-fibres",
         action="store_true",
-        help="skip the scene's [fibres] (fibres, their lengths and moment arms)",
+        help="skip writing the scene's [fibres] (fibres, their lengths and moment arms); "
+        "their attachment areas are still held ([fibres] attached), so the surfaces are a "
+        "run's with the fibres",
     )
     ru.add_argument(
         "--allow-unconverged", action="store_true", help="exit 0 even if a frame did not converge"
@@ -480,15 +482,11 @@ def _cmd_run(a: argparse.Namespace) -> int:
     workers = _workers(a, sum(len(sc.muscles) for sc in scenes))
     runs, folders = [], []
     for scene, out in zip(scenes, outs, strict=True):
-        if a.no_fibres:
-            if scene.fibres is not None and scene.fibres.attached:
-                print(
-                    f"note: {scene.path}: --no-fibres also lets the attachment areas go "
-                    "([fibres] attached = true holds them): the surfaces differ from a run "
-                    "with the fibres",
-                    file=sys.stderr,
-                )
-            scene = dataclasses.replace(scene, fibres=None)
+        if a.no_fibres and scene.fibres is not None:
+            # the fibres are not written; their areas are still held ([fibres] attached),
+            # so the surfaces are those of a run with the fibres
+            fibres = dataclasses.replace(scene.fibres, output=False, moment_arms=())
+            scene = dataclasses.replace(scene, fibres=fibres if fibres.attached else None)
         # several motions (e.g. sweeps): one output folder each
         if len(scene.motions) <= 1:
             runs.append(scene)

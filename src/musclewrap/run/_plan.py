@@ -92,6 +92,7 @@ def muscle_jobs(inputs: Inputs, outdir: Path, run: str) -> list[MuscleJob]:
                 on[1],
                 f.attachments,
                 f.attached,
+                f.output,
             )
         ma = drive.moment_arms
         jobs.append(
@@ -141,7 +142,7 @@ def frame_span(inputs: Inputs, name: str) -> FrameSpan:
     spec = next(s for s in scene.muscles if s.name == name)
     ma = drive.moment_arms
     side = None
-    if scene.fibres is not None and ma is not None:
+    if scene.fibres is not None and scene.fibres.output and ma is not None:
         side = SidePoses(
             ma.lines[name],
             ma.references[name],

@@ -104,6 +104,8 @@ class FibreSettings:
     #: the deformation holds the areas to their paths' ends (`musclewrap.Deformer`), as
     #: ``[fibres] attached`` (true by default) says
     attached: bool = True
+    #: the fibres written (False: ``--no-fibres``, the areas only, for ``attached``)
+    output: bool = True
 
 
 @dataclass(frozen=True)

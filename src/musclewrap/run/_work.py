@@ -442,6 +442,8 @@ class _MuscleFrames:
         self.out = Path(job.outdir)
         self.result = ChunkResult(job.name, [], [], seconds_prepare=seconds_prepare, cache_hit=hit)
         self.fb, fibre_note = _fibres(job, muscle)
+        if job.fibres is not None and not job.fibres.output:
+            self.fb = None  # the areas held only (`_deformer`): no fibres written
         if self.fb is not None:
             self.result.fibre_share = [float(x) for x in self.fb.share]
             self.result.fibre_area = [float(x) for x in self.fb.area]

@@ -317,7 +317,7 @@ def write_outputs(
         write_pvd(outdir / PVD, [(float(drive.times[k]), f) for k, f in entries]),
         write_csv(outdir / REPORT, rows, REPORT_FIELDS),
     ]
-    if scene.fibres is not None:
+    if scene.fibres is not None and scene.fibres.output:
         paths = {s.name: s.paths for s in scene.muscles}
         files += write_fibre_outputs(outdir, drive, results, paths, notes, scene.mesh_unit)
     files += _plots(outdir, scene, results, collisions)

@@ -91,7 +91,8 @@ class FibreSpec:
     step of 1 degree dominated the differences on the LHDL sweeps). ``attached``
     (True by default): the muscle's deformation holds its fibres' attachment areas to
     its paths' first and last points (`musclewrap.Deformer`'s ``attached``), for the
-    surface and the fibres alike.
+    surface and the fibres alike. ``output`` (not a key of the table): False where the
+    fibres are not written (``--no-fibres``), while their areas are still held.
     """
 
     count: int = 100
@@ -103,6 +104,7 @@ class FibreSpec:
     landmark_radius: float = 10.0
     attachments: str = "ends"
     attached: bool = True
+    output: bool = True
 
 
 @dataclass(frozen=True)

@@ -761,7 +761,7 @@ def _waypoints(
 def _moment_arm_poses(
     scene: Scene, model: OpenSimModel, n: int, bodies: list[str]
 ) -> MomentArmPoses | None:
-    if scene.fibres is None or not scene.fibres.moment_arms:
+    if scene.fibres is None or not scene.fibres.output or not scene.fibres.moment_arms:
         return None
     names = model.coordinate_names
     for c in scene.fibres.moment_arms:
