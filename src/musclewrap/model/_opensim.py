@@ -206,6 +206,12 @@ class OpenSimModel:
         arr = self._paths[name].getCurrentPath(self.state)
         return [arr.get(k).getParentFrame().findBaseFrame().getName() for k in range(arr.getSize())]
 
+    def path_set_conditional(self, name: str) -> tuple[int, bool]:
+        """The number of points in a muscle's path set, and whether any is conditional."""
+        ps = self._paths[name].getPathPointSet()
+        kinds = [ps.get(k).getConcreteClassName() for k in range(ps.getSize())]
+        return len(kinds), "ConditionalPathPoint" in kinds
+
     def path_set_points(self, name: str, frame: str) -> tuple[FloatArray, list[str]]:
         """Every point a muscle's path is defined by, active or not, in ``frame``, and bodies.
 

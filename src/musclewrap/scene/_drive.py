@@ -403,6 +403,8 @@ class Poser:
         self.rest_R = {
             b: model.transform(b, "ground")[:3, :3] for b in (*model.body_names, "ground")
         }
+        #: per path, its set's size and whether a point of it can be off (conditional)
+        self.path_sets = {p: model.path_set_conditional(p) for m in scene.muscles for p in m.paths}
 
     def transform(self, body: str, frame: str) -> FloatArray:
         """Body's frame to ``frame`` at the model's current pose (mesh units)."""
@@ -442,6 +444,9 @@ class Poser:
             for p in m.paths:
                 # every point of the path's set, active or not, turns the samples near it
                 # (where they are the path's points, those turn them as they are)
+                size, conditional = self.path_sets[p]
+                if not conditional and len(pts[p]) == size:
+                    continue  # every point of the set is on, and no wrap adds any
                 X, bodies = model.path_set_points(p, m.body)
                 X *= s
                 if len(X) >= 2 and (X.shape != pts[p].shape or np.any(X != pts[p])):
