@@ -298,6 +298,47 @@ def test_path_rotations_follow_each_points_body_and_slerp_across_a_joint():
     assert np.abs(again - path_rotations({"a": P}, {"a": rots}, ("a",), (t,))).max() < 1e-15
 
 
+def test_path_rotations_from_keys_change_continuously_as_a_key_reaches_another():
+    """Rotation keys (every point of a path's set, `PathLines` ``keys``): a sample between
+    two keys slerps between them; a key moved onto the next one's parameter (a via point
+    projected past the path's end) gives the limit of the field, not a jump; the points'
+    parameters on the line are their arc lengths, a point off it its projection's."""
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.conditions import path_rotations, set_point_params
+
+    P = np.array([[0.0, 0, 0], [0, 0, 10], [0, 0, 40]])
+    I3 = np.eye(3)
+    R = Rotation.from_rotvec([0.0, np.radians(60.0), 0.0]).as_matrix()
+    t = np.linspace(0.0, 1.0, 41)
+    rots = np.array([I3, I3, R])
+
+    def field(t3):
+        keys = {"a": (np.array([0.0, 0.25, t3, 1.0]), np.array([I3, I3, I3, R]))}
+        return path_rotations({"a": P}, {"a": rots}, ("a",), (t,), None, keys)
+
+    # between the keys at 0.25 and 0.75 (both I3) nothing turns; from 0.75 to 1, to R
+    got = field(0.75)
+    assert np.abs(got[t <= 0.75] - I3).max() < 1e-12
+    assert abs(_angle(got[np.argmin(np.abs(t - 0.875))]) - 30.0) < 1e-9
+    # the third key reaching the last: the field tends to I3 below 1, R at 1
+    near, at = field(1.0 - 1e-9), field(1.0)
+    assert np.abs(near[:-1] - at[:-1]).max() < 1e-6
+    assert np.abs(at[:-1] - I3).max() < 1e-12 and np.abs(at[-1] - R).max() < 1e-12
+    # the same keys in windows: continuous too
+    h = np.minimum(np.minimum(np.full(41, 0.05), t), 1 - t)
+    keys = lambda t3: {"a": (np.array([0.0, 0.25, t3, 1.0]), np.array([I3, I3, I3, R]))}  # noqa: E731
+    w1 = path_rotations({"a": P}, {"a": rots}, ("a",), (t,), (h,), keys(1.0 - 1e-9))
+    w2 = path_rotations({"a": P}, {"a": rots}, ("a",), (t,), (h,), keys(1.0))
+    assert np.abs(w1 - w2).max() < 1e-6
+    # parameters: the line's own points at their arc lengths, an off-line point projected
+    X = np.array([[0.0, 0, 0], [0, 0, 10], [3.0, 0, 25], [0, 0, 40], [0, 5, 50]])
+    got = set_point_params(P, X)
+    assert got == pytest.approx([0.0, 0.25, 0.625, 1.0, 1.0], abs=1e-15)
+    # made non-decreasing in the set's order
+    assert set_point_params(P, X[[0, 2, 1, 3]]).tolist() == pytest.approx([0, 0.625, 0.625, 1])
+
+
 def test_path_rotations_name_a_line_without_one_rotation_per_point():
     from musclewrap.conditions import path_rotations
 
