@@ -205,7 +205,7 @@ def path_rotations(
             keep = distinct_mask(P)
             X = P[keep]
             q = matrix_to_quaternion(R[keep])
-            s = _arclength(X) if halfwidths is None else None
+            s = _arclength(X)
         # each quaternion on its predecessor's side: the interpolation takes the shorter way
         flip = np.cumprod(np.where(np.sum(q[1:] * q[:-1], axis=1) < 0.0, -1.0, 1.0))
         q[1:] *= flip[:, None]

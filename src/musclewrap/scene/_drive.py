@@ -435,10 +435,13 @@ class Poser:
                 turned[b] = G @ rest_R[b].T
             return turned[b]
 
+        def turns(bodies: list[str], body: str) -> FloatArray:
+            # per point, its body's rotation from the rest pose in the frame of ``body``
+            mb = rest_R[body].T @ turn(body).T
+            return np.array([mb @ turn(b) @ rest_R[body] for b in bodies])
+
         L, R = {}, {}
         for m in scene.muscles:
-            # per point, its body's rotation from the rest pose in the muscle's body frame
-            mb = rest_R[m.body].T @ turn(m.body).T
             pts = {p: model.path_points(p, m.body) * s for p in m.paths}
             keys = {}
             for p in m.paths:
@@ -450,17 +453,9 @@ class Poser:
                 X, bodies = model.path_set_points(p, m.body)
                 X *= s
                 if len(X) >= 2 and (X.shape != pts[p].shape or np.any(X != pts[p])):
-                    keys[p] = (
-                        set_point_params(pts[p], X),
-                        np.array([mb @ turn(b) @ rest_R[m.body] for b in bodies]),
-                    )
+                    keys[p] = (set_point_params(pts[p], X), turns(bodies, m.body))
             L[m.name] = PathLines(
-                pts,
-                {
-                    p: np.array([mb @ turn(b) @ rest_R[m.body] for b in model.path_point_bodies(p)])
-                    for p in m.paths
-                },
-                keys,
+                pts, {p: turns(model.path_point_bodies(p), m.body) for p in m.paths}, keys
             )
             R[m.name] = None  # the points' bodies turn it: no reference point
         return L, R, to_g
