@@ -99,6 +99,9 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         # the fine finish's spread of a push over the rings round it
         ("contact._finish", "_rings_kernel", f"(int32[::1], int32[::1], {_I1}, int64, {_I1})"),
         ("contact._finish", "_smooth", f"(int32[::1], int32[::1], {_A2}, {_I1}, int64, float64)"),
+        # a contact step's displacement of the fine vertices
+        ("coordinates._mvc", "_rows_dot3_kernel", f"({_A2}, {_A2}, {_A2})"),
+        ("solver._step", "_deepest_one_kernel", f"({_A1}, {_I1}, int64)"),
     ),
 }  # fmt: skip
 

@@ -190,6 +190,13 @@ class Defaults:
     contact_relax_rounds : int
         The first rounds, which relax; the later ones project the vertices
         still too near exactly.
+    contact_relax_depth : float
+        A pose's round relaxes only where its deepest push is longer than this,
+        in mean edge lengths: neighbours pushed less than a quarter of an edge
+        do not cross, and a relaxed push lands short of its target and takes
+        another round (the LHDL walk's finish pushed a median of 9 vertices by
+        0.05 edges, in 2-4 rounds of which three relaxed; now mostly one). The
+        rest pose's push-out relaxes every round it would have.
     path_step : float
         Spacing of the waypoints between the rest pose and each frame along a
         rotational coordinate, in degrees (`musclewrap.scene.Waypoints`): contact
@@ -412,6 +419,7 @@ class Defaults:
     contact_spread: float = 1.0
     contact_relax: int = 4
     contact_relax_rounds: int = 3
+    contact_relax_depth: float = 0.25
     contact_cage_steps: int = 6
     path_step: float = 10.0
     path_step_translation: float = 20.0

@@ -504,7 +504,16 @@ def push_out(
     rounds = 0
     while rounds < budget:
         rounds += 1
-        radius = _push(P, A, hit, target, edge, held, relax=rounds <= relax_until)
+        # a pose's shallow pushes (what the cage's steps left) land exactly: a relaxed one
+        # lands short and takes another round; at rest (every bone vertex) all relax
+        relax = rounds <= relax_until and (
+            bone_vertices is True
+            or bool(
+                np.linalg.norm(target - P[hit], axis=1).max()
+                > defaults.contact_relax_depth * edge
+            )
+        )
+        radius = _push(P, A, hit, target, edge, held, relax=relax)
         held[hit] = True
         t, Zm = _volume_away_from(P, F, A, Z, held, radius, volume_target)
         if not np.isfinite(t):

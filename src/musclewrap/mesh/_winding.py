@@ -65,7 +65,7 @@ class WindingGrid:
         The surface (closed, consistently oriented).
     lazy : bool, optional
         Bin no face at construction; a query whose points lie outside the cells
-        binned last bins the box of cells round them instead (`bin_around` does so
+        binned so far bins the box of cells round them and those (`bin_around` does so
         beforehand, for several batches at once). The cells are those of the whole
         grid, each with the same faces in the same order, so the winding numbers are
         the same bit for bit; a few points near a large surface then cost a pass over
@@ -93,7 +93,12 @@ class WindingGrid:
         i0, i1, j0, j1 = self._region
         if need[0] >= i0 and need[1] <= i1 and need[2] >= j0 and need[3] <= j1:
             return
-        self._bin(need)  # these points' cells, in place of the last ones
+        if i0 <= i1:
+            # the cells binned so far too: a grid asked near one place, then near another
+            # and back (a flood over a bone's vertices, a muscle's rounds), bins once a
+            # place, not once a call (each binning is a pass over every face)
+            need = (min(need[0], i0), max(need[1], i1), min(need[2], j0), max(need[3], j1))
+        self._bin(need)
 
     def _bin(self, region: tuple[int, int, int, int]) -> None:
         assert self._cells is not None

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Mapping, Sequence
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -43,7 +44,21 @@ from ..mesh import (
 from ._result import DeformationResult
 from ._step import cage_push
 
-__all__ = ["ContactSteps"]
+__all__ = ["ContactSteps", "VolumeDirection"]
+
+
+class VolumeDirection(NamedTuple):
+    """A pose's volume direction in cage space, what its contact steps restore the volume along.
+
+    ``g``: the volume's gradient in cage space; ``Hg``: ``H^-1 g``, the direction every
+    step of the pose ends on the exact fine volume along; ``WHg``: its fine image
+    ``W H^-1 g`` (a pass over ``W`` once a pose, not once a step); ``gg``: ``g . H^-1 g``.
+    """
+
+    g: FloatArray
+    Hg: FloatArray
+    WHg: FloatArray
+    gg: float
 
 
 class ContactSteps:
@@ -251,14 +266,14 @@ class ContactSteps:
         None where it moves nothing or the volume cannot be restored along ``-H^-1 g``.
         """
         mu = self.muscle
-        g, Hg = self._volume_direction(x)
+        d = self._direction(x)
         dx = cage_push(
-            mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points
+            mu.W, self._Hinv, d.g, d.Hg, idx, gap, N, self._dominant, slack=slack, points=points
         )
         need = float(max(-gap.min(initial=0.0), 0.0))
         if points is not None:
             need = max(need, float(-points[1].min()))
-        return self._end_step(x, V, dx, Hg, idx, need, None if points is None else points[0])
+        return self._end_step(x, V, dx, d, idx, need, None if points is None else points[0])
 
     def _volume_direction(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         """The volume's gradient in cage space at ``x`` (on the proxy) and ``H^-1`` times it."""
@@ -267,12 +282,34 @@ class ContactSteps:
         g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
         return g, self._Hinv @ g
 
+    def _direction(self, x: FloatArray) -> VolumeDirection:
+        """The pose's `VolumeDirection`: made once, at the cage ``x`` of its first step.
+
+        Where ``x`` is the pose's solve's own cage, its last direction and that
+        direction's fine image (the solve's pass over ``W`` made both); else the
+        proxy's gradient at ``x`` and one pass over ``W``. Every later step of the pose
+        (against its bones, in the rounds, stepped together) takes the same: a step then
+        reads only the rows of ``W`` it needs and one pass for its own displacement.
+        """
+        got = self._pose_direction
+        if got is None:
+            solved = self._solved
+            if solved is not None and solved[0] is x:
+                Hg, WHg = solved[1], solved[2]
+                g = self.H @ Hg
+            else:
+                g, Hg = self._volume_direction(x)
+                WHg = rows_dot(self.muscle.W, Hg)
+            got = VolumeDirection(g, Hg, np.ascontiguousarray(WHg), float(np.sum(g * Hg)))
+            self._pose_direction = got
+        return got
+
     def _end_step(
         self,
         x: FloatArray,
         V: FloatArray,
         dx: FloatArray,
-        Hg: FloatArray,
+        d: VolumeDirection,
         idx: IntArray,
         need: float,
         rows: FloatArray | None = None,
@@ -281,8 +318,8 @@ class ContactSteps:
 
         ``idx``: the fine vertices its conditions were on, ``rows``: rows of
         coordinates of the other points they were on (or None); ``need``: the
-        furthest any of them had to go. None where it moves nothing or the volume
-        cannot be restored along ``-H^-1 g``.
+        furthest any of them had to go; ``d``: the pose's `VolumeDirection`. None
+        where it moves nothing or the volume cannot be restored along ``-H^-1 g``.
         """
         mu = self.muscle
         if not np.abs(dx).max() > 0:
@@ -290,21 +327,21 @@ class ContactSteps:
         # no vertex near the contact moves much further than the deepest one must: where
         # the conditions conflict (a muscle squeezed between two bones) the least-energy
         # step can be several times longer, and the fine finish does better there
-        D = rows_dot(mu.W, np.hstack([dx, Hg]))
-        moves = [np.linalg.norm(D[idx, :3], axis=1).max(initial=0.0)]
+        D = rows_dot(mu.W, dx)
+        moves = [np.linalg.norm(D[idx], axis=1).max(initial=0.0)]
         if rows is not None:
             moves.append(np.linalg.norm(rows @ dx, axis=1).max())
         longest = float(max(moves))
         if need > 0 and longest > defaults.contact_cage_reach * need:
             scale = defaults.contact_cage_reach * need / longest
             dx = dx * scale
-            D[:, :3] *= scale
-        P = V + D[:, :3]
+            D *= scale
+        P = V + D
         cP = mean_rows(P)
-        t = cubic_root_near(volume_cubic(P - cP, -D[:, 3:], mu.F), mu.volume_rest, 0.0)
+        t = cubic_root_near(volume_cubic(P - cP, -d.WHg, mu.F), mu.volume_rest, 0.0)
         if not np.isfinite(t):
             return None
-        return x + dx - t * Hg, P - t * D[:, 3:]
+        return x + dx - t * d.Hg, P - t * d.WHg
 
     def surface_rows(self, C: FloatArray, faces: IntArray, P: FloatArray) -> FloatArray:
         """Rows of coordinates of points ``C`` on the muscle's triangles ``faces`` (positions ``P``).

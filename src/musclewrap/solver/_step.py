@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .._typing import FloatArray, IntArray
@@ -10,8 +11,38 @@ from ..constants import defaults
 __all__ = ["cage_push"]
 
 
+@numba.njit(cache=True)
+def _deepest_one_kernel(gap, group, size):  # noqa: ANN001, ANN202 # pragma: no cover
+    # per group (0 <= group < size) the row of the smallest gap, the earlier on a tie (a
+    # NaN only where the group has nothing else), in the order of the groups
+    best = np.full(size, -1, dtype=np.int64)
+    for i in range(gap.shape[0]):
+        g = group[i]
+        b = best[g]
+        if b < 0 or gap[i] < gap[b] or (gap[b] != gap[b] and gap[i] == gap[i]):
+            best[g] = i
+    count = 0
+    for g in range(size):
+        if best[g] >= 0:
+            count += 1
+    out = np.empty(count, dtype=np.int64)
+    count = 0
+    for g in range(size):
+        if best[g] >= 0:
+            out[count] = best[g]
+            count += 1
+    return out
+
+
 def _deepest_per_group(gap: FloatArray, group: IntArray, k: int) -> IntArray:
     """The rows of the ``k`` smallest gaps in each group, by group (ties: the earlier row)."""
+    if k == 1 and len(gap) and 0 <= group.min() and group.max() < 4 * len(gap) + 1024:
+        # one a group, the groups a cage's vertices: one compiled pass, no sort
+        return _deepest_one_kernel(
+            np.ascontiguousarray(gap, dtype=np.float64),
+            np.ascontiguousarray(group, dtype=np.int64),
+            int(group.max()) + 1,
+        )
     order = np.lexsort((gap, group))
     start = np.ones(len(order), dtype=bool)
     start[1:] = group[order[1:]] != group[order[:-1]]
@@ -94,12 +125,13 @@ def cage_push(
         r = np.concatenate([r, slack - gp])
         Nn = np.vstack([Nn, Np])
     Y = Wr @ Hinv  # (k, m): W_i H^-1
-    G = (Y @ Wr.T) * (Nn @ Nn.T)
     c = np.einsum("ij,ij->i", Nn, Wr @ Hg)
     # soft conditions: a cage of a few hundred vertices cannot meet many close ones exactly,
     # and the exact least-energy step of nearly dependent ones is huge; the fine finish
-    # takes what the cage leaves
-    soft = defaults.contact_softness * float(np.mean(np.diag(G)))
+    # takes what the cage leaves. The scale: the mean of the Gram matrix's diagonal over
+    # every candidate (the matrix itself only ever over the active set)
+    diag = np.einsum("ij,ij->i", Y, Wr) * np.einsum("ij,ij->i", Nn, Nn)
+    soft = defaults.contact_softness * float(np.mean(diag))
     gg = float(np.sum(g * Hg))  # g . H^-1 g
     active = r > 0
     dx = np.zeros((m, 3))
@@ -109,7 +141,7 @@ def cage_push(
             break
         k = len(a)
         M = np.empty((k + 1, k + 1))
-        M[:k, :k] = G[np.ix_(a, a)]
+        M[:k, :k] = (Y[a] @ Wr[a].T) * (Nn[a] @ Nn[a].T)
         M[:k, k] = M[k, :k] = c[a]
         M[k, k] = gg
         M[np.arange(k), np.arange(k)] += soft
