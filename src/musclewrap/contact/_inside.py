@@ -17,10 +17,10 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .._typing import FloatArray, IntArray
-from ..mesh import WindingGrid
+from ..mesh import WindingGrid, invert_rigid
+from ..mesh._winding import _query_kernel
 from ._near import Near
 from ._placed import Placed
 
@@ -121,47 +121,122 @@ def bone_vertices_inside(
     # stand out of a muscle triangle by ``deep`` (the sag e^2 / 8 R of a triangle's
     # edges e of up to 1.5 mean edges over a radius R)
     sharp = 8.0 * deep / (1.5 * edge) ** 2 if deep > 0 else -np.inf
-    grid: WindingGrid | None = None
-    out = []
+    # per obstacle its candidates first: the muscle's grid is then binned once round them
+    # all (and a few cells beyond, where the flood goes), not once per flood step
+    cands: list[tuple[IntArray, IntArray, IntArray] | None] = []
     for b, pl in enumerate(placed):
-        m = near.within(b, P, reach)
+        near_b = near.within(b, P, reach)
+        Q = pl.to_obstacle(P[near_b])
+        # near's bounds are from where the vertices were (they may have moved since): of
+        # those, the ones the grid's bounds here still allow within reach look for the
+        # candidates; the depths start from the nearest of them all
+        keep = pl.obstacle.bounds(Q)[0] < near.allowed[b][near_b] + reach
+        if not keep.any():
+            cands.append(None)
+            continue
+        rows, which = pl.obstacle.vertices_near(Q[keep], 1.5 * edge, sharp)
+        cands.append((near_b, rows, np.flatnonzero(keep)[which]) if len(rows) else None)
+    grid: WindingGrid | None = None
+    if any(c is not None for c in cands):
+        grid = WindingGrid(P, F, lazy=True)
+        grid.bin_around(
+            np.vstack(
+                [pl.to_muscle(pl.obstacle.V[c[1]]) for pl, c in zip(placed, cands, strict=True)
+                 if c is not None]
+            ),
+            margin=2,
+        )  # fmt: skip
+    out = []
+    for pl, c in zip(placed, cands, strict=True):
+        if c is None:
+            out.append(_none())
+            continue
+        assert grid is not None
+        m, rows, which = c
         ob = pl.obstacle
-        if not len(m):
-            out.append(_none())
-            continue
-        rows, which = ob.vertices_near(pl.to_obstacle(P[m]), 1.5 * edge, sharp)
-        if not len(rows):
-            out.append(_none())
-            continue
         # each candidate's nearest muscle vertex (among m): where its depth is looked for
         nearest = np.full(len(ob.V), -1, dtype=np.int64)
         nearest[rows] = m[which]
-        tested = np.zeros(len(ob.V), dtype=bool)
-        tested[rows] = True
-        inside_rows = []
-        ip, ix = ob.adjacency
-        while len(rows):
-            if grid is None:
-                # binned where it is asked (a few points near a muscle of thousands of faces)
-                grid = WindingGrid(P, F, lazy=True)
-            hit = grid(pl.to_muscle(ob.V[rows])) > 0
-            if not hit.any():
-                break
-            inside_rows.append(rows[hit])
-            # their neighbours on the obstacle, not tested yet (every one: a bone enclosed
-            # whole is found from its rim)
-            nb = _neighbours(ip, ix, rows[hit])
-            nb = np.unique(nb[~tested[nb]])
-            tested[nb] = True
-            rows = nb
-        if not inside_rows:
+        rows = _flood(grid, pl, rows)
+        if not len(rows):
             out.append(_none())
             continue
-        rows = np.concatenate(inside_rows)
         B = np.ascontiguousarray(pl.to_muscle(ob.V[rows]))
         dist, C, fi = _depths(B, nearest[rows], m, P, F, adjacency, faces, deep)
         out.append(Inside(rows, B, C, fi, dist))
     return out
+
+
+def _flood(grid: WindingGrid, pl: Placed, rows: IntArray) -> IntArray:
+    """The obstacle's vertices inside the muscle (``grid``'s), from the candidates ``rows``.
+
+    The candidates are tested, then the neighbours on the obstacle of those inside, not
+    tested yet, in turn (every one: a bone enclosed whole is found from its rim), each
+    batch in the order of the rows. Compiled (`_flood_kernel`) where the grid is binned
+    round every point asked; where a point lies beyond the cells binned, the grid bins
+    them and the flood goes on here.
+    """
+    ob = pl.obstacle
+    T = np.eye(4) if pl.T is None else invert_rigid(pl.T)  # the obstacle's frame -> muscle's
+    ip, ix = ob.adjacency
+    tested = np.zeros(len(ob.V), dtype=np.bool_)
+    tested[rows] = True
+    found: list[IntArray] = []
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    while len(rows):
+        y0, z0, hy, hz = grid._cells[:4]
+        inside = np.empty(len(ob.V), dtype=np.int64)
+        k, rest = _flood_kernel(
+            rows, ob.V, np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]), ip, ix,
+            tested, grid.V, grid.F, grid._g, y0, z0, hy, hz, *grid._region, *grid._bins, inside,
+        )  # fmt: skip
+        found.append(inside[:k])
+        rows = rest
+        if len(rows):
+            # a batch beyond the cells binned: those binned too, that batch asked again
+            grid.bin_around(pl.to_muscle(ob.V[rows]))
+    return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def _flood_kernel(rows, BV, R, t, ip, ix, tested, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, inside):  # noqa: ANN001, ANN202, E501 # pragma: no cover
+    # batch by batch: the rows' winding numbers about the muscle (V, F; its grid binned in
+    # cells [i0, i1] x [j0, j1]), those inside kept in order, then their neighbours not
+    # tested yet (sorted) as the next batch. Returns how many were kept and, where a
+    # batch has a point beyond the cells binned, that batch (untested), else an empty one
+    k = 0
+    one = np.empty((1, 3))
+    w = np.zeros(1, dtype=np.int64)
+    while rows.shape[0]:
+        hit = np.zeros(rows.shape[0], dtype=np.bool_)
+        for q in range(rows.shape[0]):
+            r = rows[q]
+            for a in range(3):
+                one[0, a] = R[a, 0] * BV[r, 0] + R[a, 1] * BV[r, 1] + R[a, 2] * BV[r, 2] + t[a]
+            py, pz = one[0, 1], one[0, 2]
+            if y0 <= py <= y0 + g * hy and z0 <= pz <= z0 + g * hz:
+                i = min(g - 1, int((py - y0) / hy))
+                j = min(g - 1, int((pz - z0) / hz))
+                if i < i0 or i > i1 or j < j0 or j > j1:
+                    return k, rows  # beyond the cells binned
+            w[0] = 0
+            _query_kernel(one, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, w)
+            hit[q] = w[0] > 0
+        nxt = []
+        for q in range(rows.shape[0]):
+            if hit[q]:
+                inside[k] = rows[q]
+                k += 1
+                for p in range(ip[rows[q]], ip[rows[q] + 1]):
+                    v = ix[p]
+                    if not tested[v]:
+                        tested[v] = True
+                        nxt.append(v)
+        out = np.empty(len(nxt), dtype=np.int64)
+        for q in range(len(nxt)):
+            out[q] = nxt[q]
+        rows = np.sort(out)
+    return k, rows
 
 
 def _depths(
@@ -182,21 +257,47 @@ def _depths(
     reaches ``deep``, the distance to the triangles around the six nearest
     vertices among ``m`` and their neighbours.
     """
-    if (start < 0).any() or deep <= 0:
-        tree = cKDTree(P[m])
-        lost = start < 0
+    Pm = np.ascontiguousarray(P[m])
+    if (start < 0).any():
+        lost = np.flatnonzero(start < 0)
         start = start.copy()
-        start[lost] = m[tree.query(B[lost], k=1)[1]]
+        start[lost] = m[_nearest_k(np.ascontiguousarray(B[lost]), Pm, 1)[:, 0]]
     dist = np.empty(len(B))
     C = np.empty((len(B), 3))
     fi = np.empty(len(B), dtype=np.int64)
     _nearest_face_kernel(B, start.reshape(-1, 1), P, F, *adjacency, *faces, 0, dist, C, fi)
     j = np.flatnonzero(dist >= deep)
     if len(j):
-        k = min(6, len(m))
-        starts = m[cKDTree(P[m]).query(B[j], k=k)[1].reshape(len(j), k)]
+        starts = m[_nearest_k(np.ascontiguousarray(B[j]), Pm, min(6, len(m)))]
         _refine(B, j, np.ascontiguousarray(starts), P, F, adjacency, faces, dist, C, fi)
     return dist, C, fi
+
+
+@numba.njit(cache=True)
+def _nearest_k(B, Q, k):  # noqa: ANN001, ANN202 # pragma: no cover
+    # per point of B, the k nearest points of Q (rows of Q, nearest first; ties: the lower
+    # row), by a pass over Q: the few deep points of a pose against a few thousand
+    out = np.empty((B.shape[0], k), dtype=np.int64)
+    d = np.empty(k)
+    for i in range(B.shape[0]):
+        n = 0
+        for j in range(Q.shape[0]):
+            e = (B[i, 0] - Q[j, 0]) ** 2 + (B[i, 1] - Q[j, 1]) ** 2 + (B[i, 2] - Q[j, 2]) ** 2
+            if n < k:
+                pos = n
+                n += 1
+            elif e < d[k - 1]:
+                pos = k - 1
+            else:
+                continue
+            # insertion into the sorted k best
+            while pos > 0 and d[pos - 1] > e:
+                d[pos] = d[pos - 1]
+                out[i, pos] = out[i, pos - 1]
+                pos -= 1
+            d[pos] = e
+            out[i, pos] = j
+    return out
 
 
 def _refine(
@@ -220,13 +321,6 @@ def _refine(
     better = d < dist[rows]
     r = rows[better]
     dist[r], C[r], fi[r] = d[better], Cj[better], fj[better]
-
-
-def _neighbours(ip: IntArray, ix: IntArray, rows: IntArray) -> IntArray:
-    """The CSR neighbours of ``rows`` (with repeats)."""
-    if not len(rows):
-        return np.zeros(0, np.int64)
-    return np.concatenate([ix[ip[r] : ip[r + 1]] for r in rows])
 
 
 @numba.njit(cache=True)

@@ -83,13 +83,24 @@ class WindingGrid:
         if self._cells is not None and not lazy:
             self._bin((0, g - 1, 0, g - 1))
 
-    def bin_around(self, P: npt.ArrayLike) -> None:
-        """Bin the box of cells that queries of the points ``P`` (k, 3) need, if not binned."""
+    def bin_around(self, P: npt.ArrayLike, margin: int = 0) -> None:
+        """Bin the box of cells that queries of the points ``P`` (k, 3) need, if not binned.
+
+        ``margin``: that many cells more on every side (where later queries will go).
+        """
         P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
         if not len(P) or self._cells is None:
             return
         y0, z0, hy, hz = self._cells[:4]
         need = _region_kernel(P, self._g, y0, z0, hy, hz)
+        if margin:
+            g = self._g
+            need = (
+                max(need[0] - margin, 0),
+                min(need[1] + margin, g - 1),
+                max(need[2] - margin, 0),
+                min(need[3] + margin, g - 1),
+            )
         i0, i1, j0, j1 = self._region
         if need[0] >= i0 and need[1] <= i1 and need[2] >= j0 and need[3] <= j1:
             return
