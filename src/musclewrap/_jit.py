@@ -84,10 +84,6 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("contact._near", "_within_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_I1})"),
         ("contact._inside", "_nearest_face_kernel",
          f"({_A2}, {_I2}, {_A2}, {_I2}, {_I1}, {_I1}, {_I1}, {_I1}, int64, {_A1}, {_A2}, {_I1})"),
-        ("contact._inside", "_flood_kernel",
-         f"({_I1}, {_A2}, {_A2}, {_A1}, {_I1}, {_I1}, boolean[::1], {_A2}, {_I2}, int64, "
-         f"float64, float64, float64, float64, int64, int64, int64, int64, {_I1}, {_I1}, "
-         f"{_I1})"),
         ("contact._inside", "_nearest_k", f"({_A2}, {_A2}, int64)"),
         ("contact._muscles", "_closest_kernel", f"({_A2}, {_A2}, {_I2}, {_A1}, {_A2}, {_I1})"),
         ("mesh._geometry", "_normals_kernel", f"({_A2}, {_I2}, {_A2})"),
@@ -97,6 +93,12 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("mesh._winding", "_query_kernel",
          f"({_A2}, {_A2}, {_I2}, int64, float64, float64, float64, float64, int64, int64, "
          f"int64, int64, {_I1}, {_I1}, {_I1})"),
+        # the flood over a bone's vertices inside a muscle (it calls the query: compiled
+        # after it, in the same process)
+        ("contact._inside", "_flood_kernel",
+         f"({_I1}, {_A2}, {_A2}, {_A1}, {_I1}, {_I1}, boolean[::1], {_A2}, {_I2}, int64, "
+         f"float64, float64, float64, float64, int64, int64, int64, int64, {_I1}, {_I1}, "
+         f"{_I1})"),
         ("mesh._geometry", "_in_box_kernel", f"({_A2}, {_A1}, {_A1}, {_I1})"),
         ("mesh._geometry", "_scatter_kernel", f"({_A2},)"),
         ("mesh._geometry", "_projected_box_kernel", f"({_A2}, {_A2})"),
@@ -104,8 +106,7 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         # the fine finish's spread of a push over the rings round it
         ("contact._finish", "_rings_kernel", f"(int32[::1], int32[::1], {_I1}, int64, {_I1})"),
         ("contact._finish", "_smooth", f"(int32[::1], int32[::1], {_A2}, {_I1}, int64, float64)"),
-        # a contact step's displacement of the fine vertices
-        ("coordinates._mvc", "_rows_dot3_kernel", f"({_A2}, {_A2}, {_A2})"),
+        # a contact step's deepest vertex per cage vertex
         ("solver._step", "_deepest_one_kernel", f"({_A1}, {_I1}, int64)"),
     ),
 }  # fmt: skip
@@ -119,7 +120,14 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
 #: (it was the helper's, which then finished 1.4-2.2 s after this side) and the paths'
 #: windows not compiled, the demo's first run took 22.9-25.6 s against 25.1-27.7 s
 #: (`bench_first_run.py`, three each in turns)
-HERE = ("_closest_kernel", "_region_kernel", "_query_kernel", "_bin_kernel", "_cells_kernel")
+HERE = (
+    "_closest_kernel",
+    "_region_kernel",
+    "_query_kernel",
+    "_bin_kernel",
+    "_cells_kernel",
+    "_flood_kernel",
+)
 
 
 def compile_kernels(group: str | None = None, *, here: bool | None = None) -> None:

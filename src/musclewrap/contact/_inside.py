@@ -207,6 +207,8 @@ def _flood_kernel(rows, BV, R, t, ip, ix, tested, V, F, g, y0, z0, hy, hz, i0, i
     k = 0
     one = np.empty((1, 3))
     w = np.zeros(1, dtype=np.int64)
+    nxt = np.empty(BV.shape[0], dtype=np.int64)
+    fresh = np.zeros(BV.shape[0], dtype=np.bool_)
     while rows.shape[0]:
         hit = np.zeros(rows.shape[0], dtype=np.bool_)
         for q in range(rows.shape[0]):
@@ -222,7 +224,9 @@ def _flood_kernel(rows, BV, R, t, ip, ix, tested, V, F, g, y0, z0, hy, hz, i0, i
             w[0] = 0
             _query_kernel(one, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, w)
             hit[q] = w[0] > 0
-        nxt = []
+        # the next batch in the order of the rows: marked, then read off between the
+        # least and the largest (no sort to compile)
+        lo, hi = BV.shape[0], -1
         for q in range(rows.shape[0]):
             if hit[q]:
                 inside[k] = rows[q]
@@ -231,11 +235,15 @@ def _flood_kernel(rows, BV, R, t, ip, ix, tested, V, F, g, y0, z0, hy, hz, i0, i
                     v = ix[p]
                     if not tested[v]:
                         tested[v] = True
-                        nxt.append(v)
-        out = np.empty(len(nxt), dtype=np.int64)
-        for q in range(len(nxt)):
-            out[q] = nxt[q]
-        rows = np.sort(out)
+                        fresh[v] = True
+                        lo, hi = min(lo, v), max(hi, v)
+        n = 0
+        for v in range(lo, hi + 1):
+            if fresh[v]:
+                fresh[v] = False
+                nxt[n] = v
+                n += 1
+        rows = nxt[:n].copy()
     return k, rows
 
 

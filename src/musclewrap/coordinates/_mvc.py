@@ -215,23 +215,6 @@ def _rows_dot_kernel(W, XT, out):  # pragma: no cover - compiled
         out[r, 5] = s5
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
-def _rows_dot3_kernel(W, XT, out):  # pragma: no cover - compiled
-    # three columns (a displacement of the cage): half the sums of the six-column kernel,
-    # for the contact's steps, where the direction's image is at hand already
-    n, m = W.shape
-    for r in numba.prange(n):
-        s0 = s1 = s2 = 0.0
-        for j in range(m):
-            w = W[r, j]
-            s0 += w * XT[0, j]
-            s1 += w * XT[1, j]
-            s2 += w * XT[2, j]
-        out[r, 0] = s0
-        out[r, 1] = s1
-        out[r, 2] = s2
-
-
 def rows_dot(W: FloatArray, X: npt.ArrayLike) -> FloatArray:
     """``W @ X`` for a tall coordinate matrix and a few columns (positions, directions).
 
@@ -258,9 +241,6 @@ def rows_dot(W: FloatArray, X: npt.ArrayLike) -> FloatArray:
     out = np.empty((W.shape[0], k))
     if k == 6:  # the solver's case: no padding, no copy
         _rows_dot_kernel(W, np.ascontiguousarray(X.T), out)
-        return out
-    if k == 3:  # a contact step's displacement
-        _rows_dot3_kernel(W, np.ascontiguousarray(X.T), out)
         return out
     part = np.empty((W.shape[0], 6))
     for c0 in range(0, k, 6):  # columns in groups of six, the last one padded with zeros
