@@ -504,10 +504,12 @@ def push_out(
     rounds = 0
     while rounds < budget:
         rounds += 1
-        # a pose's shallow pushes (what the cage's steps left) land exactly: a relaxed one
-        # lands short and takes another round; at rest (every bone vertex) all relax
+        # a pose's shallow pushes (what the cage's steps left) relax once, then land
+        # exactly: relaxed again they land short again and take another round each; at
+        # rest (every bone vertex) all relax
         relax = rounds <= relax_until and (
             bone_vertices is True
+            or rounds <= relax_until - relax_rounds + 1
             or bool(
                 np.linalg.norm(target - P[hit], axis=1).max()
                 > defaults.contact_relax_depth * edge

@@ -50,7 +50,7 @@ from ..mesh import (
     volume_gradient,
     volume_hessian_reduced,
 )
-from ._contact import ContactSteps, VolumeDirection
+from ._contact import ContactSteps
 from ._paper import PaperSteps
 from ._prepared import PreparedMuscle
 from ._proxy import PLAIN_CONVERGED, PLAIN_NO_ROOT, mat3, plain_iterations, stationary
@@ -270,8 +270,6 @@ class Deformer(ContactSteps, PaperSteps):
         self._diag = float(np.linalg.norm(C.max(0) - C.min(0)))
         # the contact step's groups (each fine vertex's dominant cage vertex) and scale
         self._dominant = np.argmax(muscle.W, axis=1)
-        self._solved: tuple[FloatArray, FloatArray, FloatArray] | None = None
-        self._pose_direction: VolumeDirection | None = None
         self._fine_edge = mean_edge_length(muscle.V, muscle.F)
         # the default solve's matrices (`_proxy`): x_ls = HL d_L + HS s', and the proxy's
         # coordinates Wd and B = H^-1 Wd^T that make the direction u = B g of a proxy
@@ -660,7 +658,6 @@ class Deformer(ContactSteps, PaperSteps):
                     seconds=time.perf_counter() - t0,
                 )
             contact = None
-            self._pose_direction = None  # this pose's, made when its contact first needs it
             if obstacles and np.isfinite(V).all():
                 placed = as_placed(obstacles)
                 near = Near(V, placed, margin)
@@ -784,9 +781,6 @@ class Deformer(ContactSteps, PaperSteps):
         lam_f = cubic_root_near(volume_cubic_pair(XU, mu.F), mu.volume_rest, lam)
         x = x_ls - lam_f * u
         V = combine_pair(XU, lam_f, c)
-        # the volume's direction the pose ended on, and its fine image: the contact steps
-        # of this pose take it (`ContactSteps._direction`) instead of a pass over W a step
-        self._solved = (x, u, XU[:, 3:])
         reason = (
             "converged" if converged_dir else f"direction not stationary after {its} iterations"
         )
