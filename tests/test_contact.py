@@ -584,3 +584,31 @@ def test_the_finish_takes_the_poses_finds_again_to_the_same_bytes(bent):
             full.contact_vertices, full.penetration_depth, full.bone_inside_depth,
         )  # fmt: skip
     assert "pose" not in full.summary()
+
+
+@pytest.mark.parametrize("into", [0.1, 1.0])
+def test_the_finish_lands_shallow_pushes_in_two_rounds(into):
+    """A pose's fine finish relaxes shallow pushes (under `defaults.contact_relax_depth` mean
+    edges) in its first round only and lands them exactly in the next: two rounds, where
+    relaxed three times they landed short and took four. Deeper pushes relax in the first
+    rounds as before. Either way every vertex ends out, at the margin, the volume exact."""
+    from musclewrap.constants import defaults
+    from musclewrap.contact import Placed, push_out
+    from musclewrap.mesh import volume
+
+    V, F = capsule(radius=10.0, length=60.0, n_around=32, cap_rings=8, segments=40)
+    edge = mean_edge_length(V, F)
+    depth = into * edge  # how far the sphere reaches into the capsule's side
+    S, SF = capsule(radius=15.0, length=0.0, n_around=64, cap_rings=32, segments=1)
+    S = S - S.mean(axis=0) + [0.0, 25.0 - depth, 40.0]
+    target = volume(V, F)
+    P, rep = push_out(V, F, [Placed(Obstacle(S, SF))], volume_target=target, margin=0.0)
+    assert rep.ok, rep.reason
+    assert rep.depth_before > 0.5 * depth
+    if into < defaults.contact_relax_depth:
+        assert rep.rounds == 2
+    else:
+        assert rep.rounds >= 3
+    assert rep.depth_after == 0.0 and rep.inside == 0
+    assert abs(volume(P, F) / target - 1) <= 1e-12
+    assert np.linalg.norm(P - [0.0, 25.0 - depth, 40.0], axis=1).min() >= 15.0 - 0.02

@@ -589,3 +589,83 @@ def test_oriented_box_holds_every_point_and_only_points_near_it():
     inside = np.flatnonzero(((X >= lo) & (X <= hi)).all(axis=1))
     assert np.array_equal(rows, inside)
     assert len(rows) < 0.2 * len(Q)  # most of the axis-aligned box is left out
+
+
+def _flooded(W, A, seeds):
+    """Brute force: the vertices with ``W > 0`` connected to a seed inside through others inside."""
+    ip, ix = A
+    seen, out, todo = set(), [], [int(s) for s in seeds if W[s] > 0]
+    seen.update(todo)
+    while todo:
+        v = todo.pop()
+        out.append(v)
+        for u in ix[ip[v] : ip[v + 1]]:
+            if W[u] > 0 and int(u) not in seen:
+                seen.add(int(u))
+                todo.append(int(u))
+    return set(out)
+
+
+@pytest.mark.parametrize("lazy", [False, True])
+def test_winding_grid_flood_finds_a_region_inside_whole_from_one_vertex(lazy):
+    """`WindingGrid.flood`: another mesh's vertices inside the surface, reached from seeds over
+    that mesh's edges, are every vertex of each region inside that holds a seed, and none of a
+    region inside that holds none (brute force: winding numbers of every vertex, then a search
+    over the edges). The other mesh comes in its own frame with a rigid transform; a lazy grid
+    binned round one seed only bins the rest as the flood reaches it."""
+    from scipy.spatial.transform import Rotation
+
+    from musclewrap.mesh import WindingGrid, vertex_adjacency, winding_numbers
+
+    V, F = capsule(radius=10.0, length=80.0, n_around=24, cap_rings=5, segments=32)  # z 0..100
+    # two rods across the capsule (along y, at z = 30 and 70, their ends out of it) in one
+    # mesh, in a frame of its own: a region inside each
+    R1, RF1 = capsule(radius=3.0, length=40.0, n_around=12, cap_rings=3, segments=40)
+    R1 = (R1 - R1.mean(axis=0))[:, [0, 2, 1]]  # along y (a reflection: the faces turned back)
+    RF1 = np.ascontiguousarray(RF1[:, ::-1])
+    B = np.vstack([R1 + [0.0, 0.0, 30.0], R1 + [0.0, 0.0, 70.0]])
+    RF = np.vstack([RF1, RF1 + len(R1)])
+    rot = Rotation.from_euler("z", 15.0, degrees=True).as_matrix()
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = rot, [2.0, 1.0, 0.0]
+    placed = B @ rot.T + T[:3, 3]
+    Wn = winding_numbers(placed, V, F)
+    assert 0 < (Wn > 0).sum() < len(B)
+    A = vertex_adjacency(RF, len(B))
+    adj = (A.indptr.astype(np.int64), A.indices.astype(np.int64))
+    inside = np.flatnonzero(Wn > 0)
+    assert inside[0] < len(R1) <= inside[-1]  # a region in each rod
+    # one seed inside the first rod, a few outside: the second rod's region is not reached
+    seeds = np.concatenate([inside[:1], np.flatnonzero(Wn == 0)[:5]])
+    grid = WindingGrid(V, F, lazy=lazy)
+    if lazy:
+        grid.bin_around(placed[inside[:1]])
+    got = grid.flood(B, adj, seeds, T)
+    assert len(got) == len(set(got.tolist()))
+    assert set(got.tolist()) == _flooded(Wn, adj, seeds) == set(inside[inside < len(R1)].tolist())
+    assert got[0] == inside[0]
+    # no seed inside: nothing
+    assert len(grid.flood(B, adj, np.flatnonzero(Wn == 0)[:5], T)) == 0
+    assert len(grid.flood(B, adj, np.zeros(0, dtype=np.int64), T)) == 0
+
+
+def test_a_lazy_winding_grid_keeps_the_cells_it_binned():
+    """Asked near one place, then another, then the first again, a lazy grid bins the union
+    (each binning is a pass over every face) and counts as the whole grid does."""
+    from musclewrap.mesh import WindingGrid
+
+    V, F = capsule(radius=10.0, length=80.0, n_around=24, cap_rings=5, segments=32)
+    whole = WindingGrid(V, F)
+    lazy = WindingGrid(V, F, lazy=True)
+    a, b = V[V[:, 2] < 20], V[V[:, 2] > 80]
+    lazy(a + 0.1)
+    first = lazy._region
+    lazy(b + 0.1)
+    i0, i1, j0, j1 = lazy._region
+    assert i0 <= first[0] and first[1] <= i1 and j0 <= first[2] and first[3] <= j1
+    kept = lazy._region
+    P = np.vstack([a, b]) + 0.1
+    assert np.array_equal(lazy(P), whole(P))
+    assert lazy._region == kept  # nothing binned again
+    lazy.bin_around(a[:1], margin=3)
+    assert lazy._region == kept  # within the cells binned, even with a margin

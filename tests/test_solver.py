@@ -311,3 +311,74 @@ def test_attached_areas_ride_on_the_bodies_of_their_paths_ends(small_muscle):
     assert long.S.shape[0] == mu.bind(tendon).S.shape[0] + len(origin)
     with pytest.raises(ValueError, match="attached vertices must index the"):
         mu.bind(rest, attached=(origin, np.array([len(mu.V)])))
+
+
+def test_the_deepest_vertex_per_cage_vertex_compiled_as_sorted():
+    """`_deepest_per_group` with one a group (compiled, no sort) picks what the sort picks: the
+    smallest gap per group, the earlier row on a tie, a NaN only where nothing else is, in the
+    order of the groups."""
+    from musclewrap.solver._step import _deepest_per_group
+
+    rng = np.random.default_rng(3)
+    for n, groups in ((1, 1), (50, 7), (2000, 300)):
+        gap = np.round(rng.normal(size=n), 1)  # ties
+        gap[rng.integers(0, n, size=n // 10)] = np.nan
+        group = rng.integers(0, groups, size=n)
+        order = np.lexsort((gap, group))
+        start = np.ones(n, dtype=bool)
+        start[1:] = group[order[1:]] != group[order[:-1]]
+        assert np.array_equal(_deepest_per_group(gap, group, 1), order[start])
+    assert len(_deepest_per_group(np.zeros(0), np.zeros(0, dtype=np.int64), 1)) == 0
+
+
+def test_the_cage_step_forms_the_gram_matrix_over_its_active_set_only():
+    """`cage_push` takes the active set's block of the conditions' Gram matrix as it needs it:
+    the same step as the whole matrix formed once (the scale of its softness the mean of the
+    whole diagonal), on random conditions, with joins and leaves."""
+    from musclewrap.constants import defaults
+    from musclewrap.solver._step import _deepest_per_group, cage_push
+
+    rng = np.random.default_rng(5)
+    n, m = 400, 40
+    W = rng.random((n, m))
+    W /= W.sum(axis=1, keepdims=True)
+    M = rng.normal(size=(m, m))
+    Hinv = np.linalg.inv(M @ M.T + m * np.eye(m))
+    g = rng.normal(size=(m, 3))
+    Hg = Hinv @ g
+    group = np.argmax(W, axis=1)
+    idx = np.arange(n)
+    gap = rng.normal(0.2, 0.3, size=n)
+    N = rng.normal(size=(n, 3))
+    N /= np.linalg.norm(N, axis=1, keepdims=True)
+    slack = 0.01
+
+    def whole() -> np.ndarray:  # the step as it was: the Gram matrix of every candidate
+        pool = _deepest_per_group(gap, group[idx], 1)
+        Wr, r, Nn = W[idx[pool]], slack - gap[pool], N[pool]
+        Y = Wr @ Hinv
+        G = (Y @ Wr.T) * (Nn @ Nn.T)
+        c = np.einsum("ij,ij->i", Nn, Wr @ Hg)
+        soft = defaults.contact_softness * float(np.mean(np.diag(G)))
+        active, dx = r > 0, np.zeros((m, 3))
+        for _ in range(4):
+            a = np.flatnonzero(active)
+            k = len(a)
+            A = np.empty((k + 1, k + 1))
+            A[:k, :k] = G[np.ix_(a, a)] + soft * np.eye(k)
+            A[:k, k] = A[k, :k] = c[a]
+            A[k, k] = float(np.sum(g * Hg))
+            sol = np.linalg.solve(A, np.append(r[a], 0.0))
+            dx = Y[a].T @ (sol[:k, None] * Nn[a]) + sol[k] * Hg
+            lin = np.einsum("ij,ij->i", Nn, Wr @ dx)
+            join, leave = ~active & (lin < r - slack), np.zeros_like(active)
+            leave[a] = sol[:k] < 0
+            if not join.any() and not leave.any():
+                break
+            active = (active | join) & ~leave
+        return dx
+
+    got = cage_push(W, Hinv, g, Hg, idx, gap, N, group, slack=slack)
+    ref = whole()
+    assert np.abs(ref).max() > 0
+    assert np.allclose(got, ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())

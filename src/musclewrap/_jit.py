@@ -84,7 +84,6 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("contact._near", "_within_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_I1})"),
         ("contact._inside", "_nearest_face_kernel",
          f"({_A2}, {_I2}, {_A2}, {_I2}, {_I1}, {_I1}, {_I1}, {_I1}, int64, {_A1}, {_A2}, {_I1})"),
-        ("contact._inside", "_nearest_k", f"({_A2}, {_A2}, int64)"),
         ("contact._muscles", "_closest_kernel", f"({_A2}, {_A2}, {_I2}, {_A1}, {_A2}, {_I1})"),
         ("mesh._geometry", "_normals_kernel", f"({_A2}, {_I2}, {_A2})"),
         ("mesh._winding", "_cells_kernel", f"({_A2}, int64)"),
@@ -93,9 +92,9 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("mesh._winding", "_query_kernel",
          f"({_A2}, {_A2}, {_I2}, int64, float64, float64, float64, float64, int64, int64, "
          f"int64, int64, {_I1}, {_I1}, {_I1})"),
-        # the flood over a bone's vertices inside a muscle (it calls the query: compiled
-        # after it, in the same process)
-        ("contact._inside", "_flood_kernel",
+        # the flood over a bone's vertices inside a muscle (`WindingGrid.flood`; it calls
+        # the query: compiled after it, in the same process)
+        ("mesh._winding", "_flood_kernel",
          f"({_I1}, {_A2}, {_A2}, {_A1}, {_I1}, {_I1}, boolean[::1], {_A2}, {_I2}, int64, "
          f"float64, float64, float64, float64, int64, int64, int64, int64, {_I1}, {_I1}, "
          f"{_I1})"),

@@ -499,22 +499,18 @@ def push_out(
     relax_rounds = min(defaults.contact_relax_rounds, max_rounds - 1)
     if bone_vertices is True:  # once per muscle: relax longer, fewer folds
         relax_rounds = max(relax_rounds, max_rounds // 2)
-    relax_until = relax_rounds
+    relax_from, relax_until = 1, relax_rounds  # the rounds of this pass that relax
     budget = max_rounds
     rounds = 0
     while rounds < budget:
         rounds += 1
-        # a pose's shallow pushes (what the cage's steps left) relax once, then land
-        # exactly: relaxed again they land short again and take another round each; at
-        # rest (every bone vertex) all relax
-        relax = rounds <= relax_until and (
-            bone_vertices is True
-            or rounds <= relax_until - relax_rounds + 1
-            or bool(
-                np.linalg.norm(target - P[hit], axis=1).max()
-                > defaults.contact_relax_depth * edge
-            )
+        # a pose's shallow pushes (what the cage's steps left) relax in a pass's first
+        # round only, then land exactly: relaxed again they land short again and take
+        # another round each; at rest (every bone vertex) every round of the pass relaxes
+        shallow = bone_vertices is not True and bool(
+            np.linalg.norm(target - P[hit], axis=1).max() <= defaults.contact_relax_depth * edge
         )
+        relax = relax_from <= rounds <= (min(relax_from, relax_until) if shallow else relax_until)
         radius = _push(P, A, hit, target, edge, held, relax=relax)
         held[hit] = True
         t, Zm = _volume_away_from(P, F, A, Z, held, radius, volume_target)
@@ -536,7 +532,7 @@ def push_out(
                 # with rounds of their own; and looked at again after them
                 bones_left = found
                 found = None
-                relax_until = rounds + relax_rounds
+                relax_from, relax_until = rounds + 1, rounds + relax_rounds
                 budget = max(budget, rounds + relax_rounds + 3)
         if not len(hit):
             break

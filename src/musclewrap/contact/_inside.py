@@ -17,10 +17,10 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .._typing import FloatArray, IntArray
 from ..mesh import WindingGrid, invert_rigid
-from ..mesh._winding import _query_kernel
 from ._near import Near
 from ._placed import Placed
 
@@ -157,7 +157,9 @@ def bone_vertices_inside(
         # each candidate's nearest muscle vertex (among m): where its depth is looked for
         nearest = np.full(len(ob.V), -1, dtype=np.int64)
         nearest[rows] = m[which]
-        rows = _flood(grid, pl, rows)
+        # the candidates, then the neighbours on the obstacle of those inside (every one: a
+        # bone enclosed whole is found from its rim)
+        rows = grid.flood(ob.V, ob.adjacency, rows, None if pl.T is None else invert_rigid(pl.T))
         if not len(rows):
             out.append(_none())
             continue
@@ -165,86 +167,6 @@ def bone_vertices_inside(
         dist, C, fi = _depths(B, nearest[rows], m, P, F, adjacency, faces, deep)
         out.append(Inside(rows, B, C, fi, dist))
     return out
-
-
-def _flood(grid: WindingGrid, pl: Placed, rows: IntArray) -> IntArray:
-    """The obstacle's vertices inside the muscle (``grid``'s), from the candidates ``rows``.
-
-    The candidates are tested, then the neighbours on the obstacle of those inside, not
-    tested yet, in turn (every one: a bone enclosed whole is found from its rim), each
-    batch in the order of the rows. Compiled (`_flood_kernel`) where the grid is binned
-    round every point asked; where a point lies beyond the cells binned, the grid bins
-    them and the flood goes on here.
-    """
-    ob = pl.obstacle
-    T = np.eye(4) if pl.T is None else invert_rigid(pl.T)  # the obstacle's frame -> muscle's
-    ip, ix = ob.adjacency
-    tested = np.zeros(len(ob.V), dtype=np.bool_)
-    tested[rows] = True
-    found: list[IntArray] = []
-    rows = np.ascontiguousarray(rows, dtype=np.int64)
-    while len(rows):
-        y0, z0, hy, hz = grid._cells[:4]
-        inside = np.empty(len(ob.V), dtype=np.int64)
-        k, rest = _flood_kernel(
-            rows, ob.V, np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]), ip, ix,
-            tested, grid.V, grid.F, grid._g, y0, z0, hy, hz, *grid._region, *grid._bins, inside,
-        )  # fmt: skip
-        found.append(inside[:k])
-        rows = rest
-        if len(rows):
-            # a batch beyond the cells binned: those binned too, that batch asked again
-            grid.bin_around(pl.to_muscle(ob.V[rows]))
-    return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
-
-
-@numba.njit(cache=True)
-def _flood_kernel(rows, BV, R, t, ip, ix, tested, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, inside):  # noqa: ANN001, ANN202, E501 # pragma: no cover
-    # batch by batch: the rows' winding numbers about the muscle (V, F; its grid binned in
-    # cells [i0, i1] x [j0, j1]), those inside kept in order, then their neighbours not
-    # tested yet (sorted) as the next batch. Returns how many were kept and, where a
-    # batch has a point beyond the cells binned, that batch (untested), else an empty one
-    k = 0
-    one = np.empty((1, 3))
-    w = np.zeros(1, dtype=np.int64)
-    nxt = np.empty(BV.shape[0], dtype=np.int64)
-    fresh = np.zeros(BV.shape[0], dtype=np.bool_)
-    while rows.shape[0]:
-        hit = np.zeros(rows.shape[0], dtype=np.bool_)
-        for q in range(rows.shape[0]):
-            r = rows[q]
-            for a in range(3):
-                one[0, a] = R[a, 0] * BV[r, 0] + R[a, 1] * BV[r, 1] + R[a, 2] * BV[r, 2] + t[a]
-            py, pz = one[0, 1], one[0, 2]
-            if y0 <= py <= y0 + g * hy and z0 <= pz <= z0 + g * hz:
-                i = min(g - 1, int((py - y0) / hy))
-                j = min(g - 1, int((pz - z0) / hz))
-                if i < i0 or i > i1 or j < j0 or j > j1:
-                    return k, rows  # beyond the cells binned
-            w[0] = 0
-            _query_kernel(one, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, w)
-            hit[q] = w[0] > 0
-        # the next batch in the order of the rows: marked, then read off between the
-        # least and the largest (no sort to compile)
-        lo, hi = BV.shape[0], -1
-        for q in range(rows.shape[0]):
-            if hit[q]:
-                inside[k] = rows[q]
-                k += 1
-                for p in range(ip[rows[q]], ip[rows[q] + 1]):
-                    v = ix[p]
-                    if not tested[v]:
-                        tested[v] = True
-                        fresh[v] = True
-                        lo, hi = min(lo, v), max(hi, v)
-        n = 0
-        for v in range(lo, hi + 1):
-            if fresh[v]:
-                fresh[v] = False
-                nxt[n] = v
-                n += 1
-        rows = nxt[:n].copy()
-    return k, rows
 
 
 def _depths(
@@ -265,47 +187,23 @@ def _depths(
     reaches ``deep``, the distance to the triangles around the six nearest
     vertices among ``m`` and their neighbours.
     """
-    Pm = np.ascontiguousarray(P[m])
+    tree = None  # of the vertices m, built once where needed
     if (start < 0).any():
-        lost = np.flatnonzero(start < 0)
+        tree = cKDTree(P[m])
+        lost = start < 0
         start = start.copy()
-        start[lost] = m[_nearest_k(np.ascontiguousarray(B[lost]), Pm, 1)[:, 0]]
+        start[lost] = m[tree.query(B[lost], k=1)[1]]
     dist = np.empty(len(B))
     C = np.empty((len(B), 3))
     fi = np.empty(len(B), dtype=np.int64)
     _nearest_face_kernel(B, start.reshape(-1, 1), P, F, *adjacency, *faces, 0, dist, C, fi)
     j = np.flatnonzero(dist >= deep)
     if len(j):
-        starts = m[_nearest_k(np.ascontiguousarray(B[j]), Pm, min(6, len(m)))]
+        k = min(6, len(m))
+        tree = cKDTree(P[m]) if tree is None else tree
+        starts = m[tree.query(B[j], k=k)[1].reshape(len(j), k)]
         _refine(B, j, np.ascontiguousarray(starts), P, F, adjacency, faces, dist, C, fi)
     return dist, C, fi
-
-
-@numba.njit(cache=True)
-def _nearest_k(B, Q, k):  # noqa: ANN001, ANN202 # pragma: no cover
-    # per point of B, the k nearest points of Q (rows of Q, nearest first; ties: the lower
-    # row), by a pass over Q: the few deep points of a pose against a few thousand
-    out = np.empty((B.shape[0], k), dtype=np.int64)
-    d = np.empty(k)
-    for i in range(B.shape[0]):
-        n = 0
-        for j in range(Q.shape[0]):
-            e = (B[i, 0] - Q[j, 0]) ** 2 + (B[i, 1] - Q[j, 1]) ** 2 + (B[i, 2] - Q[j, 2]) ** 2
-            if n < k:
-                pos = n
-                n += 1
-            elif e < d[k - 1]:
-                pos = k - 1
-            else:
-                continue
-            # insertion into the sorted k best
-            while pos > 0 and d[pos - 1] > e:
-                d[pos] = d[pos - 1]
-                out[i, pos] = out[i, pos - 1]
-                pos -= 1
-            d[pos] = e
-            out[i, pos] = j
-    return out
 
 
 def _refine(

@@ -65,11 +65,12 @@ class WindingGrid:
         The surface (closed, consistently oriented).
     lazy : bool, optional
         Bin no face at construction; a query whose points lie outside the cells
-        binned so far bins the box of cells round them and those (`bin_around` does so
-        beforehand, for several batches at once). The cells are those of the whole
-        grid, each with the same faces in the same order, so the winding numbers are
-        the same bit for bit; a few points near a large surface then cost a pass over
-        its vertices and faces, not the binning of every face (about 6 cells a face).
+        binned so far bins the box of cells round them and the cells binned before
+        (`bin_around` does so beforehand, for several batches at once). The cells are
+        those of the whole grid, each with the same faces in the same order, so the
+        winding numbers are the same bit for bit; a few points near a large surface
+        then cost a pass over its vertices and faces, not the binning of every face
+        (about 6 cells a face).
     """
 
     def __init__(self, V: npt.ArrayLike, F: npt.ArrayLike, *, lazy: bool = False) -> None:
@@ -126,6 +127,50 @@ class WindingGrid:
             _query_kernel(P, self.V, self.F, self._g, y0, z0, hy, hz, *self._region,
                           *self._bins, out)  # fmt: skip
         return out
+
+    def flood(
+        self,
+        points: npt.ArrayLike,
+        adjacency: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
+        seeds: npt.ArrayLike,
+        transform: npt.ArrayLike | None = None,
+    ) -> npt.NDArray[np.int64]:
+        """Vertices of another mesh inside this surface, reached from ``seeds``.
+
+        ``points`` (n, 3): that mesh's vertices in its own frame; ``transform`` (4, 4):
+        the rigid map from that frame into this surface's (None: the same);
+        ``adjacency``: its vertex adjacency, CSR ``(indptr, indices)``. The seeds are
+        tested, then the neighbours not tested yet of those inside, batch by batch, each
+        batch in the order of the vertices, until one has none inside: a region of the
+        other mesh inside this one is found whole from any vertex of it. Compiled (one
+        pass, the winding numbers as `__call__` gives them); a batch beyond the cells
+        binned bins them and is asked again. Returns the vertices inside, in the order
+        found.
+        """
+        B = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        T = np.eye(4) if transform is None else np.asarray(transform, dtype=np.float64)
+        R, t = np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3])
+        ip = np.ascontiguousarray(adjacency[0], dtype=np.int64)
+        ix = np.ascontiguousarray(adjacency[1], dtype=np.int64)
+        rows = np.ascontiguousarray(seeds, dtype=np.int64).ravel()
+        if not len(rows) or self._cells is None:
+            return np.zeros(0, dtype=np.int64)
+        tested = np.zeros(len(B), dtype=np.bool_)
+        tested[rows] = True
+        found: list[npt.NDArray[np.int64]] = []
+        while len(rows):
+            y0, z0, hy, hz = self._cells[:4]
+            inside = np.empty(len(B), dtype=np.int64)
+            k, rows = _flood_kernel(
+                rows, B, R, t, ip, ix, tested, self.V, self.F, self._g, y0, z0, hy, hz,
+                *self._region, *self._bins, inside,
+            )  # fmt: skip
+            found.append(inside[:k])
+            if len(rows):
+                # a cell further out than the binned ones (a cell more: the kernel places
+                # the points by its own rounding)
+                self.bin_around(B[rows] @ R.T + t, margin=1)
+        return np.concatenate(found)
 
 
 @numba.njit(cache=True)
@@ -290,3 +335,54 @@ def _query_kernel(P, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, out)
             if ahead > 0.0:
                 w += s
         out[q] = w
+
+
+@numba.njit(cache=True)
+def _flood_kernel(
+    rows, BV, R, t, ip, ix, tested, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, inside
+):  # noqa: ANN001, ANN202, E501 # pragma: no cover
+    # batch by batch: the rows' winding numbers about the surface (V, F; its grid binned in
+    # cells [i0, i1] x [j0, j1]), those inside kept in order, then their neighbours not
+    # tested yet (in index order) as the next batch. Returns how many were kept and, where a
+    # batch has a point beyond the cells binned, that batch (untested), else an empty one
+    k = 0
+    one = np.empty((1, 3))
+    w = np.zeros(1, dtype=np.int64)
+    nxt = np.empty(BV.shape[0], dtype=np.int64)
+    fresh = np.zeros(BV.shape[0], dtype=np.bool_)
+    while rows.shape[0]:
+        hit = np.zeros(rows.shape[0], dtype=np.bool_)
+        for q in range(rows.shape[0]):
+            r = rows[q]
+            for a in range(3):
+                one[0, a] = R[a, 0] * BV[r, 0] + R[a, 1] * BV[r, 1] + R[a, 2] * BV[r, 2] + t[a]
+            py, pz = one[0, 1], one[0, 2]
+            if y0 <= py <= y0 + g * hy and z0 <= pz <= z0 + g * hz:
+                i = min(g - 1, int((py - y0) / hy))
+                j = min(g - 1, int((pz - z0) / hz))
+                if i < i0 or i > i1 or j < j0 or j > j1:
+                    return k, rows  # beyond the cells binned
+            w[0] = 0
+            _query_kernel(one, V, F, g, y0, z0, hy, hz, i0, i1, j0, j1, count, cells, w)
+            hit[q] = w[0] > 0
+        # the next batch in the order of the rows: marked, then read off between the
+        # least and the largest (no sort to compile)
+        lo, hi = BV.shape[0], -1
+        for q in range(rows.shape[0]):
+            if hit[q]:
+                inside[k] = rows[q]
+                k += 1
+                for p in range(ip[rows[q]], ip[rows[q] + 1]):
+                    v = ix[p]
+                    if not tested[v]:
+                        tested[v] = True
+                        fresh[v] = True
+                        lo, hi = min(lo, v), max(hi, v)
+        n = 0
+        for v in range(lo, hi + 1):
+            if fresh[v]:
+                fresh[v] = False
+                nxt[n] = v
+                n += 1
+        rows = nxt[:n].copy()
+    return k, rows

@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Mapping, Sequence
-from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -44,19 +43,7 @@ from ..mesh import (
 from ._result import DeformationResult
 from ._step import cage_push
 
-__all__ = ["ContactSteps", "VolumeDirection"]
-
-
-class VolumeDirection(NamedTuple):
-    """The volume's direction in cage space at a cage, what a contact step restores it along.
-
-    ``g``: the volume's gradient in cage space (the proxy's); ``Hg``: ``H^-1 g``, the
-    direction the step ends on the exact fine volume along; ``gg``: ``g . H^-1 g``.
-    """
-
-    g: FloatArray
-    Hg: FloatArray
-    gg: float
+__all__ = ["ContactSteps"]
 
 
 class ContactSteps:
@@ -264,14 +251,17 @@ class ContactSteps:
         None where it moves nothing or the volume cannot be restored along ``-H^-1 g``.
         """
         mu = self.muscle
-        d = self._direction(x)
+        # the volume's direction at this step's own cage: one kept through a pose's steps,
+        # or the solve's last one for its first, creased the LHDL squat's gluteus maximus
+        # (BENCHMARKS.md, "What contact costs": what we tried)
+        g, Hg = self._volume_direction(x)
         dx = cage_push(
-            mu.W, self._Hinv, d.g, d.Hg, idx, gap, N, self._dominant, slack=slack, points=points
+            mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points
         )
         need = float(max(-gap.min(initial=0.0), 0.0))
         if points is not None:
             need = max(need, float(-points[1].min()))
-        return self._end_step(x, V, dx, d, idx, need, None if points is None else points[0])
+        return self._end_step(x, V, dx, Hg, idx, need, None if points is None else points[0])
 
     def _volume_direction(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         """The volume's gradient in cage space at ``x`` (on the proxy) and ``H^-1`` times it."""
@@ -280,25 +270,12 @@ class ContactSteps:
         g = mu.proxy_W_T @ volume_gradient(mu.proxy_W @ (x - c), mu.proxy_F)
         return g, self._Hinv @ g
 
-    def _direction(self, x: FloatArray) -> VolumeDirection:
-        """The `VolumeDirection` at the cage ``x`` (the proxy's gradient there).
-
-        Every step takes the direction at its own cage (its fine image made by the
-        step's pass over ``W`` beside its displacement). Tried and dropped: the pose's
-        solve's own last direction for its first step, and one direction kept through a
-        pose's steps (no gradient and no image to make): both creased the LHDL squat's
-        gluteus maximus at its bottom (shape change 0.520 and 0.536 against 0.501,
-        frames 700-740).
-        """
-        g, Hg = self._volume_direction(x)
-        return VolumeDirection(g, Hg, float(np.sum(g * Hg)))
-
     def _end_step(
         self,
         x: FloatArray,
         V: FloatArray,
         dx: FloatArray,
-        d: VolumeDirection,
+        Hg: FloatArray,
         idx: IntArray,
         need: float,
         rows: FloatArray | None = None,
@@ -307,8 +284,8 @@ class ContactSteps:
 
         ``idx``: the fine vertices its conditions were on, ``rows``: rows of
         coordinates of the other points they were on (or None); ``need``: the
-        furthest any of them had to go; ``d``: the pose's `VolumeDirection`. None
-        where it moves nothing or the volume cannot be restored along ``-H^-1 g``.
+        furthest any of them had to go. None where it moves nothing or the volume
+        cannot be restored along ``-H^-1 g``.
         """
         mu = self.muscle
         if not np.abs(dx).max() > 0:
@@ -316,23 +293,21 @@ class ContactSteps:
         # no vertex near the contact moves much further than the deepest one must: where
         # the conditions conflict (a muscle squeezed between two bones) the least-energy
         # step can be several times longer, and the fine finish does better there
-        # the step's displacement and the direction's image in one pass
-        both = rows_dot(mu.W, np.hstack([dx, d.Hg]))
-        D, WHg = both[:, :3], both[:, 3:]
-        moves = [np.linalg.norm(D[idx], axis=1).max(initial=0.0)]
+        D = rows_dot(mu.W, np.hstack([dx, Hg]))
+        moves = [np.linalg.norm(D[idx, :3], axis=1).max(initial=0.0)]
         if rows is not None:
             moves.append(np.linalg.norm(rows @ dx, axis=1).max())
         longest = float(max(moves))
         if need > 0 and longest > defaults.contact_cage_reach * need:
             scale = defaults.contact_cage_reach * need / longest
             dx = dx * scale
-            D = D * scale
-        P = V + D
+            D[:, :3] *= scale
+        P = V + D[:, :3]
         cP = mean_rows(P)
-        t = cubic_root_near(volume_cubic(P - cP, -WHg, mu.F), mu.volume_rest, 0.0)
+        t = cubic_root_near(volume_cubic(P - cP, -D[:, 3:], mu.F), mu.volume_rest, 0.0)
         if not np.isfinite(t):
             return None
-        return x + dx - t * d.Hg, P - t * WHg
+        return x + dx - t * Hg, P - t * D[:, 3:]
 
     def surface_rows(self, C: FloatArray, faces: IntArray, P: FloatArray) -> FloatArray:
         """Rows of coordinates of points ``C`` on the muscle's triangles ``faces`` (positions ``P``).

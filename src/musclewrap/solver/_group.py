@@ -164,12 +164,12 @@ def joint_round(
     for n in names:
         if n not in dxs:
             continue
-        dx = dxs[n]
+        dx, Hg = dxs[n]
         d = deformers[n]
         x, V = state[n]
         idx = np.concatenate(own_rows[n]) if own_rows[n] else np.zeros(0, dtype=np.int64)
         rows = np.vstack(other_rows[n]) if other_rows[n] else None
-        step = d._end_step(x, V, dx, d._direction(x), idx, need[n], rows)
+        step = d._end_step(x, V, dx, Hg, idx, need[n], rows)
         if step is not None:
             out[n] = step
     return out
@@ -340,13 +340,12 @@ def _solve(
     slack: FloatArray,
     owner: IntArray,
     max_sets: int = 4,
-) -> dict[str, FloatArray]:
+) -> dict[str, tuple[FloatArray, FloatArray]]:
     """The cage displacements of least total energy that meet the conditions, volumes kept.
 
     `cage_push`'s active-set programme with the muscles side by side: each
     muscle's ``H^-1`` for its parts of the conditions, one linearised volume
-    condition per muscle (its pose's `VolumeDirection`). Returns per muscle with a part
-    in them its ``dx``.
+    condition per muscle. Returns per muscle with a part in them ``(dx, H^-1 g)``.
     """
     K = len(r)
     parts = {}
@@ -356,9 +355,9 @@ def _solve(
             continue
         d = deformers[n]
         Wt, Dt, s, c = st
-        vd = d._direction(state[n][0])
+        g, Hg = d._volume_direction(state[n][0])
         Y = Wt @ d._Hinv
-        parts[n] = (Wt, Dt, s, c, Y, vd.Hg, vd.gg)
+        parts[n] = (Wt, Dt, s, c, Y, Hg, float(np.sum(g * Hg)))
     order = list(parts)
     L = len(order)
     # the diagonal and the volume's column of each condition (the whole Gram matrix of
@@ -419,4 +418,4 @@ def _solve(
         if not join.any() and not leave.any():
             break
         active = (active | join) & ~leave
-    return {n: dx[n] for n in order}
+    return {n: (dx[n], parts[n][5]) for n in order}
