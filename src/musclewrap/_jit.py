@@ -128,11 +128,19 @@ HERE = (
     "_flood_kernel",
 )
 
+#: on a first run, the preparation's kernels that the helper compiles (after the pose's)
+#: instead of the run's own process: the bodies' rotations as matrices and quaternions. With
+#: the contact's `HERE` grown, this side took 18.4 s against the helper's 14.2 (each alone);
+#: now 14.4-15.0 against 14.9-15.5, and both sides together, as a first run starts them,
+#: 14.6-16.6 s against 17.0-17.9 (six runs each in turns, 2026-11-28; BENCHMARKS.md)
+HELPED = ("_blend_rotate", "_matrices_kernel", "_quaternions_kernel")
+
 
 def compile_kernels(group: str | None = None, *, here: bool | None = None) -> None:
     """Compile (into Numba's cache) the kernels of ``group`` of `KERNELS`, or all.
 
-    ``here``: of the contact's, only those of `HERE` (True) or only the others (False).
+    ``here``: of the contact's, only those of `HERE` (True) or only the others (False);
+    of the preparation's, only those not in `HELPED` (True) or only those (False).
     """
     import importlib
 
@@ -144,6 +152,8 @@ def compile_kernels(group: str | None = None, *, here: bool | None = None) -> No
         for module, name, signature in kernels:
             if g == "contact" and here is not None and (name in HERE) != here:
                 continue
+            if g == "preparation" and here is not None and (name in HELPED) == here:
+                continue
             kernel = getattr(importlib.import_module(f"musclewrap.{module}"), name)
             if hasattr(kernel, "compile"):  # not with NUMBA_DISABLE_JIT
                 # the argument types as a call passes them: Numba's cache is keyed by the
@@ -153,7 +163,7 @@ def compile_kernels(group: str | None = None, *, here: bool | None = None) -> No
 
 _COMPILE_HELPER = (
     "from musclewrap._jit import compile_kernels; compile_kernels('pose'); "
-    "compile_kernels('contact', here=False)"
+    "compile_kernels('preparation', here=False); compile_kernels('contact', here=False)"
 )
 
 
@@ -165,7 +175,7 @@ def compile_here() -> None:
     the cache instead of each compiling the preparation's (and the contact's the
     helper has not reached) at once on two cores.
     """
-    compile_kernels("preparation")
+    compile_kernels("preparation", here=True)
     compile_kernels("contact", here=True)
 
 
