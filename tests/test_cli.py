@@ -250,6 +250,28 @@ def test_a_first_run_says_once_that_it_compiles(files, capsys, monkeypatch):
     assert err.count("compiling kernels, once") == 1
 
 
+def test_a_source_rewritten_with_the_same_text_is_still_cached(files):
+    # Numba keys its cache by the source's text: a checkout or a reinstall that rewrites a
+    # kernel's file unchanged (a newer time) keeps its kernels, and a first run is not said
+    import os
+    import time
+
+    import musclewrap._jit as jit
+    from musclewrap.solver._proxy import _plain_iterations
+
+    tmp, mesh, rest, cur = files
+    assert main(["deform", mesh, "--rest", rest, "--current", cur, "-o", str(tmp / "a.vtp")]) == 0
+    assert jit.kernels_cached()
+    source = _plain_iterations.py_func.__code__.co_filename
+    st = os.stat(source)
+    try:
+        later = time.time() + 100.0
+        os.utime(source, (later, later))
+        assert jit.kernels_cached()
+    finally:
+        os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns))
+
+
 def test_pictures_are_the_same_from_one_or_several_renderers(tmp_path):
     # the frames are shared out among renderer processes, all with the series' camera:
     # the GIF is the same picture by picture
