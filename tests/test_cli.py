@@ -250,6 +250,23 @@ def test_a_first_run_says_once_that_it_compiles(files, capsys, monkeypatch):
     assert err.count("compiling kernels, once") == 1
 
 
+def test_a_first_runs_two_shares_compile_every_kernel_once():
+    # the run's own process and the helper split `KERNELS` between them: each kernel in one
+    # share, the pose's all in the helper's (the run's process prepares first)
+    from musclewrap._jit import HELPED, HERE, KERNELS, run_compiles
+
+    every = [(g, name) for g, ks in KERNELS.items() for _, name, _ in ks]
+    ours = {k for k in every if run_compiles(*k)}
+    assert not any(g == "pose" for g, _ in ours)
+    assert {n for g, n in every if g == "contact"} >= set(HERE)
+    assert {n for g, n in every if g == "preparation"} >= set(HELPED)
+    assert ours == {
+        (g, n)
+        for g, n in every
+        if g != "pose" and (n in HERE if g == "contact" else n not in HELPED)
+    }
+
+
 def test_a_source_rewritten_with_the_same_text_is_still_cached(files):
     # Numba keys its cache by the source's text: a checkout or a reinstall that rewrites a
     # kernel's file unchanged (a newer time) keeps its kernels, and a first run is not said

@@ -1,6 +1,6 @@
 """A new user's first `musclewrap demo` against the second, wall time.
 
-    python benchmarks/speed/bench_first_run.py [--no-gif | --kernels | --each]
+    python benchmarks/speed/bench_first_run.py [--no-gif | --kernels | --each | --sides [--repeats N]]
 
 Emulates a fresh install: Numba's cache (``NUMBA_CACHE_DIR``) and musclewrap's
 (``MUSCLEWRAP_CACHE``) point at empty folders, then
@@ -10,6 +10,11 @@ times and their ratio (issue 15's target: the first <= 3x the second).
 
 ``--each``: every kernel of `musclewrap._jit.KERNELS` compiled in turn in one fresh process
 with an empty cache (Numba's own start paid first, on a trivial kernel), the slowest first.
+
+``--sides``: a first run's two shares of the kernels (`musclewrap._jit.compile_here` and the
+helper's `_COMPILE_HELPER`) started together in two fresh processes on one empty cache, as
+a first run starts them: each side's seconds and the wall time until both are done,
+``--repeats`` times. To compare a checkout, run it with ``PYTHONPATH=CHECKOUT/src``.
 """
 
 from __future__ import annotations
@@ -51,6 +56,8 @@ def main() -> None:
         "each in a fresh process with an empty cache (after the imports)",
     )
     p.add_argument("--each", action="store_true", help="instead: seconds to compile each kernel")
+    p.add_argument("--sides", action="store_true", help="instead: both shares of a first run")
+    p.add_argument("--repeats", type=int, default=1)
     a = p.parse_args()
     if a.each:
         with tempfile.TemporaryDirectory() as tmp:
@@ -58,6 +65,10 @@ def main() -> None:
             r = subprocess.run([sys.executable, "-c", _EACH], env=env, capture_output=True,
                                text=True, check=True)  # fmt: skip
         print(r.stdout, end="")
+        return
+    if a.sides:
+        for _ in range(a.repeats):
+            _sides()
         return
     if a.kernels:
         for group in ("pose", "preparation", "contact", None):
@@ -90,6 +101,28 @@ def main() -> None:
         f"musclewrap demo{' --no-gif' if a.no_gif else ''}: first {first:.1f} s, second "
         f"{second:.1f} s, {first / second:.1f}x"
         + ("" if not said else " (the second said it compiled: the cache was not kept)")
+    )
+
+
+def _sides() -> None:
+    timed = (
+        "import sys, time; from musclewrap import _jit; t = time.perf_counter(); "
+        "_jit.compile_here() if sys.argv[1] == 'here' else exec(_jit._COMPILE_HELPER); "
+        "print(time.perf_counter() - t)"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "NUMBA_CACHE_DIR": tmp}
+        t0 = time.perf_counter()
+        procs = {
+            side: subprocess.Popen([sys.executable, "-c", timed, side], env=env,
+                                   stdout=subprocess.PIPE, text=True)
+            for side in ("here", "helper")
+        }  # fmt: skip
+        took = {side: float(p.communicate()[0].split()[-1]) for side, p in procs.items()}
+        wall = time.perf_counter() - t0
+    print(
+        f"compile, both shares together: the run's {took['here']:.1f} s, the helper's "
+        f"{took['helper']:.1f} s, both done {wall:.1f} s"
     )
 
 

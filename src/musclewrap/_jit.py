@@ -130,16 +130,24 @@ HERE = (
 #: on a first run, the preparation's kernels that the helper compiles (after the pose's)
 #: instead of the run's own process: the bodies' rotations as matrices and quaternions. With
 #: the contact's `HERE` grown, this side took 18.4 s against the helper's 14.2 (each alone);
-#: now 14.4-15.0 against 14.9-15.5, and both sides together, as a first run starts them,
-#: 14.6-16.6 s against 17.0-17.9 (six runs each in turns, 2026-11-28; BENCHMARKS.md)
+#: both sides together, as a first run starts them, 14.6-16.6 s against 17.0-17.9
+#: (`bench_first_run.py --sides`, six runs each in turns, 2026-11-28; BENCHMARKS.md)
 HELPED = ("_blend_rotate", "_matrices_kernel", "_quaternions_kernel")
+
+
+def run_compiles(group: str, name: str) -> bool:
+    """Whether a first run's own process compiles kernel ``name`` of ``group`` (else the helper).
+
+    The preparation's but `HELPED`, and the contact's `HERE`.
+    """
+    return (group == "preparation" and name not in HELPED) or (group == "contact" and name in HERE)
 
 
 def compile_kernels(group: str | None = None, *, here: bool | None = None) -> None:
     """Compile (into Numba's cache) the kernels of ``group`` of `KERNELS`, or all.
 
-    ``here``: of the contact's, only those of `HERE` (True) or only the others (False);
-    of the preparation's, only those not in `HELPED` (True) or only those (False).
+    ``here``: only the first run's own share (True, `run_compiles`) or only the
+    helper's (False), in the order of `KERNELS`.
     """
     import importlib
 
@@ -149,9 +157,7 @@ def compile_kernels(group: str | None = None, *, here: bool | None = None) -> No
         if group not in (None, g):
             continue
         for module, name, signature in kernels:
-            if g == "contact" and here is not None and (name in HERE) != here:
-                continue
-            if g == "preparation" and here is not None and (name in HELPED) == here:
+            if here is not None and run_compiles(g, name) != here:
                 continue
             kernel = getattr(importlib.import_module(f"musclewrap.{module}"), name)
             if hasattr(kernel, "compile"):  # not with NUMBA_DISABLE_JIT
@@ -160,33 +166,30 @@ def compile_kernels(group: str | None = None, *, here: bool | None = None) -> No
                 kernel.compile(tuple(normalize_signature(signature)[0]))
 
 
-_COMPILE_HELPER = (
-    "from musclewrap._jit import compile_kernels; compile_kernels('pose'); "
-    "compile_kernels('preparation', here=False); compile_kernels('contact', here=False)"
-)
+#: the helper's share: the pose's kernels, the preparation's `HELPED`, the contact's others
+_COMPILE_HELPER = "from musclewrap._jit import compile_kernels; compile_kernels(here=False)"
 
 
 def compile_here() -> None:
-    """The first run's own share of the kernels: the preparation's and the contact's `HERE`.
+    """The first run's own share of the kernels (`run_compiles`).
 
     Compiled before the run starts its workers, while the helper of
     `compile_if_first_run` compiles the rest: the workers then find every kernel in
     the cache instead of each compiling the preparation's (and the contact's the
     helper has not reached) at once on two cores.
     """
-    compile_kernels("preparation", here=True)
-    compile_kernels("contact", here=True)
+    compile_kernels(here=True)
 
 
 def compile_if_first_run(stream: TextIO | None = None) -> subprocess.Popen[bytes] | None:
     """On a first run, say so once and start compiling half of the kernels meanwhile.
 
     Returns the process that compiles them into Numba's cache (`KERNELS` ``"pose"``,
-    then the contact's not in `HERE`) while this one compiles the others
-    (`compile_here`, the CLI's ``run``, ``demo`` and ``view``) or reads, prepares and
-    compiles what it needs as it goes (a kernel that the helper has not reached when a
-    pose needs it is compiled there too). None if the kernels were in the cache
-    already, or this machine has one CPU.
+    then the preparation's `HELPED` and the contact's not in `HERE`) while this one
+    compiles the others (`compile_here`, the CLI's ``run``, ``demo`` and ``view``) or
+    reads, prepares and compiles what it needs as it goes (a kernel that the helper has
+    not reached when a pose needs it is compiled there too). None if the kernels were in
+    the cache already, or this machine has one CPU.
     """
     if kernels_cached():
         return None
