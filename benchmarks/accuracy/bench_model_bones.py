@@ -1,0 +1,108 @@
+"""How a scene's model bones (``[bones.NAME] model``) sit against its muscles at rest.
+
+For every bone taken from the OpenSim model: its resolution, and per muscle how far each
+lies in the other (libigl's signed distances, both ways: muscle vertices in the bone,
+bone vertices in the muscle). With ``--slices BONE``, the bone cut across its long axis
+(the body frame's y) every ``--step``: the outline's centre and mean radius, and the
+largest disc clear of every muscle within ``--reach`` of that centre (a grid of
+``--grid`` spacing): where the subject's muscles leave room for the bone, and how wide.
+
+    python benchmarks/accuracy/bench_model_bones.py examples/gait2392_leg.toml --slices femur
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import igl
+import numpy as np
+import trimesh
+
+from musclewrap.mesh import apply_transform, mean_edge_length, self_intersecting_faces
+from musclewrap.run._read import ReadBone, read_inputs
+from musclewrap.scene import load_scene
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scene")
+    ap.add_argument("--slices", default=None, help="a model bone to cut across its y axis")
+    ap.add_argument("--step", type=float, default=30.0, help="between slices (mesh units)")
+    ap.add_argument("--reach", type=float, default=20.0, help="of the disc search")
+    ap.add_argument("--grid", type=float, default=1.5, help="of the disc search")
+    a = ap.parse_args()
+    t0 = time.perf_counter()
+    scene = load_scene(Path(a.scene))
+    inp = read_inputs(scene, "0:1", None, False, lambda s: None, [])
+    for b in scene.bones:
+        if not b.source:
+            continue
+        V, F, _ = ReadBone(b, None, True).run()
+        V = apply_transform(inp.drive.to_body[b.name], V)
+        print(
+            f"{b.name}: {len(V)} vertices, {len(F)} faces (closed), mean edge "
+            f"{mean_edge_length(V, F):.1f}, self-intersecting faces {self_intersecting_faces(V, F)}"
+        )
+        muscles = {}
+        for m in scene.muscles:
+            if m.bones is not None and b.name not in m.bones:
+                continue
+            Vm, Fm = inp.muscles[m.name]
+            Vm = apply_transform(inp.drive.rest_between(m.body, b.body), Vm)
+            muscles[m.name] = (Vm, Fm)
+            in_bone = igl.signed_distance(Vm, V, F)[0]
+            in_muscle = igl.signed_distance(V, Vm, Fm)[0]
+            if (in_bone < 0).any() or (in_muscle < 0).any():
+                print(
+                    f"  {m.name}: {(in_bone < 0).sum()} muscle vertices in the bone "
+                    f"(deepest {max(0.0, -in_bone.min()):.2f}), {(in_muscle < 0).sum()} bone "
+                    f"vertices in the muscle (deepest {max(0.0, -in_muscle.min()):.2f})"
+                )
+        if a.slices == b.name:
+            _slices(V, F, muscles, a.step, a.reach, a.grid)
+    print(f"({time.perf_counter() - t0:.1f} s)")
+
+
+def _slices(
+    V: np.ndarray,
+    F: np.ndarray,
+    muscles: dict[str, tuple[np.ndarray, np.ndarray]],
+    step: float,
+    reach: float,
+    grid: float,
+) -> None:
+    """The bone's centre and radius per slice against the widest disc the muscles leave."""
+    print(
+        "  y: bone centre (x, z), mean radius [min, max] | clear disc: offset, radius; at the centre"
+    )
+    g = np.arange(-reach, reach + grid / 2, grid)
+    X, Z = np.meshgrid(g, g)
+    lo, hi = V[:, 1].min(), V[:, 1].max()
+    for y in np.arange(lo + step / 2, hi, step):
+        seg = trimesh.intersections.mesh_plane(
+            trimesh.Trimesh(V, F, process=False), [0.0, 1.0, 0.0], [0.0, y, 0.0]
+        )
+        if len(seg) < 3:
+            continue
+        mid, length = seg.mean(axis=1)[:, [0, 2]], np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)
+        c = (mid * length[:, None]).sum(axis=0) / length.sum()
+        r = np.linalg.norm(mid - c, axis=1)
+        P = np.c_[X.ravel() + c[0], np.full(X.size, y), Z.ravel() + c[1]]
+        d = np.full(len(P), np.inf)
+        for Vm, Fm in muscles.values():
+            d = np.minimum(d, igl.signed_distance(P, Vm, Fm)[0])
+        if not np.isfinite(d).all():
+            continue
+        k = int(np.argmax(d))
+        centre = int(np.argmin(np.abs(X.ravel()) + np.abs(Z.ravel())))
+        print(
+            f"  {y:7.1f}: ({c[0]:6.1f}, {c[1]:6.1f}), {np.average(r, weights=length):5.1f} "
+            f"[{r.min():.1f}, {r.max():.1f}] | ({P[k, 0] - c[0]:+5.1f}, {P[k, 2] - c[1]:+5.1f}), "
+            f"{d[k]:5.1f}; {d[centre]:+5.1f}"
+        )
+
+
+if __name__ == "__main__":
+    main()
