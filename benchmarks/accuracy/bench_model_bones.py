@@ -8,6 +8,8 @@ largest disc clear of every muscle within ``--reach`` of that centre (a grid of
 ``--grid`` spacing): where the subject's muscles leave room for the bone, and how wide.
 
     python benchmarks/accuracy/bench_model_bones.py examples/gait2392_leg.toml --slices femur
+    python benchmarks/accuracy/bench_model_bones.py examples/gait2392_leg.toml --slices femur \
+        --shift -12.5 -6 -350 -120
 """
 
 from __future__ import annotations
@@ -32,6 +34,14 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=30.0, help="between slices (mesh units)")
     ap.add_argument("--reach", type=float, default=20.0, help="of the disc search")
     ap.add_argument("--grid", type=float, default=1.5, help="of the disc search")
+    ap.add_argument(
+        "--shift",
+        nargs=4,
+        type=float,
+        metavar=("DX", "DZ", "BELOW", "ABOVE"),
+        help="the sliced bone moved by (DX, 0, DZ) between y = BELOW and ABOVE, faded out "
+        "over 80 mesh units beyond either (a smoothstep): the overlaps again",
+    )
     a = ap.parse_args()
     t0 = time.perf_counter()
     scene = load_scene(Path(a.scene))
@@ -62,7 +72,42 @@ def main() -> None:
                 )
         if a.slices == b.name:
             _slices(V, F, muscles, a.step, a.reach, a.grid)
+            if a.shift is not None:
+                _shifted(V, F, muscles, *a.shift)
     print(f"({time.perf_counter() - t0:.1f} s)")
+
+
+def _shifted(
+    V: np.ndarray,
+    F: np.ndarray,
+    muscles: dict[str, tuple[np.ndarray, np.ndarray]],
+    dx: float,
+    dz: float,
+    below: float,
+    above: float,
+) -> None:
+    """The overlaps of the bone with its middle moved across its axis (``--shift``)."""
+
+    def smooth(t: np.ndarray) -> np.ndarray:
+        t = np.clip(t, 0.0, 1.0)
+        return t * t * (3.0 - 2.0 * t)
+
+    y = V[:, 1]
+    w = smooth((y - below + 80.0) / 80.0) * smooth((above + 80.0 - y) / 80.0)
+    P = V + np.outer(w, [dx, 0.0, dz])
+    print(
+        f"  moved by ({dx:g}, 0, {dz:g}) between y = {below:g} and {above:g}: self-intersecting "
+        f"faces {self_intersecting_faces(P, F)}"
+    )
+    for name, (Vm, Fm) in muscles.items():
+        in_bone = igl.signed_distance(Vm, P, F)[0]
+        in_muscle = igl.signed_distance(P, Vm, Fm)[0]
+        if (in_bone < 0).any() or (in_muscle < 0).any():
+            print(
+                f"    {name}: {(in_bone < 0).sum()} muscle vertices in the bone (deepest "
+                f"{max(0.0, -in_bone.min()):.2f}), {(in_muscle < 0).sum()} bone vertices in "
+                f"the muscle (deepest {max(0.0, -in_muscle.min()):.2f})"
+            )
 
 
 def _slices(
