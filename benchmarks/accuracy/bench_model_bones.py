@@ -62,14 +62,7 @@ def main() -> None:
             Vm, Fm = inp.muscles[m.name]
             Vm = apply_transform(inp.drive.rest_between(m.body, b.body), Vm)
             muscles[m.name] = (Vm, Fm)
-            in_bone = igl.signed_distance(Vm, V, F)[0]
-            in_muscle = igl.signed_distance(V, Vm, Fm)[0]
-            if (in_bone < 0).any() or (in_muscle < 0).any():
-                print(
-                    f"  {m.name}: {(in_bone < 0).sum()} muscle vertices in the bone "
-                    f"(deepest {max(0.0, -in_bone.min()):.2f}), {(in_muscle < 0).sum()} bone "
-                    f"vertices in the muscle (deepest {max(0.0, -in_muscle.min()):.2f})"
-                )
+        _overlaps(V, F, muscles, "  ")
         if a.slices == b.name:
             _slices(V, F, muscles, a.step, a.reach, a.grid)
             if a.shift is not None:
@@ -99,12 +92,19 @@ def _shifted(
         f"  moved by ({dx:g}, 0, {dz:g}) between y = {below:g} and {above:g}: self-intersecting "
         f"faces {self_intersecting_faces(P, F)}"
     )
+    _overlaps(P, F, muscles, "    ")
+
+
+def _overlaps(
+    V: np.ndarray, F: np.ndarray, muscles: dict[str, tuple[np.ndarray, np.ndarray]], indent: str
+) -> None:
+    """Per muscle that overlaps the bone ``(V, F)``: how many vertices lie in the other, how deep."""
     for name, (Vm, Fm) in muscles.items():
-        in_bone = igl.signed_distance(Vm, P, F)[0]
-        in_muscle = igl.signed_distance(P, Vm, Fm)[0]
+        in_bone = igl.signed_distance(Vm, V, F)[0]
+        in_muscle = igl.signed_distance(V, Vm, Fm)[0]
         if (in_bone < 0).any() or (in_muscle < 0).any():
             print(
-                f"    {name}: {(in_bone < 0).sum()} muscle vertices in the bone (deepest "
+                f"{indent}{name}: {(in_bone < 0).sum()} muscle vertices in the bone (deepest "
                 f"{max(0.0, -in_bone.min()):.2f}), {(in_muscle < 0).sum()} bone vertices in "
                 f"the muscle (deepest {max(0.0, -in_muscle.min()):.2f})"
             )
