@@ -110,3 +110,51 @@ def test_a_whole_femur_gives_its_head_and_condyles_in_any_frame(data_dir):
         sub[keep] = np.arange(len(keep))
         Fk = sub[F][(sub[F] >= 0).all(axis=1)]
         femur_landmarks(V[keep], Fk, "LHDL")
+
+
+# ------------------------------------------------------------------ a long bone's shaft fitted
+def _tube_and_rod(hole_x):
+    """A tube of muscle (hole radius 12, wall to 30, 200 long) whose hole runs ``hole_x``
+    off the axis of a rod of bone (radius 10, 400 long) held at its two ends."""
+    import trimesh
+
+    tube = trimesh.creation.annulus(12.0, 30.0, 200.0, sections=64)
+    tube.apply_translation([hole_x, 0.0, 0.0])
+    Vt, Ft = trimesh.remesh.subdivide_to_size(tube.vertices, tube.faces, 4.0)
+    rod = trimesh.creation.cylinder(10.0, 400.0, sections=48)
+    Vr, Fr = trimesh.remesh.subdivide_to_size(rod.vertices, rod.faces, 8.0)
+    return (np.asarray(Vr), np.asarray(Fr)), {"tube": (np.asarray(Vt), np.asarray(Ft))}
+
+
+def test_a_rod_in_a_tube_off_its_axis_moves_its_middle_into_the_hole():
+    """The rod's sections where the tube is move, whole, into its hole (8 off: a margin of
+    2 each side, the price zero only there); its held ends stay; the tube's vertices that
+    lay in the rod lie outside it after."""
+    import igl
+
+    from musclewrap.mesh import self_intersecting_faces
+    from musclewrap.model import fit_shaft
+
+    (V, F), tube = _tube_and_rod(8.0)
+    f = fit_shaft(V, F, tube, np.array([[0.0, 0.0, -200.0], [0.0, 0.0, 200.0]]))
+    mid = f.move(np.array([[0.0, 0.0, 0.0], [5.0, -3.0, 0.0], [0.0, 0.0, 200.0]]))
+    np.testing.assert_allclose(mid[0], [8.0, 0.0, 0.0], atol=1.0)
+    np.testing.assert_allclose(mid[1], mid[0], atol=1e-9)  # a section moves as a whole
+    np.testing.assert_allclose(mid[2], 0.0, atol=1e-9)  # held
+    assert f.held[0] and f.held[-1] and not f.held[len(f.held) // 2]
+    n, deep = f.before["tube"]
+    assert n > 50 and deep > 5.0
+    assert f.after["tube"][1] <= 1e-9
+    np.testing.assert_allclose(f.V, V + f.move(V))
+    assert self_intersecting_faces(f.V, F) == 0
+    s = igl.signed_distance(tube["tube"][0], f.V, F)[0]
+    assert s.min() > -1e-9  # touching at most (the tube's ends)
+
+
+def test_a_rod_clear_of_its_tube_stays_where_it_is():
+    from musclewrap.model import fit_shaft
+
+    (V, F), tube = _tube_and_rod(0.0)
+    f = fit_shaft(V, F, tube, np.zeros((0, 3)))
+    assert f.moved == 0.0 and not f.before
+    np.testing.assert_array_equal(f.V, V)

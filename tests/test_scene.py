@@ -464,6 +464,46 @@ body = "femur_r"
 
 
 @pytest.mark.realdata
+@pytest.mark.slow
+def test_a_model_femur_fitted_along_its_shaft_to_the_vhf_vastus_intermedius(data_dir, tmp_path):
+    """Issue 46: ``fit = "shaft"`` moves gait2392's femur out of the VHF vastus intermedius
+    (11.1 mm deep in it as placed); ``check``, the run and `verify_run` take the same
+    fitted bone (the run's contact then holds against it, by the independent check); a
+    fit the reader does not know is refused by name."""
+    import re
+
+    from musclewrap.run import check_scene
+    from musclewrap.run._verify import verify_run
+    from musclewrap.scene import run_scene
+
+    text = _model_femur_scene(data_dir)
+    toml = tmp_path / "s.toml"
+    toml.write_text(text.replace('model = "femur_r.vtp"', 'model = "femur_r.vtp"\nfit = "shaft"'))
+    scene = load_scene(toml)
+    assert scene.bones[0].fit == "shaft"
+    rep = check_scene(scene)
+    (fitted,) = [f.message for f in rep.findings if "fitted to its muscles" in f.message]
+    m = re.search(
+        r"vastus_intermedius (\d+) vertices ([0-9.]+) mm deep -> (\d+) \(([0-9.]+)\)", fitted
+    )
+    assert m, fitted
+    assert int(m.group(1)) > 2000 and float(m.group(2)) > 10.0
+    assert int(m.group(3)) < 100 and float(m.group(4)) < 1.0
+    for f in rep.findings:
+        if "inside the bone 'femur' at rest" in f.message:
+            assert float(re.search(r"up to ([0-9.]+)", f.message).group(1)) < 1.0, f.message
+    out = tmp_path / "out"
+    s = run_scene(scene, out, frames="0:1", workers=1, cache_dir=tmp_path / "c", progress=None,
+                  render=False)  # fmt: skip
+    assert any("fitted to its muscles" in n for n in s.notes)
+    (row,) = verify_run(scene, out, "0:1")
+    assert row["muscle_in_bone"] <= 0.05, row  # against the fitted femur: pushed out of it
+    toml.write_text(text.replace('model = "femur_r.vtp"', 'model = "femur_r.vtp"\nfit = "bent"'))
+    with pytest.raises(SceneError, match=r"\[bones.femur\] fit = 'bent'; use 'shaft'"):
+        load_scene(toml)
+
+
+@pytest.mark.realdata
 def test_a_model_bone_is_where_opensim_places_it(data_dir, tmp_path):
     """Issue 46: the model's femur as a run places it (its mesh read and scaled as the run
     reads it, then the frame's transforms) against OpenSim placing every vertex of the

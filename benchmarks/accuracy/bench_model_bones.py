@@ -2,7 +2,8 @@
 
 For every bone taken from the OpenSim model: its resolution, and per muscle how far each
 lies in the other (libigl's signed distances, both ways: muscle vertices in the bone,
-bone vertices in the muscle). With ``--slices BONE``, the bone cut across its long axis
+bone vertices in the muscle); for a bone with ``fit = "shaft"``, the same again with the
+bone fitted (`musclewrap.model.fit_shaft`, as the run fits it). With ``--slices BONE``, the bone cut across its long axis
 (the body frame's y) every ``--step``: the outline's centre and mean radius, and the
 largest disc clear of every muscle within ``--reach`` of that centre (a grid of
 ``--grid`` spacing): where the subject's muscles leave room for the bone, and how wide.
@@ -23,7 +24,7 @@ import numpy as np
 import trimesh
 
 from musclewrap.mesh import apply_transform, mean_edge_length, self_intersecting_faces
-from musclewrap.run._read import ReadBone, read_inputs
+from musclewrap.run._read import ReadBone, fit_bones, read_inputs
 from musclewrap.scene import load_scene
 
 
@@ -46,6 +47,10 @@ def main() -> None:
     t0 = time.perf_counter()
     scene = load_scene(Path(a.scene))
     inp = read_inputs(scene, "0:1", None, False, lambda s: None, [])
+    t1 = time.perf_counter()
+    fits = fit_bones(scene, inp.drive, inp.muscles, None, lambda s: None, [])
+    if fits:
+        print(f"(the bones with fit = 'shaft' fitted in {time.perf_counter() - t1:.1f} s)")
     for b in scene.bones:
         if not b.source:
             continue
@@ -63,6 +68,14 @@ def main() -> None:
             Vm = apply_transform(inp.drive.rest_between(m.body, b.body), Vm)
             muscles[m.name] = (Vm, Fm)
         _overlaps(V, F, muscles, "  ")
+        if b.name in fits:
+            f = fits[b.name]
+            P = V + f.move(V)
+            print(
+                f"  fitted along its shaft (fit = 'shaft'): moved up to {f.moved:.1f}, "
+                f"self-intersecting faces {self_intersecting_faces(P, F)}"
+            )
+            _overlaps(P, F, muscles, "    ")
         if a.slices == b.name:
             _slices(V, F, muscles, a.step, a.reach, a.grid)
             if a.shift is not None:

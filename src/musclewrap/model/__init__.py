@@ -4,7 +4,8 @@ What a scene takes from a musculoskeletal model: `OpenSimModel` (bodies, coordin
 paths, posed), `Motion` (coordinate values per frame), the bone meshes it attaches to its
 bodies (`model_geometry`), the lower limb's anatomy by name
 (`match_muscle`, `match_bone`), the similarity that places meshes of another subject
-(`similarity`, `axes_rotation`) and how well a mesh sits on its lines (`line_fits`).
+(`similarity`, `axes_rotation`), a model's long bone fitted to them (`fit_shaft`) and how
+well a mesh sits on its lines (`line_fits`).
 """
 
 from ._fit import LineFit, line_fit, line_fits, outside_distance, resample_polyline
@@ -37,6 +38,7 @@ from ._register import (
     similarity,
     surface_centroid,
 )
+from ._shaft import ShaftFit, fit_shaft
 
 __all__ = [
     "BONES",
@@ -51,11 +53,13 @@ __all__ = [
     "MuscleGroup",
     "NameMatch",
     "OpenSimModel",
+    "ShaftFit",
     "axes_rotation",
     "body_meshes",
     "cap_spread",
     "check_landmarks",
     "femur_landmarks",
+    "fit_shaft",
     "fit_sphere",
     "geometry_folders",
     "import_opensim",

@@ -41,6 +41,7 @@ from ._read import (
     check_muscles_apart,
     default_cache_dir,
     end_bones,
+    fit_bones,
     rest_lines_problem,
 )
 from ._verify import inside_depths, muscle_overlaps
@@ -197,6 +198,13 @@ def _check(
                 f"'{scene.model_unit}')",
             )  # fmt: skip
             return
+    if any(b.fit for b in scene.bones):
+        say("fitting the bones to the muscles")
+        said: list[str] = []
+        for n, f in fit_bones(scene, drive, body_m, cache, lambda _: None, said).items():
+            body_b[n] = (body_b[n][0] + f.move(body_b[n][0]), body_b[n][1])
+        for text in said:
+            rep.add("note", text.split(":", 1)[0], text.split(": ", 1)[1])
     _check_lines(scene, model, drive, body_m, rep, cache)
     if model is not None:
         _check_bone_bodies(scene, model, body_b, rep, cache)

@@ -44,16 +44,18 @@ from ..mesh import (
     clean_mesh,
     invert_rigid,
     read_mesh,
+    self_intersecting_faces,
     tidy_mesh,
     vertex_origins,
 )
+from ..model import ShaftFit, fit_shaft
 from ..scene import BoneSpec, Drive, MuscleSpec, Scene, drive_scene
 from ._execute import Node, Runner
 from ._files import TOP_FILES
 from ._records import BoneMesh
 from ._work import ProbeBone, bone_probe
 
-__all__ = ["Inputs", "default_cache_dir", "read_inputs"]
+__all__ = ["Inputs", "default_cache_dir", "fit_bones", "read_inputs"]
 
 
 @dataclass
@@ -129,11 +131,14 @@ def read_inputs(
     notes += drive.notes
     # every mesh in the frame of the body that carries it
     muscles = {m: (apply_transform(drive.to_body[m], V), F) for m, (V, F) in muscles.items()}
+    _check_units(scene, drive, muscles)
+    fits = fit_bones(scene, drive, muscles, cache, say, notes)
     meshes = {}
     for b, (V, F) in bones.items():
         Vb = apply_transform(drive.to_body[b], V)
+        if b in fits:
+            Vb = Vb + fits[b].move(Vb)
         meshes[b] = BoneMesh(b, Vb, F, Obstacle.cache_name(Vb, F))  # the probe's name, once
-    _check_units(scene, drive, muscles)
     contact = anchors = None
     if collisions:
         muscles, contact, anchors = _rest_overlap(
@@ -212,6 +217,109 @@ class ReadBone:
         if self.closed:
             V, F = _closed_bone(b, V, F, open_edges, cache, _silent, notes)
         return V, F, notes
+
+
+def fit_bones(
+    scene: Scene,
+    drive: Drive,
+    muscles: dict[str, tuple[FloatArray, IntArray]],
+    cache: Path | None,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> dict[str, ShaftFit]:
+    """The scene's bones with ``fit = "shaft"`` fitted to their muscles at rest; cached.
+
+    Each bone is read as its file gives it (not closed: the fit is the same whether
+    contact is on or not, and `verify_run` fits it again the same way), in its body's
+    frame; ``muscles`` are the cleaned meshes in their bodies' frames, before any
+    push-out. The muscles it may touch (its ``bones`` name it, or name none) are placed
+    in its body's frame at the rest pose; the points held are the vertices of the
+    body's bones that are not fitted (the subject's own) and the centres of the joints
+    near it (the origins of the scene's bodies within a tenth of its length). A fit
+    that would make its faces cross is not used (said). Returns per fitted bone its
+    `ShaftFit` (``move`` places any of its vertices).
+    """
+    fits: dict[str, ShaftFit] = {}
+    todo = [b for b in scene.bones if b.fit == "shaft"]
+    if not todo:
+        return fits
+    read = {}
+    for b in scene.bones:
+        V, F, _, _ = _read_bone(b, cache)
+        read[b.name] = (apply_transform(drive.to_body[b.name], V), F)
+    for b in todo:
+        V, F = read[b.name]
+        near = {
+            m.name: (apply_transform(drive.rest_between(m.body, b.body), muscles[m.name][0]),
+                     muscles[m.name][1])
+            for m in scene.muscles
+            if m.bones is None or b.name in m.bones
+        }  # fmt: skip
+        own = [read[o.name][0] for o in scene.bones if o.body == b.body and not o.fit]
+        joints = np.array(
+            [
+                drive.rest_between(body, b.body)[:3, 3]
+                for body in drive.rest_poses
+                if body != "ground"
+            ]
+        ).reshape(-1, 3)
+        length = float(np.ptp(V, axis=0).max())
+        reach = np.array([np.linalg.norm(V - j, axis=1).min() for j in joints])
+        held = np.vstack([*own, joints[reach < 0.1 * length]])
+        key = digest(
+            V, F, held, *(a for m in sorted(near) for a in near[m]),
+            f"{sorted(near)}|{__version__}|shaft {_SHAFT_FORMAT}",
+        )  # fmt: skip
+        path = None if cache is None else cache / f"shaft-{key[:32]}.npz"
+
+        def build(V: FloatArray = V, F: IntArray = F, near: dict = near, held: FloatArray = held):
+            f = fit_shaft(V, F, near, held)
+            crossed = self_intersecting_faces(f.V, F) - self_intersecting_faces(V, F)
+            return {
+                **{k: np.asarray(getattr(f, k)) for k in _SHAFT_ARRAYS},
+                "moved": np.array(f.moved),
+                "crossed": np.array(crossed),
+                "overlaps": np.array(json.dumps([f.before, f.after])),
+            }
+
+        d = cached_arrays(path, build)
+        before, after = json.loads(str(d["overlaps"]))
+        fit = ShaftFit(
+            **{k: d[k] for k in _SHAFT_ARRAYS},
+            V=V,
+            moved=float(d["moved"]),
+            before={m: tuple(v) for m, v in before.items()},
+            after={m: tuple(v) for m, v in after.items()},
+        )
+        unit = scene.mesh_unit
+        if int(d["crossed"]) > 0:
+            n = (
+                f"{b.name}: not fitted to its muscles (fit = 'shaft'): the fit would make "
+                f"{int(d['crossed'])} of its faces cross others; kept as placed"
+            )
+        else:
+            fits[b.name] = fit
+            most = fit.offsets[np.argmax(np.linalg.norm(fit.offsets, axis=1))] @ fit.across
+            said = ", ".join(
+                f"{m} {before[m][0]} vertices {before[m][1]:.2f} {unit} deep -> "
+                f"{after[m][0]} ({after[m][1]:.2f})"
+                for m in before
+            )
+            n = (
+                f"{b.name}: fitted to its muscles along its shaft (fit = 'shaft'): cross-sections "
+                f"moved up to {fit.moved:.1f} {unit} (the most by "
+                f"({most[0]:+.1f}, {most[1]:+.1f}, {most[2]:+.1f}) in {b.body}'s frame), "
+                f"{int((~fit.held).sum())} of {len(fit.held)} levels free; the muscles in "
+                f"it: {said or 'none'}"
+            )
+        notes.append(n)
+        say(n)
+    return fits
+
+
+# of the cached shaft fits (1: the first)
+_SHAFT_FORMAT = 1
+_SHAFT_ARRAYS = ("centre", "axis", "across", "levels", "offsets", "held", "ends")
 
 
 def default_cache_dir() -> Path:

@@ -11,6 +11,7 @@ from .._cache import cached_measure
 from .._typing import FloatArray, IntArray
 from ..mesh import apply_transform, clean_mesh, read_mesh, tidy_mesh, volume
 from ..scene import Scene, drive_scene
+from ._read import fit_bones
 
 __all__ = ["inside_depth", "inside_depths", "muscle_overlaps", "verify_run"]
 
@@ -146,6 +147,7 @@ def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[di
         bones[b.name] = (V * np.asarray(b.scale), F, b.body)  # (a model's mesh: scaled)
     drive = drive_scene(scene, frames, {n: V.mean(axis=0) for n, (V, _, _) in bones.items()})
     rest_volume = {}
+    cleaned = {}
     for m in scene.muscles:
         # the mesh as the run cleaned it (a repair changes its volume by up to 1e-6), read
         # again here: the contact's push-out at rest keeps the volume exactly; placed as
@@ -153,6 +155,15 @@ def verify_run(scene: Scene, outdir: Path, frames: str | None = None) -> list[di
         V, F = read_mesh(m.mesh)
         V, F, _ = clean_mesh(V, F, source=str(m.mesh), repair=m.repair)
         rest_volume[m.name] = abs(volume(V, F) * np.linalg.det(drive.to_body[m.name][:3, :3]))
+        cleaned[m.name] = (apply_transform(drive.to_body[m.name], V), F)
+    if any(b.fit for b in scene.bones):
+        # a bone fitted to its muscles at rest, as the run fits it
+        fits = fit_bones(scene, drive, cleaned, None, lambda _: None, [])
+        for n, f in fits.items():
+            V, F, body = bones[n]
+            Vb = apply_transform(drive.to_body[n], V)
+            back = np.linalg.inv(drive.to_body[n])
+            bones[n] = (apply_transform(back, Vb + f.move(Vb)), F, body)
     rows = []
     for k, frame in enumerate(drive.frames):
         placed = {

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import tomllib
 from collections.abc import Mapping
@@ -120,6 +121,8 @@ class BoneSpec:
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     #: where it came from, where not a mesh of the scene's own (the run's notes say so)
     source: str = ""
+    #: "shaft": fitted to the muscles at rest (`musclewrap.model.fit_shaft`); "": as placed
+    fit: str = ""
 
 
 @dataclass(frozen=True)
@@ -467,8 +470,14 @@ def _bones(raw: Mapping[str, Any], r: _Reading) -> list[BoneSpec]:
         body = b.get("body", "ground")
         if not isinstance(body, str):
             raise SceneError(f"{src}: [bones.{bname}] body must be a body's name")
+        fit = b.get("fit", "")
+        if fit not in ("", "shaft"):
+            raise SceneError(
+                f"{src}: [bones.{bname}] fit = {fit!r}; use 'shaft' (a long bone moved across "
+                "its axis out of the muscles at rest) or leave it out"
+            )
         if "model" in b:
-            bones.append(_model_bone(bname, b, body, r))
+            bones.append(dataclasses.replace(_model_bone(bname, b, body, r), fit=fit))
             continue
         if "mesh" not in b:
             raise SceneError(f"{src}: [bones.{bname}] needs 'mesh' (or 'model': the model's own)")
@@ -484,6 +493,7 @@ def _bones(raw: Mapping[str, Any], r: _Reading) -> list[BoneSpec]:
                 _file(base, b["mesh"], f"[bones.{bname}] mesh", src),
                 body,
                 body if frame == "body" else frame,
+                fit=fit,
             )
         )
     return bones

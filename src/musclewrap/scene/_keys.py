@@ -100,6 +100,10 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "scaled as the model does (its ``scale_factors``, in the body's frame).",
         "body": "The body that carries it.",
         "frame": "Frame this mesh is given in, overriding ``[model] mesh_frame``.",
+        "fit": "``'shaft'``: a long bone (a model's, on another subject's muscles) fitted to "
+        "the muscles at rest, its cross-sections moved across its axis where the muscles "
+        "leave room (`musclewrap.model.fit_shaft`); held where the body's other bones and "
+        "its joints' centres are. Default: as placed.",
     },
     "registration": {
         "axes": "Mesh axes that become the model's x, y, z, e.g. ``['y', 'z', 'x']`` "
