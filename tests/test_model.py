@@ -158,3 +158,13 @@ def test_a_rod_clear_of_its_tube_stays_where_it_is():
     f = fit_shaft(V, F, tube, np.zeros((0, 3)))
     assert f.moved == 0.0 and not f.before
     np.testing.assert_array_equal(f.V, V)
+
+
+def test_a_rod_held_along_its_whole_length_stays_however_deep_the_tube_is():
+    from musclewrap.model import fit_shaft
+
+    (V, F), tube = _tube_and_rod(8.0)
+    held = np.c_[np.zeros(81), np.zeros(81), np.linspace(-200.0, 200.0, 81)]
+    f = fit_shaft(V, F, tube, held)
+    assert f.held.all() and f.moved == 0.0
+    assert f.after["tube"] == f.before["tube"]

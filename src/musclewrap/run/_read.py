@@ -229,9 +229,9 @@ def fit_bones(
 ) -> dict[str, ShaftFit]:
     """The scene's bones with ``fit = "shaft"`` fitted to their muscles at rest; cached.
 
-    Each bone is read as its file gives it (not closed: the fit is the same whether
-    contact is on or not, and `verify_run` fits it again the same way), in its body's
-    frame; ``muscles`` are the cleaned meshes in their bodies' frames, before any
+    Each bone is read as its file gives it (closed first if open, as contact closes it:
+    the fit is the same whether contact is on or not, and `verify_run` fits it again the
+    same way), in its body's frame; ``muscles`` are the cleaned meshes in their bodies' frames, before any
     push-out. The muscles it may touch (its ``bones`` name it, or name none) are placed
     in its body's frame at the rest pose; the points held are the vertices of the
     body's bones that are not fitted (the subject's own) and the centres of the joints
@@ -245,7 +245,9 @@ def fit_bones(
         return fits
     read = {}
     for b in scene.bones:
-        V, F, _, _ = _read_bone(b, cache)
+        V, F, _, open_edges = _read_bone(b, cache)
+        if b.fit and open_edges:  # its sections need an inside: closed as contact closes it
+            V, F = _closed_bone(b, V, F, open_edges, cache, _silent, [])
         read[b.name] = (apply_transform(drive.to_body[b.name], V), F)
     for b in todo:
         V, F = read[b.name]
@@ -292,7 +294,13 @@ def fit_bones(
             after={m: tuple(v) for m, v in after.items()},
         )
         unit = scene.mesh_unit
-        if int(d["crossed"]) > 0:
+        if not (~fit.held).any():
+            n = (
+                f"{b.name}: not fitted to its muscles (fit = 'shaft'): all {len(fit.held)} of "
+                "its levels lie between the points held (the body's other bones, the joints' "
+                "centres); 'shaft' is for a long bone; kept as placed"
+            )
+        elif int(d["crossed"]) > 0:
             n = (
                 f"{b.name}: not fitted to its muscles (fit = 'shaft'): the fit would make "
                 f"{int(d['crossed'])} of its faces cross others; kept as placed"
