@@ -315,7 +315,8 @@ def test_init_on_the_vhf_folder_finds_every_gait2392_muscle(data_dir, tmp_path):
 def test_init_takes_the_models_bones_the_folder_lacks(data_dir, tmp_path):
     """``--model-bones``: the VHF folder has no femur or pelvis, so the model's own meshes
     of femur_r and pelvis join the scene (its other side's pelvis not), said in its comment,
-    and the scene checks with the muscles lying on them."""
+    the femur fitted along its shaft (issue 46), and the scene checks with the muscles
+    lying on them."""
     r = init_scene(
         data_dir / _GAIT, data_dir / "vhf", tmp_path / "vhf.toml", motion=data_dir / _WALK,
         model_bones=True,
@@ -331,8 +332,13 @@ def test_init_takes_the_models_bones_the_folder_lacks(data_dir, tmp_path):
     assert 'model = "femur_r.vtp"' in r.text and "l_pelvis" not in r.text
     rep = check_scene(sc)
     assert rep.ok, [str(f) for f in rep.errors]
-    on = {f.subject for f in rep.findings if "inside the bone 'femur' at rest" in f.message}
-    assert "vastus_intermedius" in on
+    assert [b.name for b in sc.bones if b.fit] == ["femur"]  # a long bone: fitted
+    assert 'fit = "shaft"' in r.text
+    (fitted,) = [f.message for f in rep.findings if f.subject == "femur" and "fitted" in f.message]
+    assert "vastus_intermedius 2319 vertices 11.12 mm deep -> " in fitted
+    for f in rep.findings:  # what is left in the fitted femur, the run pushes out at rest
+        if "inside the bone 'femur' at rest" in f.message:
+            assert float(f.message.split("up to ")[1].split()[0]) < 1.0, f.message
 
 
 _GAIT = "opensim/models/subject01_simbody.osim"

@@ -1451,5 +1451,12 @@ def _scene_text(
         L.append(
             f"# the model's own {file} of {body} (init --model-bones): the folder has no bone for it"
         )
-        L += [f"[bones.{name}]", f"model = {_q(file)}", f"body = {_q(body)}", ""]
+        L += [f"[bones.{name}]", f"model = {_q(file)}", f"body = {_q(body)}"]
+        if name in _LONG_BONES:
+            L.append('fit = "shaft"    # generic: its shaft moved out of these muscles at rest')
+        L.append("")
     return "\n".join(L).rstrip() + "\n"
+
+
+#: the model's bones `init --model-bones` fits along their shaft (`musclewrap.model.fit_shaft`)
+_LONG_BONES = ("femur", "tibia", "fibula")
