@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
-from scipy.signal import fftconvolve
+from scipy.signal import correlate
 
 from .._typing import FloatArray, IntArray
 
@@ -151,9 +151,10 @@ def fit_shaft(
         for k, (cells, Pk, shape) in sections.items():
             short = np.maximum(0.0, margin - clear[start : start + len(Pk)]) ** 2
             start += len(Pk)
-            # price(t) = sum over the section's cells c of short[c + t]: a correlation
-            c = fftconvolve(short.reshape(shape), cells[::-1, ::-1].astype(np.float64), "valid")
-            price[k] = np.maximum(c, 0.0).ravel() * grid * grid
+            # price(t) = sum over the section's cells c of short[c + t]: a correlation,
+            # summed directly (not by FFT: the same bits on any machine, ties included)
+            c = correlate(short.reshape(shape), cells.astype(np.float64), "valid", "direct")
+            price[k] = c.ravel() * grid * grid
     price = step * (price + stay * (T * T).sum(axis=1))
     path = _chain(price, keep, zero, (smooth / step) * ((T[:, None] - T[None]) ** 2).sum(axis=-1))
     offsets = T[path]

@@ -325,8 +325,8 @@ def fit_bones(
     return fits
 
 
-# of the cached shaft fits (1: the first)
-_SHAFT_FORMAT = 1
+# of the cached shaft fits (2: the price summed directly, not by FFT)
+_SHAFT_FORMAT = 2
 _SHAFT_ARRAYS = ("centre", "axis", "across", "levels", "offsets", "held", "ends")
 
 
