@@ -11,6 +11,8 @@ largest disc clear of every muscle within ``--reach`` of that centre (a grid of
     python benchmarks/accuracy/bench_model_bones.py examples/gait2392_leg.toml --slices femur
     python benchmarks/accuracy/bench_model_bones.py examples/gait2392_leg.toml --slices femur \
         --shift -12.5 -6 -350 -120
+    python benchmarks/accuracy/bench_model_bones.py examples/gait2392_leg.toml --place sacrum \
+        --reach 30
 """
 
 from __future__ import annotations
@@ -42,6 +44,13 @@ def main() -> None:
         metavar=("DX", "DZ", "BELOW", "ABOVE"),
         help="the sliced bone moved by (DX, 0, DZ) between y = BELOW and ABOVE, faded out "
         "over 80 mesh units beyond either (a smoothstep): the overlaps again",
+    )
+    ap.add_argument(
+        "--place",
+        default=None,
+        help="a model bone moved whole: the translation (every one within --reach, on a "
+        "--grid) that lies the bone's inside clearest of the muscles, the least move among "
+        "equals; the overlaps again",
     )
     a = ap.parse_args()
     t0 = time.perf_counter()
@@ -80,6 +89,8 @@ def main() -> None:
             _slices(V, F, muscles, a.step, a.reach, a.grid)
             if a.shift is not None:
                 _shifted(V, F, muscles, *a.shift)
+        if a.place == b.name:
+            _placed(V, F, muscles, a.reach, max(a.grid, 2.0))
     print(f"({time.perf_counter() - t0:.1f} s)")
 
 
@@ -106,6 +117,40 @@ def _shifted(
         f"faces {self_intersecting_faces(P, F)}"
     )
     _overlaps(P, F, muscles, "    ")
+
+
+def _placed(
+    V: np.ndarray,
+    F: np.ndarray,
+    muscles: dict[str, tuple[np.ndarray, np.ndarray]],
+    reach: float,
+    grid: float,
+) -> None:
+    """The bone moved whole to where its inside is clearest of the muscles (``--place``)."""
+    from scipy.signal import correlate
+
+    from musclewrap.model._shaft import _clearance
+
+    margin = 2.0
+    lo, hi = np.floor(V.min(axis=0) / grid) * grid, np.ceil(V.max(axis=0) / grid) * grid
+    n = int(round(reach / grid))
+    axes = [np.arange(lo[d], hi[d] + grid / 2, grid) for d in range(3)]
+    cells = igl.winding_number(V, F, np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3))
+    cells = (cells > 0.5).reshape([len(x) for x in axes]).astype(np.float64)
+    wide = [np.arange(lo[d] - n * grid, hi[d] + n * grid + grid / 2, grid) for d in range(3)]
+    P = np.stack(np.meshgrid(*wide, indexing="ij"), -1).reshape(-1, 3)
+    short = np.maximum(0.0, margin - _clearance(P, muscles, margin)) ** 2
+    price = np.maximum(correlate(short.reshape([len(x) for x in wide]), cells, "valid", "fft"), 0.0)
+    T = np.stack(np.meshgrid(*[np.arange(-n, n + 1) * grid] * 3, indexing="ij"), -1)
+    total = price + 1e-6 * (T * T).sum(axis=-1)  # the least move among equally clear ones
+    k = np.unravel_index(np.argmin(total), total.shape)
+    t = T[k]
+    print(
+        f"  moved whole by ({t[0]:+.0f}, {t[1]:+.0f}, {t[2]:+.0f}) ({np.linalg.norm(t):.1f}; "
+        f"every move within {reach:g} on a {grid:g} grid, cells within {margin:g} of a muscle "
+        f"priced): price {price[n, n, n]:.0f} -> {price[k]:.0f}"
+    )
+    _overlaps(V + t, F, muscles, "    ")
 
 
 def _overlaps(
