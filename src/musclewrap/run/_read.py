@@ -293,6 +293,7 @@ def fit_bones(
             before={m: tuple(v) for m, v in before.items()},
             after={m: tuple(v) for m, v in after.items()},
         )
+        fit = dataclasses.replace(fit, V=V + fit.move(V))  # as fit_shaft gives it: moved
         unit = scene.mesh_unit
         if not (~fit.held).any():
             n = (
