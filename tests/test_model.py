@@ -168,3 +168,53 @@ def test_a_rod_held_along_its_whole_length_stays_however_deep_the_tube_is():
     f = fit_shaft(V, F, tube, held)
     assert f.held.all() and f.moved == 0.0
     assert f.after["tube"] == f.before["tube"]
+
+
+# ------------------------------------------------------------ the posture of the meshes
+def _ball_on_a_plate(height):
+    """A ball (radius 10) above a plate 10 thick whose top is at y = 5, and the motion of a
+    hip 100 to its left: coordinate 0 turns the ball about z there (up, for a positive
+    angle: 100 mm a radian), coordinate 1 about the ball's own vertical axis (nothing
+    changes: the price is flat along it)."""
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=4, radius=10.0)
+    ball.apply_translation([0.0, height, 0.0])
+    plate = trimesh.creation.box(extents=(80.0, 10.0, 80.0))
+    centre = np.array([0.0, height, 0.0])
+
+    def turn(angle, axis, point):
+        T = trimesh.transformations.rotation_matrix(angle, axis, point)
+        return np.asarray(T)
+
+    def place(dq):
+        # the ball's frame into the plate's: turned by the hip, then about itself
+        return [turn(dq[0], [0, 0, 1], [-100.0, 0.0, 0.0]) @ turn(dq[1], [0, 1, 0], centre)]
+
+    meshes = {"ball": (np.asarray(ball.vertices), np.asarray(ball.faces))}
+    return meshes, [(np.asarray(plate.vertices), np.asarray(plate.faces))], place
+
+
+def test_a_ball_in_a_plate_is_turned_out_of_it_about_the_hip_and_no_further():
+    """The ball's bottom 3 mm in the plate: clear of it by the margin (2) once the hip turns
+    it up by 5 mm, 2.87 deg: the fit's grid (0.5 deg) gives 3; the turn about the ball's own
+    axis changes nothing and stays at zero."""
+    from musclewrap.model import fit_posture
+
+    meshes, bones, place = _ball_on_a_plate(12.0)
+    f = fit_posture(meshes, bones, place, ["hip", "spin"])
+    np.testing.assert_allclose(np.degrees(f.change), [3.0, 0.0], atol=1e-9)
+    assert f.price[0] > 0 and f.price[1] == 0.0
+    n, deep = f.before["ball"]
+    assert n > 10 and 2.5 < deep < 3.5
+    assert f.after == {"ball": (0, 0.0)}
+    assert f.coordinates == ("hip", "spin")
+
+
+def test_a_ball_clear_of_its_plate_keeps_its_posture():
+    from musclewrap.model import fit_posture
+
+    meshes, bones, place = _ball_on_a_plate(20.0)
+    f = fit_posture(meshes, bones, place, ["hip", "spin"])
+    np.testing.assert_array_equal(f.change, [0.0, 0.0])
+    assert f.price == (0.0, 0.0) and not f.before

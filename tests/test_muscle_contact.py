@@ -791,7 +791,9 @@ def test_the_whole_leg_on_its_hardest_walk_frames(data_dir, tmp_path):
         for n in s.notes
         if (m := re.match(r"(\w+): rest overlap with bones kept \(up to ([0-9.]+) mm deep\)", n))
     }
-    assert sorted(kept) == ["iliacus", "psoas"]  # the femur fitted: the vasti out of it
+    # the femur fitted: the vasti out of it; the hip at the VHF scan's angles: the psoas
+    # out of the sacrum (14.8 mm in it at zero); the iliacus keeps the generic pelvis's
+    assert sorted(kept) == ["iliacus"]
     rows = verify_run(scene, tmp_path / "a", frames)
     assert len(rows) == 3 * 19
     for r in rows:

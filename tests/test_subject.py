@@ -248,7 +248,12 @@ def test_init_writes_the_hand_written_scene(data_dir, tmp_path, example):
     r = init_scene(hand.osim, folder, tmp_path / "scene.toml", motion=hand.motions[0])
     assert not r.unplaced
     made = load_scene(r.scene)
-    assert _mapping(made) == _mapping(hand)
+    want = _mapping(hand)
+    if example == "gait2392_leg.toml":
+        # its hip's rest angles are the VHF scan's, which `check` fits to the model's pelvis
+        # and sacrum (test_scene.py): init writes the model's zero, as the scene had it
+        want["rest"].update(hip_flexion_r=0.0, hip_adduction_r=0.0)
+    assert _mapping(made) == want
     text = r.scene.read_text()
     assert "by name (exact)" in text and "inside it" in text  # each guess says how sure
     rep = check_scene(made)

@@ -4,8 +4,9 @@ What a scene takes from a musculoskeletal model: `OpenSimModel` (bodies, coordin
 paths, posed), `Motion` (coordinate values per frame), the bone meshes it attaches to its
 bodies (`model_geometry`), the lower limb's anatomy by name
 (`match_muscle`, `match_bone`), the similarity that places meshes of another subject
-(`similarity`, `axes_rotation`), a model's long bone fitted to them (`fit_shaft`) and how
-well a mesh sits on its lines (`line_fits`).
+(`similarity`, `axes_rotation`), a model's long bone fitted to them (`fit_shaft`), the
+posture they were taken in (`fit_posture`) and how well a mesh sits on its lines
+(`line_fits`).
 """
 
 from ._fit import LineFit, line_fit, line_fits, outside_distance, resample_polyline
@@ -27,6 +28,7 @@ from ._names import (
     split_path_name,
 )
 from ._opensim import OpenSimModel, import_opensim
+from ._posture import PostureFit, fit_posture
 from ._register import (
     FEMUR_FITS,
     axes_rotation,
@@ -53,12 +55,14 @@ __all__ = [
     "MuscleGroup",
     "NameMatch",
     "OpenSimModel",
+    "PostureFit",
     "ShaftFit",
     "axes_rotation",
     "body_meshes",
     "cap_spread",
     "check_landmarks",
     "femur_landmarks",
+    "fit_posture",
     "fit_shaft",
     "fit_sphere",
     "geometry_folders",

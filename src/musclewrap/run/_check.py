@@ -34,6 +34,7 @@ from ..model import (
 from ..output import draw_check
 from ..scene import UNITS, Drive, MuscleSpec, Scene, drive_scene, load_scene, rest_pose
 from ._fibres import choose_areas, describe_areas
+from ._posture import posture_finding, rest_posture
 from ._read import (
     _read_bone,
     _read_muscle,
@@ -208,6 +209,13 @@ def _check(
     _check_lines(scene, model, drive, body_m, rep, cache)
     if model is not None:
         _check_bone_bodies(scene, model, body_b, rep, cache)
+        registered = {m.name: muscles[m.name] for m in scene.muscles if m.frame == "registration"}
+        if scene.registration is not None and any(b.source for b in scene.bones):
+            say("the rest pose against the model's bones")
+            fit = rest_posture(scene, model, registered, body_b, cache)
+            if fit is not None:
+                message, fix = posture_finding(scene, fit)
+                rep.add("note" if not fix else "warning", "scene", message, fix)
     # every mesh placed in the output frame at rest, once for the overlaps and the picture
     to_out = {
         b: drive.rest_between(b, scene.output_frame)

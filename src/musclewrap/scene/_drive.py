@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,6 +29,7 @@ __all__ = [
     "Drive",
     "MomentArmPoses",
     "Poser",
+    "Registration",
     "Stencil",
     "Waypoints",
     "drive_scene",
@@ -40,30 +42,60 @@ __all__ = [
 ]
 
 
+class Registration:
+    """A scene's ``[registration]``: its landmarks read once, the similarity at any pose.
+
+    ``P`` (n, 3) the landmarks in the meshes' frame (mesh units), ``names`` theirs,
+    ``fits`` what fitting them said (a sphere's residual).
+    """
+
+    def __init__(self, scene: Scene) -> None:
+        reg = scene.registration
+        assert reg is not None
+        self.scene = scene
+        P, names, fits = [], [], []
+        for lm in reg.landmarks:
+            V, F, _ = tidy_mesh(*read_mesh(lm.mesh))
+            c, said = landmark_point(V, F, lm.fit, lm.name, lm.mesh)
+            if said:
+                fits.append(said)
+            P.append(c)
+            names.append(lm.name)
+        self.P = np.array(P)
+        self.names = names
+        self.fits = fits
+        check_landmarks(self.P, names, str(scene.path))
+        self.R0 = None if reg.axes is None else axes_rotation(reg.axes)
+
+    def targets(self, g: Mapping[str, FloatArray], s: float) -> FloatArray:
+        """The landmarks' places in the model (ground, mesh units) for bodies ``g``."""
+        reg = self.scene.registration
+        assert reg is not None
+        return np.array(
+            [apply_transform(g[lm.body], np.array(lm.point)[None] * s)[0] for lm in reg.landmarks]
+        )
+
+    def at(self, g: Mapping[str, FloatArray], s: float) -> FloatArray:
+        """The similarity from the meshes' frame to ground, the bodies placed by ``g``.
+
+        ``g``: each landmark body's frame to ground (mesh units), ``s`` the scene's scale.
+        """
+        return similarity(self.P, self.targets(g, s), self.R0)
+
+
 def _register(scene: Scene, g: dict[str, FloatArray], s: float, notes: list[str]) -> FloatArray:
     """Similarity from the registration's mesh frame to ground (mesh units), with a note."""
-    reg = scene.registration
-    assert reg is not None
-    P, Q, names, fits = [], [], [], []
-    for lm in reg.landmarks:
-        V, F, _ = tidy_mesh(*read_mesh(lm.mesh))
-        c, said = landmark_point(V, F, lm.fit, lm.name, lm.mesh)
-        if said:
-            fits.append(said)
-        P.append(c)
-        Q.append(apply_transform(g[lm.body], np.array(lm.point)[None] * s)[0])
-        names.append(lm.name)
-    check_landmarks(np.array(P), names, str(scene.path))
-    check_landmarks(np.array(Q), names, str(scene.path))
-    R0 = None if reg.axes is None else axes_rotation(reg.axes)
-    T = similarity(np.array(P), np.array(Q), R0)
+    reg = Registration(scene)
+    Q = reg.targets(g, s)
+    check_landmarks(Q, reg.names, str(scene.path))
+    T = similarity(reg.P, Q, reg.R0)
     scale = float(np.cbrt(np.linalg.det(T[:3, :3])))
-    res = np.linalg.norm(apply_transform(T, np.array(P)) - np.array(Q), axis=1)
+    res = np.linalg.norm(apply_transform(T, reg.P) - Q, axis=1)
     notes.append(
         f"registration: meshes scaled by {scale:.4f}; landmark misfit "
-        + ", ".join(f"{n} {d:.2g}" for n, d in zip(names, res, strict=True))
+        + ", ".join(f"{n} {d:.2g}" for n, d in zip(reg.names, res, strict=True))
         + f" {scene.mesh_unit}"
-        + (f"; {'; '.join(fits)}" if fits else "")
+        + (f"; {'; '.join(reg.fits)}" if reg.fits else "")
     )
     return T
 

@@ -555,7 +555,8 @@ def _model_bones(
             "that carries muscles: "
             + ", ".join(f"{n} ({f} of {b})" for n, f, b in out)
             + "; generic meshes: a muscle of this subject may lie into them at rest "
-            "(musclewrap check says how far)"
+            "(musclewrap check says how far, and at which rest pose of the joints between "
+            "they lie clearest of a registration's meshes)"
         )
     return out
 
