@@ -212,9 +212,9 @@ def _check(
         registered = {m.name: muscles[m.name] for m in scene.muscles if m.frame == "registration"}
         if scene.registration is not None and any(b.source for b in scene.bones):
             say("the rest pose against the model's bones")
-            fit = rest_posture(scene, model, registered, body_b, cache)
-            if fit is not None:
-                message, fix = posture_finding(scene, fit)
+            found = rest_posture(scene, model, registered, body_b, cache)
+            if found is not None:
+                message, fix = posture_finding(scene, found)
                 rep.add("note" if not fix else "warning", "scene", message, fix)
     # every mesh placed in the output frame at rest, once for the overlaps and the picture
     to_out = {

@@ -9,16 +9,32 @@ it found, for ``musclewrap check``.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .._cache import cached_measure
 from .._typing import FloatArray, IntArray
-from ..model import OpenSimModel, PostureFit, fit_posture
+from ..mesh import apply_transform
+from ..model import OpenSimModel, PostureFit, fit_posture, line_fit
 from ..scene import Registration, Scene, rest_pose
 
-__all__ = ["posture_finding", "rest_posture"]
+__all__ = ["RestPosture", "posture_finding", "rest_posture"]
+
+
+@dataclass(frozen=True)
+class RestPosture:
+    """`rest_posture`'s answer.
+
+    The fit; the mean share of the paths of the ``crossing`` muscles (those with a point on
+    a priced bone's body) inside them, at the scene's rest pose and at the fitted one.
+    """
+
+    fit: PostureFit
+    inside: tuple[float, float]
+    crossing: int
+
 
 #: a coordinate's rest value changed by this (radians or metres) to see what it moves
 _NUDGE = 1e-3
@@ -30,7 +46,7 @@ def rest_posture(
     meshes: Mapping[str, tuple[FloatArray, IntArray]],
     bones: Mapping[str, tuple[FloatArray, IntArray]],
     cache: Path | None = None,
-) -> PostureFit | None:
+) -> RestPosture | None:
     """The rest pose's change that takes the registered ``meshes`` clearest of the model's bones.
 
     ``meshes``: the scene's registered muscles in the registration's frame; ``bones``:
@@ -74,13 +90,18 @@ def rest_posture(
     reg = Registration(scene)
     s = scene.scale
 
-    def place(dq: FloatArray) -> list[FloatArray]:
+    def bodies_at(dq: FloatArray) -> dict[str, FloatArray]:
+        """Each body's frame to ground (mesh units), the rest pose changed by ``dq``."""
         model.set_pose({**rest, **{c: rest[c] + float(d) for c, d in zip(coords, dq, strict=True)}})
         g = {}
         for b in bodies:
             T = model.transform(b, "ground")
             T[:3, 3] *= s
             g[b] = T
+        return g
+
+    def place(dq: FloatArray) -> list[FloatArray]:
+        g = bodies_at(dq)
         to_ground = reg.at(g, s)
         return [np.linalg.inv(g[b.body]) @ to_ground for b in priced]
 
@@ -96,9 +117,29 @@ def rest_posture(
         np.array([place((np.array(c) - 1.0) * span) for c in np.ndindex(*(3,) * len(coords))])
     )
 
+    # the muscles whose paths have a point on a priced bone's body: their paths' share
+    # inside them, a measure the fit does not use (the model's own word on the posture)
+    on = {b.body for b in priced}
+    model.set_pose(rest)
+    crossing = [
+        m
+        for m in scene.muscles
+        if m.name in meshes and any(set(model.path_point_bodies(p)) & on for p in m.paths)
+    ]
+
+    def inside(dq: FloatArray) -> float:
+        """The mean share of those muscles' paths inside them, the rest pose changed by ``dq``."""
+        back = np.linalg.inv(reg.at(bodies_at(dq), s))
+        shares = []
+        for m in crossing:
+            lines = {p: apply_transform(back, model.path_points(p, "ground") * s) for p in m.paths}
+            shares.append(line_fit(*meshes[m.name], lines).inside)
+        return float(np.mean(shares)) if shares else float("nan")
+
     def build() -> dict[str, np.ndarray]:
         fit = fit_posture(meshes, [bones[b.name] for b in priced], place, coords)
         return {
+            "inside": np.array([inside(np.zeros(len(coords))), inside(fit.change)]),
             "change": fit.change,
             "price": np.array(fit.price),
             "before": np.array([fit.before.get(n, (0, 0.0)) for n in mesh_names]),
@@ -107,13 +148,13 @@ def rest_posture(
         }
 
     try:
-        got = cached_measure(cache, "posture-6", keys, build)
+        got = cached_measure(cache, "posture-7", keys, build)
     finally:
         model.set_pose(rest)
     before = {n: (int(a), float(d)) for n, (a, d) in zip(mesh_names, got["before"], strict=True)}
     after = {n: (int(a), float(d)) for n, (a, d) in zip(mesh_names, got["after"], strict=True)}
     touched = [n for n in mesh_names if before[n][0] or after[n][0]]
-    return PostureFit(
+    fit = PostureFit(
         coordinates=tuple(coords),
         change=np.asarray(got["change"], dtype=np.float64),
         price=(float(got["price"][0]), float(got["price"][1])),
@@ -122,10 +163,12 @@ def rest_posture(
         settled=bool(got["settled"]),
         bones=tuple(b.name for b in priced),
     )
+    return RestPosture(fit, (float(got["inside"][0]), float(got["inside"][1])), len(crossing))
 
 
-def posture_finding(scene: Scene, fit: PostureFit) -> tuple[str, str]:
+def posture_finding(scene: Scene, found: RestPosture) -> tuple[str, str]:
     """What ``musclewrap check`` says of a `rest_posture`: its message and what to do."""
+    fit = found.fit
     deg = {c: float(np.degrees(d)) for c, d in zip(fit.coordinates, fit.change, strict=True)}
     now = {c: scene.rest_pose.get(c, 0.0) for c in fit.coordinates}
     bones = ", ".join(fit.bones)
@@ -137,12 +180,16 @@ def posture_finding(scene: Scene, fit: PostureFit) -> tuple[str, str]:
         for m in fit.before
     )
     values = ", ".join(f"{c} = {now[c] + deg[c]:.4g}" for c in fit.coordinates)
+    a, b = (100 * x for x in found.inside)
+    paths = f"the paths of the {found.crossing} muscles that reach those bodies run"
     if not np.any(fit.change):
         each = "; ".join(f"{m} {n} ({d:.1f} {scene.mesh_unit})" for m, (n, d) in fit.before.items())
         return (
             f"registration: the model's bones ({bones}) lie clearest of the registered meshes "
             f"at the scene's rest pose ({values} deg; searched within 10 deg): "
-            f"{n0} muscle vertices in them" + (f" ({each})" if each else ""),
+            f"{n0} muscle vertices in them"
+            + (f" ({each})" if each else "")
+            + f"; {paths} {a:.0f} % inside them",
             "",
         )
     turned = ", ".join(f"{now[c]:.4g}" for c in fit.coordinates)
@@ -150,7 +197,8 @@ def posture_finding(scene: Scene, fit: PostureFit) -> tuple[str, str]:
         return (
             f"registration: the model's bones ({bones}) lie clearer of the registered meshes "
             f"the further the rest pose turns, to the search's edge ({values} deg; the "
-            f"scene's: {turned}; muscle vertices in them {n0} -> {n1}: {each}): they do not "
+            f"scene's: {turned}; muscle vertices in them {n0} -> {n1}: {each}; {paths} "
+            f"{a:.0f} -> {b:.0f} % inside them): they do not "
             "settle the posture the meshes were taken in (a muscle that lies deep in a "
             "generic bone at any posture pulls the fit with it)",
             "keep the rest pose unless another measure agrees (the lines' fit below: how "
@@ -159,7 +207,8 @@ def posture_finding(scene: Scene, fit: PostureFit) -> tuple[str, str]:
     return (
         f"registration: the model's bones ({bones}) lie clearer of the registered meshes "
         f"with the rest pose's {values} deg (the scene's: {turned}): muscle vertices in "
-        f"them {n0} -> {n1} ({each}). The meshes' subject may have lain so when they were "
+        f"them {n0} -> {n1} ({each}); {paths} {a:.0f} -> {b:.0f} % inside them (a measure "
+        "the fit does not use). The meshes' subject may have lain so when they were "
         "taken: the landmarks place one body, not the joints beyond it",
         "set [model] rest_pose to those values (with the other coordinates' as they are), "
         "then check again",
