@@ -552,6 +552,52 @@ def test_check_fits_the_hip_the_vhf_meshes_were_taken_at_to_the_models_pelvis(da
 
 
 @pytest.mark.realdata
+def test_check_fits_the_hip_on_a_model_that_assembles_its_knee(data_dir, tmp_path):
+    """Rajagopal 2016 assembles its coupled knee at every pose, moving the tibia 1e-5 m
+    whatever coordinate changes: the hip's coordinates must still be found to move the
+    pelvis and not the landmarks (they were not, and check said nothing of the posture)."""
+    from musclewrap.run import check_scene
+
+    vhf, osim = data_dir / "vhf", data_dir / "opensim" / "models" / "Rajagopal2016.osim"
+    toml = tmp_path / "raj.toml"
+    toml.write_text(
+        f'''name = "raj"
+[units]
+mesh = "mm"
+model = "m"
+[model]
+osim = "{osim}"
+motion = "{data_dir / "opensim" / "motions" / "subject01_walk1_ik.mot"}"
+coordinates = ["hip_flexion_r", "hip_adduction_r", "hip_rotation_r", "knee_angle_r"]
+mesh_frame = "registration"
+[registration]
+axes = ["y", "z", "x"]
+[[registration.landmark]]
+name = "hip"
+mesh = "{vhf / "VHF_Right_Cartilage_FemurHead_smooth.stl"}"
+fit = "sphere"
+body = "femur_r"
+[[registration.landmark]]
+name = "knee"
+mesh = "{vhf / "VHF_Right_Cartilage_FemurDistal_smooth.stl"}"
+fit = "centroid"
+body = "tibia_r"
+[muscles.gluteus_medius]
+mesh = "{vhf / "VHF_Right_Muscle_GluteusMedius_smooth.stl"}"
+paths = ["glmed1_r", "glmed2_r", "glmed3_r"]
+body = "pelvis"
+[bones.pelvis]
+model = "r_pelvis.vtp"
+body = "pelvis"
+'''
+    )
+    rep = check_scene(toml, cache_dir=tmp_path / "c")
+    found = [f for f in rep.findings if f.message.startswith("registration: the model's bones")]
+    assert len(found) == 1, [str(f) for f in rep.findings]
+    assert "hip_flexion_r" in found[0].message and "knee_angle_r" not in found[0].message
+
+
+@pytest.mark.realdata
 def test_a_model_bone_is_where_opensim_places_it(data_dir, tmp_path):
     """Issue 46: the model's femur as a run places it (its mesh read and scaled as the run
     reads it, then the frame's transforms) against OpenSim placing every vertex of the

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..mesh import vertex_areas
 
 __all__ = ["PostureFit", "fit_posture"]
 
@@ -33,8 +34,8 @@ class PostureFit:
     summed over their surface (mesh units^4), at the rest pose given and at the fitted
     one; ``before`` and ``after`` per mesh the vertices inside any of the bones and
     the deepest of them (only meshes that have any, before or after); ``settled``
-    False where a coordinate's change reaches the search's edge (the price still
-    falling there: the bones do not settle the posture within it); ``bones`` the
+    False where the least price lies on the edge of what was searched (the price may
+    fall on past it: the bones do not settle the posture within it); ``bones`` the
     bones' names where the caller gave them.
     """
 
@@ -106,7 +107,8 @@ def fit_posture(
     k = len(coordinates)
     names = list(meshes)
     P = np.vstack([np.asarray(meshes[n][0], dtype=np.float64) for n in names])
-    w = np.concatenate([_vertex_areas(*meshes[n]) for n in names])
+    # a third of each vertex's triangles' area
+    w = np.concatenate([vertex_areas(*meshes[n]) / 3.0 for n in names])
     owner = np.repeat(np.arange(len(names)), [len(meshes[n][0]) for n in names])
     Ph = np.hstack([P, np.ones((len(P), 1))])
     n = int(round(reach / step))
@@ -177,14 +179,18 @@ def fit_posture(
         tied = np.flatnonzero(prices == prices.min())
         return grid[tied[np.argmin((grid[tied] ** 2).sum(axis=1))]]
 
-    # the coarse grid on a quarter of the vertices near the bones, a grid of `fine` * 2
-    # within a step of its best on half, then `fine` round that on all
+    # the coarse grid on a quarter of the vertices near the bones; then, round the best so
+    # far, a grid of twice `fine` within a step on half of them, and `fine` on all
     change = best_of(coarse, 4)
-    for spacing_, every in ((2.0 * fine, 2), (fine, 1)):
-        m = int(np.floor(step / spacing_ + 1e-9)) if every == 2 else 1
-        offsets = np.arange(-m, m + 1) * spacing_
+    wide = int(step / (2.0 * fine) + 1e-9)  # the middle grid's half-width, in its spacing
+    for grid, half, every in ((2.0 * fine, wide, 2), (fine, 1, 1)):
+        offsets = np.arange(-half, half + 1) * grid
         change = best_of(change + np.array(list(itertools.product(offsets, repeat=k))), every)
     change = np.round(change / fine) * fine  # on the grid, less its sums' last bits
+    # the best on the edge of what was searched (the coarse grid's reach and the finer
+    # grids' way past it): the price may fall on beyond it
+    edge = reach + 2.0 * fine * wide + fine
+    settled = bool(np.all(np.abs(change) < edge - 0.5 * fine))
     # each coordinate back towards the rest pose given while the price stays within
     # `alike` of the least: one the bones do not tell (the price flat along it: the hip's
     # rotation on the VHF leg) keeps its value, and a pose already fitted stays
@@ -219,13 +225,5 @@ def fit_posture(
         price=(float(w @ shortfall(zero)), float(w @ shortfall(change))),
         before={nm: before[nm] for nm in touched},
         after={nm: after[nm] for nm in touched},
-        settled=bool(np.all(np.abs(change) < reach - 0.5 * fine)),
+        settled=settled,
     )
-
-
-def _vertex_areas(V: FloatArray, F: IntArray) -> FloatArray:
-    """A third of the area of each vertex's triangles."""
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    a = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-    return np.bincount(F.ravel(), weights=np.repeat(a / 3.0, 3), minlength=len(V))

@@ -17,7 +17,7 @@ import numpy as np
 from .._cache import cached_measure
 from .._typing import FloatArray, IntArray
 from ..mesh import apply_transform
-from ..model import OpenSimModel, PostureFit, fit_posture, line_fit
+from ..model import OpenSimModel, PostureFit, fit_posture, line_fits
 from ..scene import Registration, Scene, rest_pose
 
 __all__ = ["RestPosture", "posture_finding", "rest_posture"]
@@ -46,6 +46,7 @@ def rest_posture(
     meshes: Mapping[str, tuple[FloatArray, IntArray]],
     bones: Mapping[str, tuple[FloatArray, IntArray]],
     cache: Path | None = None,
+    options: Mapping[str, float] | None = None,
 ) -> RestPosture | None:
     """The rest pose's change that takes the registered ``meshes`` clearest of the model's bones.
 
@@ -54,7 +55,9 @@ def rest_posture(
     (``[bones.NAME] model``) of bodies other than the landmarks' are priced, and only
     the scene's rotational coordinates that move one of those bodies against the
     landmarks' without moving the landmarks' bodies against each other are searched.
-    ``cache``: a folder where the same search, made before, is read back. None where the scene has no registration, no such bone or no such coordinate.
+    ``cache``: a folder where the same search, made before, is read back; ``options``:
+    `musclewrap.model.fit_posture`'s keywords (its defaults otherwise). None where
+    the scene has no registration, no such bone or no such coordinate.
     """
     reg_spec = scene.registration
     if reg_spec is None or not meshes:
@@ -80,8 +83,10 @@ def rest_posture(
         if c not in rest or not model.is_rotational(c):
             continue
         moved = relative({**rest, c: rest[c] + _NUDGE})
-        apart = any(not np.allclose(moved[b], base[b], atol=1e-9) for b in marks)
-        moves = any(not np.allclose(moved[b.body], base[b.body], atol=1e-9) for b in priced)
+        # a tenth of the nudge: a model whose constraints are assembled at each pose (the
+        # knee of Rajagopal 2016) moves its bodies by 1e-5 whatever coordinate is nudged
+        apart = any(not np.allclose(moved[b], base[b], atol=0.1 * _NUDGE) for b in marks)
+        moves = any(not np.allclose(moved[b.body], base[b.body], atol=0.1 * _NUDGE) for b in priced)
         if moves and not apart:
             coords.append(c)
     if not coords:
@@ -106,7 +111,9 @@ def rest_posture(
         return [np.linalg.inv(g[b.body]) @ to_ground for b in priced]
 
     mesh_names = list(meshes)
+    options = dict(options or {})
     keys: list[np.ndarray | str] = [",".join(coords), ",".join(b.name for b in priced)]
+    keys.append(repr(sorted(options.items())))
     for n in mesh_names:
         keys += [meshes[n][0], meshes[n][1]]
     for b in priced:
@@ -127,19 +134,26 @@ def rest_posture(
         if m.name in meshes and any(set(model.path_point_bodies(p)) & on for p in m.paths)
     ]
 
-    def inside(dq: FloatArray) -> float:
-        """The mean share of those muscles' paths inside them, the rest pose changed by ``dq``."""
-        back = np.linalg.inv(reg.at(bodies_at(dq), s))
-        shares = []
-        for m in crossing:
-            lines = {p: apply_transform(back, model.path_points(p, "ground") * s) for p in m.paths}
-            shares.append(line_fit(*meshes[m.name], lines).inside)
-        return float(np.mean(shares)) if shares else float("nan")
+    def inside(changes: list[FloatArray]) -> list[float]:
+        """The mean share of those muscles' paths inside them, the rest pose changed by each."""
+        if not crossing:
+            return [float("nan")] * len(changes)
+        lines: dict[str, list[dict[str, FloatArray]]] = {m.name: [] for m in crossing}
+        for dq in changes:
+            back = np.linalg.inv(reg.at(bodies_at(dq), s))  # the model posed there
+            for m in crossing:
+                pts = {
+                    p: apply_transform(back, model.path_points(p, "ground") * s) for p in m.paths
+                }
+                lines[m.name].append(pts)
+        # one distance query per muscle, every pose's lines in it
+        shares = [[f.inside for f in line_fits(*meshes[n], many)] for n, many in lines.items()]
+        return [float(x) for x in np.mean(shares, axis=0)]
 
     def build() -> dict[str, np.ndarray]:
-        fit = fit_posture(meshes, [bones[b.name] for b in priced], place, coords)
+        fit = fit_posture(meshes, [bones[b.name] for b in priced], place, coords, **options)
         return {
-            "inside": np.array([inside(np.zeros(len(coords))), inside(fit.change)]),
+            "inside": np.array(inside([np.zeros(len(coords)), fit.change])),
             "change": fit.change,
             "price": np.array(fit.price),
             "before": np.array([fit.before.get(n, (0, 0.0)) for n in mesh_names]),
@@ -148,7 +162,7 @@ def rest_posture(
         }
 
     try:
-        got = cached_measure(cache, "posture-7", keys, build)
+        got = cached_measure(cache, "posture-9", keys, build)
     finally:
         model.set_pose(rest)
     before = {n: (int(a), float(d)) for n, (a, d) in zip(mesh_names, got["before"], strict=True)}
@@ -174,11 +188,6 @@ def posture_finding(scene: Scene, found: RestPosture) -> tuple[str, str]:
     bones = ", ".join(fit.bones)
     n0 = sum(v[0] for v in fit.before.values())
     n1 = sum(v[0] for v in fit.after.values())
-    each = "; ".join(
-        f"{m} {fit.before[m][0]} ({fit.before[m][1]:.1f} {scene.mesh_unit}) -> "
-        f"{fit.after[m][0]} ({fit.after[m][1]:.1f})"
-        for m in fit.before
-    )
     values = ", ".join(f"{c} = {now[c] + deg[c]:.4g}" for c in fit.coordinates)
     a, b = (100 * x for x in found.inside)
     paths = f"the paths of the {found.crossing} muscles that reach those bodies run"
@@ -193,6 +202,11 @@ def posture_finding(scene: Scene, found: RestPosture) -> tuple[str, str]:
             "",
         )
     turned = ", ".join(f"{now[c]:.4g}" for c in fit.coordinates)
+    each = "; ".join(
+        f"{m} {fit.before[m][0]} ({fit.before[m][1]:.1f} {scene.mesh_unit}) -> "
+        f"{fit.after[m][0]} ({fit.after[m][1]:.1f})"
+        for m in fit.before
+    )
     if not fit.settled:
         return (
             f"registration: the model's bones ({bones}) lie clearer of the registered meshes "
