@@ -19,8 +19,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
-from scipy.signal import correlate
 
 from .._typing import FloatArray, IntArray
 
@@ -56,6 +54,8 @@ class ShaftFit:
 
         The offsets' monotone cubic (PCHIP) along the axis, zero past the ends.
         """
+        from scipy.interpolate import PchipInterpolator  # a fifth of a second to import
+
         xs = np.r_[self.ends[0], self.levels, self.ends[1]]
         ys = np.vstack([[0.0, 0.0], self.offsets, [0.0, 0.0]])
         curve = PchipInterpolator(xs, ys)
@@ -144,6 +144,9 @@ def fit_shaft(
     }
     sections = {k: s for k, s in sections.items() if s is not None}
     if sections:
+        # scipy.signal (with scipy.stats) is half a second to import in every process
+        from scipy.signal import correlate
+
         # every level's points at once: libigl builds its tree over a muscle per call
         P = np.vstack([s[1] for s in sections.values()])
         clear = _clearance(P, muscles, margin)
