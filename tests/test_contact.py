@@ -612,3 +612,56 @@ def test_the_finish_lands_shallow_pushes_in_two_rounds(into):
     assert rep.depth_after == 0.0 and rep.inside == 0
     assert abs(volume(P, F) / target - 1) <= 1e-12
     assert np.linalg.norm(P - [0.0, 25.0 - depth, 40.0], axis=1).min() >= 15.0 - 0.02
+
+
+def _shape(V, V0, F):
+    """The shape change of ``V`` against ``V0`` (`PreparedMuscle.shape_change`'s measure)."""
+    from musclewrap.mesh import umbrella_laplacian
+
+    U = umbrella_laplacian(F, len(V0))
+    d0 = np.linalg.norm(U @ V0, axis=1)
+    return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / mean_edge_length(V0, F)
+
+
+def test_unfold_irons_a_steps_fold_and_keeps_the_held_vertices_and_the_volume():
+    """A move with a fold in it (a shelf along a ring) is ironed out away from the held cap."""
+    from musclewrap.contact import unfold
+    from musclewrap.mesh import vertex_adjacency, volume
+
+    V0, F = capsule(radius=20.0, length=40.0, n_around=48, cap_rings=12, segments=12)
+    A = vertex_adjacency(F, len(V0)).tocsr()
+    target = volume(V0, F)
+    # the vertices past z = 50 pushed 6 mm sideways, those before it not: a shelf
+    D = np.zeros_like(V0)
+    D[V0[:, 2] > 50.0, 0] = 6.0
+    V = V0 + D
+    held = V0[:, 2] > 60.0  # the cap the move had to put there
+    s0, s = _shape(V0, V0, F), _shape(V, V0, F)
+    assert s.max() > 0.5  # the shelf is a fold
+    P = unfold(V0, V, F, A, s0, s, held, volume_target=target)
+    sp_ = _shape(P, V0, F)
+    assert sp_.max() < 0.5 * s.max()
+    np.testing.assert_array_equal(P[held], V[held])
+    assert abs(volume(P, F) - target) <= 1e-9 * target
+    # only within fold_rings of the fold does anything move
+    from musclewrap.constants import defaults
+    from musclewrap.contact import rings
+
+    fold = np.flatnonzero((s > defaults.fold_shape) & (s - s0 > defaults.fold_rise))
+    far = rings(A, fold, defaults.fold_rings) > defaults.fold_rings
+    np.testing.assert_array_equal(P[far], V[far])
+
+
+def test_unfold_leaves_a_smooth_move_alone():
+    """A rigid turn and a gentle bend raise no shape change: ``V`` comes back itself."""
+    from musclewrap.contact import unfold
+    from musclewrap.mesh import vertex_adjacency, volume
+
+    V0, F = capsule(radius=20.0, length=40.0, n_around=48, cap_rings=12, segments=12)
+    A = vertex_adjacency(F, len(V0)).tocsr()
+    c, s_ = np.cos(0.3), np.sin(0.3)
+    V = V0 @ np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]]).T
+    V[:, 0] += 1e-4 * (V0[:, 2] - 40.0) ** 2  # a gentle bend
+    s0, s = _shape(V0, V0, F), _shape(V, V0, F)
+    held = np.zeros(len(V0), dtype=bool)
+    assert unfold(V0, V, F, A, s0, s, held, volume_target=volume(V0, F)) is V

@@ -215,6 +215,22 @@ class Defaults:
         How many times the cage's steps look for the obstacles' vertices standing
         in the muscle (once its vertices are out) and take them out as conditions on
         its triangles (0: only the fine finish does).
+    fold_shape : float
+        After the bones' cage steps, a vertex whose shape change (mean edge
+        lengths) the steps raised to more than this is a fold
+        (`musclewrap.contact.unfold` irons it out): the steps' fine vertices near the
+        cage's surface fold along its edges. 0.3: the LHDL walk's largest shape
+        change is 0.19, so its outputs are those without unfolding.
+    fold_rise : float
+        ... and by more than this many mean edge lengths (the LHDL scene's 120-deg
+        motions, 128 muscle-frames checked: 6 over 0.5 with 0.1, 4 with 0.02, 11
+        without unfolding; BENCHMARKS.md).
+    fold_held : float
+        Vertices within this many mean edge lengths of a bone's margin stay where
+        the steps put them (not unfolded). At 2 (the contact band) three of the four
+        traced 120-deg frames kept their folds, which lie within a band's reach.
+    fold_rings : int
+        The unfolded region: the folds and this many rings of the mesh round them.
     contact_bone_depth : float
         An obstacle vertex inside the muscle deeper than the margin plus this
         many mean edge lengths pushes the muscle's nearest triangle past it;
@@ -427,6 +443,10 @@ class Defaults:
     path_step_translation: float = 20.0
     contact_cage_depth: float = 0.25
     contact_cage_bone_passes: int = 1
+    fold_shape: float = 0.3
+    fold_held: float = 0.4
+    fold_rise: float = 0.02
+    fold_rings: int = 2
     contact_bone_depth: float = 0.1
     contact_band: float = 2.0
     contact_softness: float = 0.5

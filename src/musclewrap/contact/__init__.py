@@ -21,6 +21,7 @@ from ._finish import (
     push_out,
     rings,
     triangle_pushes,
+    unfold,
     vertex_faces,
 )
 from ._gaps import FacesWithin, muscle_gaps
@@ -84,5 +85,6 @@ __all__ = [
     "rings",
     "signed_from_closest",
     "triangle_pushes",
+    "unfold",
     "vertex_faces",
 ]

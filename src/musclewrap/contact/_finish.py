@@ -9,6 +9,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
@@ -35,6 +36,7 @@ __all__ = [
     "push_out",
     "rings",
     "triangle_pushes",
+    "unfold",
     "vertex_faces",
 ]
 
@@ -187,6 +189,81 @@ def _spread(
     if len(region):
         _smooth(A.indptr, A.indices, Dall, region, 2 * radius * radius, 0.0)
     return Dall, level, radius
+
+
+def _thin_plate(A: sp.csr_matrix, D: FloatArray, free: IntArray) -> None:
+    """``D`` on the vertices ``free`` that changes the mesh's 1-ring means least, in place.
+
+    Minimises ``sum |(U D)_i|^2`` over the free vertices and their neighbours, ``U``
+    the uniform Laplacian (``D_i`` less the mean of its 1-ring, what the shape change
+    measures), with ``D`` kept on every other vertex: a thin plate over ``free``,
+    smooth across its rim.
+    """
+    n = A.shape[0]
+    col = np.full(n, -1, dtype=np.int64)
+    col[free] = np.arange(len(free))
+    L = np.flatnonzero(rings(A, free, 1) <= 1)  # the free vertices and their neighbours
+    AL = A[L]
+    inv = 1.0 / np.diff(AL.indptr).astype(np.float64)
+    r_a = np.repeat(np.arange(len(L)), np.diff(AL.indptr))
+    c_a = col[AL.indices]
+    keep = c_a >= 0
+    r_d = np.arange(len(L))
+    c_d = col[L]
+    on = c_d >= 0
+    # the rows L of U on the free columns; the rest of U D is known
+    Uf = sp.csr_matrix(
+        (
+            np.concatenate([np.ones(int(on.sum())), -inv[r_a[keep]]]),
+            (np.concatenate([r_d[on], r_a[keep]]), np.concatenate([c_d[on], c_a[keep]])),
+        ),
+        shape=(len(L), len(free)),
+    )
+    Dk = D.copy()
+    Dk[free] = 0.0
+    rest = Dk[L] - (AL @ Dk) * inv[:, None]
+    D[free] = spla.splu((Uf.T @ Uf).tocsc()).solve(-(Uf.T @ rest))
+
+
+def unfold(
+    V0: FloatArray,
+    V: FloatArray,
+    F: IntArray,
+    A: sp.csr_matrix,
+    shape0: FloatArray,
+    shape: FloatArray,
+    held: npt.NDArray[np.bool_],
+    *,
+    volume_target: float,
+) -> FloatArray:
+    """``V`` with the folds a move from ``V0`` made ironed out, away from the ``held`` vertices.
+
+    ``shape0``, ``shape``: the shape change (`PreparedMuscle.shape_change`) at ``V0`` and
+    ``V``. A fold is a vertex whose shape change the move raised by more than
+    ``defaults.fold_rise`` to more than ``defaults.fold_shape`` mean edges. Over the
+    rings within ``defaults.fold_rings`` of the folds (less the ``held`` vertices: those
+    the move had to put where they are), the move's displacement is replaced by the thin
+    plate that meets it round them (`_thin_plate`), and the volume restored exactly
+    along the normals there. Returns ``V`` itself where there is no fold, or where the
+    volume cannot be restored.
+    """
+    fold = (shape > defaults.fold_shape) & (shape - shape0 > defaults.fold_rise)
+    if not fold.any():
+        return V
+    k = defaults.fold_rings
+    free = np.flatnonzero((rings(A, np.flatnonzero(fold), k) <= k) & ~held)
+    if not len(free):
+        return V
+    D = V - V0
+    _thin_plate(A, D, free)
+    P = V0 + D
+    mask = np.zeros(len(V))
+    mask[free] = 1.0
+    Zm = vertex_normals(P, F) * mask[:, None]
+    t = cubic_root_near(volume_cubic(P - mean_rows(P), Zm, F), volume_target, 0.0)
+    if not np.isfinite(t):
+        return V
+    return P + t * Zm
 
 
 def vertex_faces(F: IntArray, n: int) -> tuple[IntArray, IntArray]:

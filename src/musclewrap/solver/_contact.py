@@ -2,8 +2,9 @@
 
 Mixed into `Deformer` (`ContactSteps`): the cage's steps that take the fine vertices out
 of the bones after the solve (`_cage_contact`, each step a least-energy move of the cage
-ended on the exact fine volume, `_cage_step`), the bones' vertices standing in the muscle
-as conditions on its triangles (`_bone_points`), one round against other muscles
+ended on the exact fine volume, `_cage_step`; the folds they make ironed out,
+`_unfolded`), the bones' vertices standing in the muscle as conditions on its triangles
+(`_bone_points`), one round against other muscles
 (`contact_round`, what `musclewrap.solver.meet` takes each round) and the fine finish
 (`settle`, `musclewrap.contact.push_out`). What they measure and move with lives in
 `musclewrap.contact`; this is the one place in the solver that steps the cage for it.
@@ -31,6 +32,7 @@ from ..contact import (
     bone_vertices_inside,
     contact_candidates,
     push_out,
+    unfold,
 )
 from ..coordinates import rows_dot
 from ..mesh import (
@@ -98,6 +100,36 @@ class ContactSteps:
             return x, V
         step = self._cage_step(x, V, np.asarray(idx, dtype=np.int64), gap, N, slack, extra)
         return (x, V) if step is None else step
+
+    def _unfolded(
+        self,
+        V0: FloatArray,
+        V: FloatArray,
+        placed: Sequence[Placed],
+        margin: float,
+        near: Near,
+        sides: SideReference | None,
+    ) -> FloatArray:
+        """``V`` (the cage steps' result from ``V0``) with the folds they made ironed out.
+
+        A cage step moves the cage's vertices near the contact, and the fine vertices
+        near the cage's surface, where mean value coordinates are nearly linear on its
+        triangles, fold along its edges (the gluteus maximus past 100 deg of hip
+        flexion, 2-37 mm from any bone: BENCHMARKS.md). `musclewrap.contact.unfold`,
+        away from the vertices within ``defaults.fold_held`` mean edges of a bone's
+        margin (where the steps had to put them).
+        """
+        mu = self.muscle
+        shape = mu.shape_change(V)
+        if not shape.max() > defaults.fold_shape:
+            return V  # no fold (the common case: nothing more is measured)
+        keep = np.zeros(len(V), dtype=bool)
+        reach = defaults.fold_held * self._fine_edge
+        keep[contact_candidates(V, placed, margin, reach, near, sides)[0]] = True
+        return unfold(
+            V0, V, mu.F, mu.adjacency, mu.shape_change(V0), shape, keep,
+            volume_target=mu.volume_rest,
+        )  # fmt: skip
 
     def settle(
         self,
@@ -188,8 +220,9 @@ class ContactSteps:
         Repeated on the new positions while a vertex is more than
         ``defaults.contact_cage_depth`` mean fine edges too near; then once with
         the obstacles' vertices standing in the muscle (`_bone_points`); each step
-        ends on the exact fine volume (a cubic along ``-H^-1 g``). What remains is
-        left to the fine finish (`push_out`). Returns the cage, the fine
+        ends on the exact fine volume (a cubic along ``-H^-1 g``). The folds the
+        steps made away from the bones are ironed out (`_unfolded`). What remains
+        is left to the fine finish (`push_out`). Returns the cage, the fine
         positions, the deepest vertex inside an obstacle before the first step,
         and the obstacles' vertices inside the muscle at the returned positions
         where they were looked for there (None otherwise).
@@ -213,6 +246,7 @@ class ContactSteps:
             pl.obstacle.measure(pl.to_obstacle(V[near.within(b, V, -near.allowed[b])]))[1]
             for b, pl in enumerate(placed)
         )
+        V_solved = V
         inside_pass = 0
         points = None
         found: tuple[FloatArray, list[Inside]] | None = None  # positions, bones inside there
@@ -233,6 +267,8 @@ class ContactSteps:
             if step is None:
                 break
             x, V = step
+        if V is not V_solved:
+            V = self._unfolded(V_solved, V, placed, margin, near, sides)
         # the finish need not look again where nothing moved since
         return x, V, before, (found[1] if found is not None and found[0] is V else None)
 
