@@ -665,3 +665,16 @@ def test_unfold_leaves_a_smooth_move_alone():
     s0, s = _shape(V0, V0, F), _shape(V, V0, F)
     held = np.zeros(len(V0), dtype=bool)
     assert unfold(V0, V, F, A, s0, s, held, volume_target=volume(V0, F)) is V
+
+
+def test_unfold_with_nothing_round_the_folds_to_meet_leaves_the_move():
+    """Folds all over a mesh, none held: no thin plate can meet anything, so none is made."""
+    from musclewrap.contact import unfold
+    from musclewrap.mesh import vertex_adjacency, volume
+
+    V0, F = capsule(radius=5.0, length=0.0, n_around=12, cap_rings=4, segments=1)
+    A = vertex_adjacency(F, len(V0)).tocsr()
+    V = V0 + np.random.default_rng(3).normal(scale=2.0, size=V0.shape)
+    s0, s = _shape(V0, V0, F), _shape(V, V0, F)
+    held = np.zeros(len(V0), dtype=bool)
+    assert unfold(V0, V, F, A, s0, s, held, volume_target=volume(V0, F)) is V

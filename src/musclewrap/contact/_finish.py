@@ -252,11 +252,16 @@ def unfold(
         return V
     k = defaults.fold_rings
     free = np.flatnonzero((rings(A, np.flatnonzero(fold), k) <= k) & ~held)
-    if not len(free):
-        return V
+    if not len(free) or len(free) == len(V):
+        return V  # nothing to iron, or nothing round it to meet (a closed mesh's whole)
     D = V - V0
-    _thin_plate(A, D, free)
+    try:
+        _thin_plate(A, D, free)
+    except RuntimeError:  # a singular system (SuperLU): leave the step as it was
+        return V
     P = V0 + D
+    if not np.isfinite(P).all():
+        return V
     mask = np.zeros(len(V))
     mask[free] = 1.0
     Zm = vertex_normals(P, F) * mask[:, None]
