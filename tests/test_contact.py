@@ -626,10 +626,10 @@ def _shape(V, V0, F):
 def test_unfold_irons_a_steps_fold_and_keeps_the_held_vertices_and_the_volume():
     """A move with a fold in it (a shelf along a ring) is ironed out away from the held cap."""
     from musclewrap.contact import unfold
-    from musclewrap.mesh import vertex_adjacency, volume
+    from musclewrap.mesh import umbrella_laplacian, volume
 
     V0, F = capsule(radius=20.0, length=40.0, n_around=48, cap_rings=12, segments=12)
-    A = vertex_adjacency(F, len(V0)).tocsr()
+    U = umbrella_laplacian(F, len(V0))
     target = volume(V0, F)
     # the vertices past z = 50 pushed 6 mm sideways, those before it not: a shelf
     D = np.zeros_like(V0)
@@ -638,7 +638,7 @@ def test_unfold_irons_a_steps_fold_and_keeps_the_held_vertices_and_the_volume():
     held = V0[:, 2] > 60.0  # the cap the move had to put there
     s0, s = _shape(V0, V0, F), _shape(V, V0, F)
     assert s.max() > 0.5  # the shelf is a fold
-    P = unfold(V0, V, F, A, s0, s, held, volume_target=target)
+    P = unfold(V0, V, F, U, s0, s, held, volume_target=target)
     sp_ = _shape(P, V0, F)
     assert sp_.max() < 0.5 * s.max()
     np.testing.assert_array_equal(P[held], V[held])
@@ -648,33 +648,33 @@ def test_unfold_irons_a_steps_fold_and_keeps_the_held_vertices_and_the_volume():
     from musclewrap.contact import rings
 
     fold = np.flatnonzero((s > defaults.fold_shape) & (s - s0 > defaults.fold_rise))
-    far = rings(A, fold, defaults.fold_rings) > defaults.fold_rings
+    far = rings(U, fold, defaults.fold_rings) > defaults.fold_rings
     np.testing.assert_array_equal(P[far], V[far])
 
 
 def test_unfold_leaves_a_smooth_move_alone():
     """A rigid turn and a gentle bend raise no shape change: ``V`` comes back itself."""
     from musclewrap.contact import unfold
-    from musclewrap.mesh import vertex_adjacency, volume
+    from musclewrap.mesh import umbrella_laplacian, volume
 
     V0, F = capsule(radius=20.0, length=40.0, n_around=48, cap_rings=12, segments=12)
-    A = vertex_adjacency(F, len(V0)).tocsr()
+    U = umbrella_laplacian(F, len(V0))
     c, s_ = np.cos(0.3), np.sin(0.3)
     V = V0 @ np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]]).T
     V[:, 0] += 1e-4 * (V0[:, 2] - 40.0) ** 2  # a gentle bend
     s0, s = _shape(V0, V0, F), _shape(V, V0, F)
     held = np.zeros(len(V0), dtype=bool)
-    assert unfold(V0, V, F, A, s0, s, held, volume_target=volume(V0, F)) is V
+    assert unfold(V0, V, F, U, s0, s, held, volume_target=volume(V0, F)) is V
 
 
 def test_unfold_with_nothing_round_the_folds_to_meet_leaves_the_move():
     """Folds all over a mesh, none held: no thin plate can meet anything, so none is made."""
     from musclewrap.contact import unfold
-    from musclewrap.mesh import vertex_adjacency, volume
+    from musclewrap.mesh import umbrella_laplacian, volume
 
     V0, F = capsule(radius=5.0, length=0.0, n_around=12, cap_rings=4, segments=1)
-    A = vertex_adjacency(F, len(V0)).tocsr()
+    U = umbrella_laplacian(F, len(V0))
     V = V0 + np.random.default_rng(3).normal(scale=2.0, size=V0.shape)
     s0, s = _shape(V0, V0, F), _shape(V, V0, F)
     held = np.zeros(len(V0), dtype=bool)
-    assert unfold(V0, V, F, A, s0, s, held, volume_target=volume(V0, F)) is V
+    assert unfold(V0, V, F, U, s0, s, held, volume_target=volume(V0, F)) is V

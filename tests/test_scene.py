@@ -427,18 +427,18 @@ def test_the_documented_columns_are_the_files_columns_and_the_keys_the_readers()
     assert tables == {t.split(".")[0] for t in SCENE_KEYS if t}
 
 
-def _model_femur_scene(data_dir) -> str:
-    """A scene of the VHF vastus intermedius with gait2392's own femur (``model``)."""
-    osim = data_dir / "opensim" / "models" / "subject01_simbody.osim"
+def _vhf_registered(data_dir, name: str, osim, coordinates: list[str]) -> str:
+    """A scene's text up to its muscles: the VHF meshes registered to ``osim``'s femur by the
+    femoral head's and condyles' cartilages, driven by gait2392's walk."""
     vhf = data_dir / "vhf"
-    text = f"""name = "the model's femur"
+    return f"""name = "{name}"
 [units]
 mesh = "mm"
 model = "m"
 [model]
 osim = "{osim}"
 motion = "{data_dir / "opensim" / "motions" / "subject01_walk1_ik.mot"}"
-coordinates = ["hip_flexion_r", "knee_angle_r"]
+coordinates = {coordinates!r}
 mesh_frame = "registration"
 [registration]
 axes = ["y", "z", "x"]
@@ -452,7 +452,16 @@ name = "knee"
 mesh = "{vhf / "VHF_Right_Cartilage_FemurDistal_smooth.stl"}"
 fit = "centroid"
 body = "tibia_r"
-[muscles.vastus_intermedius]
+"""
+
+
+def _model_femur_scene(data_dir) -> str:
+    """A scene of the VHF vastus intermedius with gait2392's own femur (``model``)."""
+    osim = data_dir / "opensim" / "models" / "subject01_simbody.osim"
+    vhf = data_dir / "vhf"
+    text = (
+        _vhf_registered(data_dir, "the model's femur", osim, ["hip_flexion_r", "knee_angle_r"])
+        + f"""[muscles.vastus_intermedius]
 mesh = "{vhf / "VHF_Right_Muscle_VastusIntermedius_smooth.stl"}"
 paths = ["vas_int_r"]
 body = "femur_r"
@@ -460,6 +469,7 @@ body = "femur_r"
 model = "femur_r.vtp"
 body = "femur_r"
 """
+    )
     return text
 
 
@@ -560,29 +570,10 @@ def test_check_fits_the_hip_on_a_model_that_assembles_its_knee(data_dir, tmp_pat
 
     vhf, osim = data_dir / "vhf", data_dir / "opensim" / "models" / "Rajagopal2016.osim"
     toml = tmp_path / "raj.toml"
+    coords = ["hip_flexion_r", "hip_adduction_r", "hip_rotation_r", "knee_angle_r"]
     toml.write_text(
-        f'''name = "raj"
-[units]
-mesh = "mm"
-model = "m"
-[model]
-osim = "{osim}"
-motion = "{data_dir / "opensim" / "motions" / "subject01_walk1_ik.mot"}"
-coordinates = ["hip_flexion_r", "hip_adduction_r", "hip_rotation_r", "knee_angle_r"]
-mesh_frame = "registration"
-[registration]
-axes = ["y", "z", "x"]
-[[registration.landmark]]
-name = "hip"
-mesh = "{vhf / "VHF_Right_Cartilage_FemurHead_smooth.stl"}"
-fit = "sphere"
-body = "femur_r"
-[[registration.landmark]]
-name = "knee"
-mesh = "{vhf / "VHF_Right_Cartilage_FemurDistal_smooth.stl"}"
-fit = "centroid"
-body = "tibia_r"
-[muscles.gluteus_medius]
+        _vhf_registered(data_dir, "raj", osim, coords)
+        + f'''[muscles.gluteus_medius]
 mesh = "{vhf / "VHF_Right_Muscle_GluteusMedius_smooth.stl"}"
 paths = ["glmed1_r", "glmed2_r", "glmed3_r"]
 body = "pelvis"

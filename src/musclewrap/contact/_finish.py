@@ -191,45 +191,31 @@ def _spread(
     return Dall, level, radius
 
 
-def _thin_plate(A: sp.csr_matrix, D: FloatArray, free: IntArray) -> None:
+def _volume_step(P: FloatArray, F: IntArray, Z: FloatArray, volume_target: float) -> float:
+    """The ``t`` that gives ``P + t Z`` the target volume (the cubic's root nearest 0; NaN if none)."""
+    return cubic_root_near(volume_cubic(P - mean_rows(P), Z, F), volume_target, 0.0)
+
+
+def _thin_plate(U: sp.csr_matrix, D: FloatArray, free: IntArray) -> None:
     """``D`` on the vertices ``free`` that changes the mesh's 1-ring means least, in place.
 
     Minimises ``sum |(U D)_i|^2`` over the free vertices and their neighbours, ``U``
-    the uniform Laplacian (``D_i`` less the mean of its 1-ring, what the shape change
+    the uniform Laplacian (`musclewrap.mesh.umbrella_laplacian`: what the shape change
     measures), with ``D`` kept on every other vertex: a thin plate over ``free``,
     smooth across its rim.
     """
-    n = A.shape[0]
-    col = np.full(n, -1, dtype=np.int64)
-    col[free] = np.arange(len(free))
-    L = np.flatnonzero(rings(A, free, 1) <= 1)  # the free vertices and their neighbours
-    AL = A[L]
-    inv = 1.0 / np.diff(AL.indptr).astype(np.float64)
-    r_a = np.repeat(np.arange(len(L)), np.diff(AL.indptr))
-    c_a = col[AL.indices]
-    keep = c_a >= 0
-    r_d = np.arange(len(L))
-    c_d = col[L]
-    on = c_d >= 0
-    # the rows L of U on the free columns; the rest of U D is known
-    Uf = sp.csr_matrix(
-        (
-            np.concatenate([np.ones(int(on.sum())), -inv[r_a[keep]]]),
-            (np.concatenate([r_d[on], r_a[keep]]), np.concatenate([c_d[on], c_a[keep]])),
-        ),
-        shape=(len(L), len(free)),
-    )
+    rows = U[np.flatnonzero(rings(U, free, 1) <= 1)]  # the free vertices and their neighbours
+    Uf = rows[:, free]
     Dk = D.copy()
     Dk[free] = 0.0
-    rest = Dk[L] - (AL @ Dk) * inv[:, None]
-    D[free] = spla.splu((Uf.T @ Uf).tocsc()).solve(-(Uf.T @ rest))
+    D[free] = spla.splu((Uf.T @ Uf).tocsc()).solve(-(Uf.T @ (rows @ Dk)))
 
 
 def unfold(
     V0: FloatArray,
     V: FloatArray,
     F: IntArray,
-    A: sp.csr_matrix,
+    U: sp.csr_matrix,
     shape0: FloatArray,
     shape: FloatArray,
     held: npt.NDArray[np.bool_],
@@ -238,8 +224,9 @@ def unfold(
 ) -> FloatArray:
     """``V`` with the folds a move from ``V0`` made ironed out, away from the ``held`` vertices.
 
-    ``shape0``, ``shape``: the shape change (`PreparedMuscle.shape_change`) at ``V0`` and
-    ``V``. A fold is a vertex whose shape change the move raised by more than
+    ``U``: the mesh's uniform Laplacian (`musclewrap.mesh.umbrella_laplacian`, whose
+    pattern is its adjacency's); ``shape0``, ``shape``: the shape change
+    (`PreparedMuscle.shape_change`) at ``V0`` and ``V``. A fold is a vertex whose shape change the move raised by more than
     ``defaults.fold_rise`` to more than ``defaults.fold_shape`` mean edges. Over the
     rings within ``defaults.fold_rings`` of the folds (less the ``held`` vertices: those
     the move had to put where they are), the move's displacement is replaced by the thin
@@ -251,12 +238,12 @@ def unfold(
     if not fold.any():
         return V
     k = defaults.fold_rings
-    free = np.flatnonzero((rings(A, np.flatnonzero(fold), k) <= k) & ~held)
+    free = np.flatnonzero((rings(U, np.flatnonzero(fold), k) <= k) & ~held)
     if not len(free) or len(free) == len(V):
         return V  # nothing to iron, or nothing round it to meet (a closed mesh's whole)
     D = V - V0
     try:
-        _thin_plate(A, D, free)
+        _thin_plate(U, D, free)
     except RuntimeError:  # a singular system (SuperLU): leave the step as it was
         return V
     P = V0 + D
@@ -265,7 +252,7 @@ def unfold(
     mask = np.zeros(len(V))
     mask[free] = 1.0
     Zm = vertex_normals(P, F) * mask[:, None]
-    t = cubic_root_near(volume_cubic(P - mean_rows(P), Zm, F), volume_target, 0.0)
+    t = _volume_step(P, F, Zm, volume_target)
     if not np.isfinite(t):
         return V
     return P + t * Zm
@@ -688,8 +675,7 @@ def _volume_away_from(
     level = rings(A, np.flatnonzero(held), ramp)
     mask = np.clip(level / (ramp + 1.0), 0.0, 1.0)
     Zm = Z * mask[:, None]
-    c = mean_rows(P)
-    return cubic_root_near(volume_cubic(P - c, Zm, F), volume_target, 0.0), Zm
+    return _volume_step(P, F, Zm, volume_target), Zm
 
 
 def _unmet(
@@ -726,8 +712,7 @@ def _volume_restored(P: FloatArray, F: IntArray, volume_target: float) -> tuple[
     rel = abs(volume(P, F) - volume_target) / abs(volume_target)
     if rel > tol.volume:
         Z = vertex_normals(P, F)
-        c = mean_rows(P)
-        t = cubic_root_near(volume_cubic(P - c, Z, F), volume_target, 0.0)
+        t = _volume_step(P, F, Z, volume_target)
         if np.isfinite(t):
             P = P + t * Z
         rel = abs(volume(P, F) - volume_target) / abs(volume_target)
@@ -758,7 +743,7 @@ def nudge(
     # away from the pushes, over the whole surface beyond their rings (a ramp round them
     # would press the neighbouring rings into what was pushed away from)
     Zm = vertex_normals(P, F) * np.clip((level - radius) / 2.0, 0.0, 1.0)[:, None]
-    t = cubic_root_near(volume_cubic(P - mean_rows(P), Zm, F), volume_target, 0.0)
+    t = _volume_step(P, F, Zm, volume_target)
     if not np.isfinite(t):
         return None
     return P + t * Zm

@@ -127,7 +127,7 @@ class ContactSteps:
         reach = defaults.fold_held * self._fine_edge
         keep[contact_candidates(V, placed, margin, reach, near, sides)[0]] = True
         return unfold(
-            V0, V, mu.F, mu.adjacency, mu.shape_change(V0), shape, keep,
+            V0, V, mu.F, mu.umbrella, mu.shape_change(V0), shape, keep,
             volume_target=mu.volume_rest,
         )  # fmt: skip
 

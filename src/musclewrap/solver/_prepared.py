@@ -114,6 +114,17 @@ class PreparedMuscle:
         -------
         (n,) float64 array
         """
+        U, d0, edge = self._umbrella_rest()
+        V = self._positions(V)
+        return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / edge
+
+    @property
+    def umbrella(self) -> sparse.csr_matrix:
+        """The fine mesh's uniform Laplacian (`shape_change`'s; built on first use)."""
+        return self._umbrella_rest()[0]
+
+    def _umbrella_rest(self) -> tuple[sparse.csr_matrix, FloatArray, float]:
+        """The uniform Laplacian, its vectors' lengths at rest and the mean rest edge."""
         if getattr(self, "_umbrella", None) is None:
             U = umbrella_laplacian(self.F, len(self.V))
             self._umbrella = (
@@ -121,9 +132,7 @@ class PreparedMuscle:
                 np.linalg.norm(U @ self.V, axis=1),
                 mean_edge_length(self.V, self.F),
             )
-        U, d0, edge = self._umbrella
-        V = self._positions(V)
-        return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / edge
+        return self._umbrella
 
     def _positions(self, V: npt.ArrayLike) -> FloatArray:
         """``V`` checked as positions of the fine vertices (the rest mesh's shape)."""
