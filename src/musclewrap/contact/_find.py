@@ -39,7 +39,10 @@ def contact_candidates(
     ):
         # the grid's interpolated distance: linearised conditions need no exact one
         Q = pl.to_obstacle(P[r])
-        idx, phi, N = pl.obstacle.interpolate(Q, margin + band) if len(r) else (r, r, r)
+        if len(r):
+            idx, phi, N = pl.obstacle.interpolate(Q, margin + band)
+        else:  # none near: empty, in the shapes a vertex come through below joins
+            idx, phi, N = r, np.zeros(0), np.zeros((0, 3))
         if sides is not None and len(idx):
             phi, _, N, _ = on_their_side(pl, sides, b, r[idx], Q[idx], phi, None, N)
         idx = r[idx]
