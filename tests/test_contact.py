@@ -348,6 +348,37 @@ def test_contact_that_cannot_be_met_is_reported(bent):
     assert abs(res.relative_volume_error) <= 1e-9
 
 
+def test_a_vertex_that_slid_inside_a_shell_leaves_it_the_nearest_way():
+    # A spherical shell 3 thick (a cartilage's cap of 2-4 mm round a bone the scene lacks).
+    # A vertex that was inside it by its inner face and slid 60 deg round it to just under
+    # its outer face: its way from then starts inside, so it "entered" at its start's
+    # closest point, whose tangent plane puts it 8.6 in front: it must still go out (the
+    # nearest way, 0.3), not be left inside. One that came through the outer face and went
+    # past the middle still goes back the way it came (2.5, not the 0.5 to the inner face).
+    from musclewrap.contact import Placed, SideReference, on_their_side
+
+    So, Fo = capsule(radius=23.0, length=0.0, n_around=96, cap_rings=48, segments=1)
+    Si, Fi = capsule(radius=20.0, length=0.0, n_around=96, cap_rings=48, segments=1)
+    c = So.mean(axis=0)
+    V = np.vstack([So - c, Si - Si.mean(axis=0)])
+    F = np.vstack([Fo, Fi[:, ::-1] + len(So)])
+    shell = Obstacle(V, F)
+    placed = [Placed(shell, name="shell")]
+    t = np.radians(60.0)
+    then = np.array([[0.0, 0.0, 20.2], [0.0, 0.0, 23.5]])
+    now = np.array([22.7 * np.array([np.sin(t), 0.0, np.cos(t)]), [0.0, 0.0, 20.5]])
+    phi, C, N = shell.signed(now)
+    assert (phi < 0).all()  # both inside the shell now
+    ref = SideReference(then, placed)
+    phi2, _, N2, turned = on_their_side(placed[0], ref, 0, np.arange(2), now, phi, C, N)
+    # the polygonal spheres lie within 0.05 of the round ones
+    assert phi2[0] == pytest.approx(-0.3, abs=0.05)
+    assert np.allclose(N2[0], [np.sin(t), 0.0, np.cos(t)], atol=0.05)
+    assert list(turned) == [1]
+    assert phi2[1] == pytest.approx(-2.5, abs=0.05)
+    assert np.allclose(N2[1], [0.0, 0.0, 1.0], atol=0.05)
+
+
 # ------------------------------------------------------------------ scenes
 def _scene_text(data_dir, extra=""):
     lhdl = data_dir / "lhdl"
