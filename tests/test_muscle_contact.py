@@ -929,3 +929,25 @@ def test_a_run_names_the_muscles_left_inside_another_deeper_than_half_a_millimet
     (note,) = _overlap_notes(metres, "m")
     assert "more than 0.0005 m" in note and "up to 0.0017 m" in note
     assert _overlap_notes([row("a", 0, 0.1)], "mm") == []
+
+
+def test_a_run_names_the_muscles_the_bones_contact_left_out_of_its_bounds():
+    """A vertex over 0.5 mm inside a bone or a bone's vertex over 1 mm inside the muscle
+    (`defaults.bone_note_mm`, `bone_inside_note_mm`) gives the muscle a note each."""
+    from musclewrap.run._run import _bone_notes
+
+    def row(muscle, frame, inside, stands):
+        return {"muscle": muscle, "frame": frame, "penetration_depth_max": inside,
+                "bone_inside_depth_max": stands}  # fmt: skip
+
+    rows = [row("a", 0, 0.1, 0.2), row("a", 1, 1.08, 0.9), row("a", 2, 0.6, 1.27),
+            row("b", 0, 0.5, 1.0), row("b", 1, float("nan"), 0.3)]  # fmt: skip
+    notes = _bone_notes(rows, "mm")
+    assert len(notes) == 2
+    assert notes[0].startswith("a: on 2 frame(s) a vertex stays more than 0.5 mm inside a bone")
+    assert "up to 1.08 mm, frame 1; penetration_depth_max" in notes[0]
+    assert notes[1].startswith("a: on 1 frame(s) a bone stands more than 1 mm inside it")
+    assert "up to 1.27 mm, frame 2; bone_inside_depth_max" in notes[1]
+    metres = [{k: v * 1e-3 if "depth" in k else v for k, v in r.items()} for r in rows]
+    assert "more than 0.0005 m" in _bone_notes(metres, "m")[0]
+    assert _bone_notes([row("a", 0, 0.1, 0.2)], "mm") == []

@@ -350,6 +350,12 @@ class Defaults:
         A run's notes name a muscle with a vertex deeper than this (mm) inside another
         muscle on some frame (``muscle_overlap_max``; the issues' bound, 0.5 mm): where
         the rounds could not take them apart. Shallower ones are in report.csv only.
+    bone_note_mm : float
+        A run's notes name a muscle with a vertex deeper than this (mm) inside a bone
+        on some frame (``penetration_depth_max``; the issues' bound, 0.5 mm).
+    bone_inside_note_mm : float
+        A run's notes name a muscle with a bone's vertex deeper than this (mm) inside
+        it on some frame (``bone_inside_depth_max``; the issues' bound, 1 mm).
     view_moving_triangles : int
         The viewer draws about this many triangles in all (muscles and bones, each
         decimated in proportion, never below a tenth of its own) while a slider moves,
@@ -471,6 +477,8 @@ class Defaults:
     view_moving_triangles: int = 15_000
     line_conflict_mm: float = 0.5
     overlap_note_mm: float = 0.5
+    bone_note_mm: float = 0.5
+    bone_inside_note_mm: float = 1.0
     init_alike_deg: float = 15.0
     init_far: float = 0.25
     init_cap_rms: float = 0.08

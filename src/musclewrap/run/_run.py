@@ -594,6 +594,7 @@ class _SceneRun:
         )
         self.notes += _conflict_notes(rows, scene.mesh_unit)
         self.notes += _overlap_notes(rows, scene.mesh_unit)
+        self.notes += _bone_notes(rows, scene.mesh_unit)
         worst = max(
             (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
             for r in rows
@@ -766,6 +767,34 @@ def _overlap_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
             f"{worst['frame']}, after {worst.get('muscle_rounds', 0)} rounds; "
             "muscle_overlap_max in report.csv): the muscles could not be taken apart there"
         )
+    return out
+
+
+def _bone_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
+    """The notes of the muscles the bones' contact left out of its bounds on some frame.
+
+    A vertex deeper than `defaults.bone_note_mm` inside a bone (``penetration_depth_max``
+    in report.csv), or a bone's vertex deeper than `defaults.bone_inside_note_mm` inside
+    the muscle (``bone_inside_depth_max``): where the finish could not take them apart
+    (a pose far past anatomy, a bone the muscles are pressed through). The frame
+    converged and its volume is exact, but a user of the meshes must know it.
+    """
+    out = []
+    for key, mm, what in (
+        ("penetration_depth_max", defaults.bone_note_mm, "a vertex stays more than {} inside a bone"),
+        ("bone_inside_depth_max", defaults.bone_inside_note_mm, "a bone stands more than {} inside it"),
+    ):  # fmt: skip
+        deep = mm * 1e-3 / UNITS[unit]  # in mesh units
+        for name in dict.fromkeys(r["muscle"] for r in rows):
+            mine = [r for r in rows if r["muscle"] == name and r.get(key, np.nan) > deep]
+            if not mine:
+                continue
+            worst = max(mine, key=lambda r: r[key])
+            out.append(
+                f"{name}: on {len(mine)} frame(s) " + what.format(f"{deep:g} {unit}")
+                + f" (up to {worst[key]:.3g} {unit}, frame {worst['frame']}; {key} in "
+                "report.csv): the bones' contact could not be met there"
+            )  # fmt: skip
     return out
 
 
