@@ -78,9 +78,7 @@ def bone_vertices_inside(
     further from it than a triangle's vertices from a point inside it (about
     ``edge / sqrt(3)``); of those, the ones convex enough to stand ``deep`` out
     of a muscle triangle whose vertices lie on the bone (`Obstacle.convexity`
-    at least ``8 deep / (1.5 edge)^2``, or ``2 deep / r^2`` where the triangles
-    round the candidate's nearest muscle vertex are larger: ``r`` the largest
-    radius of their smallest enclosing circles; all of them for ``deep`` = 0).
+    at least ``8 deep / (1.5 edge)^2``; all of them for ``deep`` = 0).
 
     Their side is the winding number of the whole surface (exact on a closed
     one); from every vertex found inside, its neighbours on the obstacle are
@@ -136,19 +134,8 @@ def bone_vertices_inside(
         if not keep.any():
             cands.append(None)
             continue
-        kept = np.flatnonzero(keep)
-        # where the muscle's triangles there are larger than the sag assumes (stretched at an
-        # extreme pose), a flatter bone stands as deep between their vertices: each candidate
-        # is held to the sag over the triangles round its nearest muscle vertex
-        need = np.minimum(sharp, 2.0 * deep / _reach_sq(P, F, faces, near_b[kept]))
-        least = sharp
-        if need.min() < sharp:  # a few levels, each binned once per obstacle and edge
-            least = sharp / 2.0 ** min(np.ceil(np.log2(sharp / need.min())), 6.0)
-        rows, which = pl.obstacle.vertices_near(Q[kept], 1.5 * edge, least)
-        if least < sharp:
-            ok = pl.obstacle.convexity[rows] > need[which]
-            rows, which = rows[ok], which[ok]
-        cands.append((near_b, rows, kept[which]) if len(rows) else None)
+        rows, which = pl.obstacle.vertices_near(Q[keep], 1.5 * edge, sharp)
+        cands.append((near_b, rows, np.flatnonzero(keep)[which]) if len(rows) else None)
     grid: WindingGrid | None = None
     if any(c is not None for c in cands):
         grid = WindingGrid(P, F, lazy=True)
@@ -180,39 +167,6 @@ def bone_vertices_inside(
         dist, C, fi = _depths(B, nearest[rows], m, P, F, adjacency, faces, deep)
         out.append(Inside(rows, B, C, fi, dist))
     return out
-
-
-def _reach_sq(
-    P: FloatArray, F: IntArray, faces: tuple[IntArray, IntArray], m: IntArray
-) -> FloatArray:
-    """Per muscle vertex ``m``, the largest squared radius of its triangles' smallest circles.
-
-    The circumscribed circle of an acute triangle, half the longest edge of another: a
-    point over the triangle lies within that radius of its centre, and a bone of radius
-    ``R`` under it rises at most ``r^2 / 2 R`` above its vertices' plane.
-    """
-    ip, ix = faces
-    count = ip[m + 1] - ip[m]
-    if not len(m) or not count.sum():
-        return np.full(len(m), np.inf)
-    which = np.repeat(np.arange(len(m)), count)
-    first = np.cumsum(count) - count  # where each vertex's faces start in the list
-    fi = ix[np.repeat(ip[m] - first, count) + np.arange(count.sum())]
-    T = P[F[fi]]
-    e = np.stack(
-        [((T[:, 1] - T[:, 2]) ** 2).sum(1), ((T[:, 2] - T[:, 0]) ** 2).sum(1),
-         ((T[:, 0] - T[:, 1]) ** 2).sum(1)],
-        axis=1,
-    )  # fmt: skip
-    area2 = (np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]) ** 2).sum(1)  # (2 area)^2
-    longest = e.max(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        circ = e.prod(axis=1) / (4.0 * area2)  # (abc / 4 area)^2
-    obtuse = 2.0 * longest >= e.sum(axis=1)
-    r2 = np.where(obtuse | ~np.isfinite(circ), 0.25 * longest, circ)
-    out = np.zeros(len(m))
-    np.maximum.at(out, which, r2)
-    return np.maximum(out, 1e-300)
 
 
 def _depths(
