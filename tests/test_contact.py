@@ -207,6 +207,47 @@ def test_a_rod_does_not_poke_through_between_vertices(bent, radius):
     assert d.muscle.shape_change(res.V).max() <= 0.5
 
 
+def test_a_bone_between_a_stretched_muscles_vertices_is_found():
+    # The run looks for a bone's vertices inside the muscle among those convex enough to
+    # stand out of a triangle whose vertices lie on the bone. Where the triangles are
+    # stretched (here 10 x 2 against a mean edge of 2: a muscle pulled at an extreme pose),
+    # a flatter bone stands as deep: a sphere of radius 10 (convexity 0.1, under the
+    # 0.18 that triangles of 1.5 mean edges need) pressed up between the slab's vertices,
+    # every one of them outside it. Each found vertex and the deepest against brute force.
+    import igl
+
+    from musclewrap.contact import Near, Placed, bone_vertices_inside, vertex_faces
+    from musclewrap.mesh import vertex_adjacency
+
+    P, PF = _plate([0.0, 0.0, 0.0], [10.0, 10.0, 4.0], 2.0)
+    P[:, 0] *= 5.0  # the slab's triangles stretched fivefold along x
+    edge = 2.0
+    # the point of the slab's bottom face farthest from its vertices
+    bottom = P[np.abs(P[:, 2]) < 1e-9]
+    g = np.stack(np.meshgrid(np.linspace(10, 40, 301), np.linspace(2, 8, 61)), -1).reshape(-1, 2)
+    gap = np.linalg.norm(g[:, None, :] - bottom[None, :, :2], axis=2).min(axis=1)
+    x, y = g[np.argmax(gap)]
+    R = 10.0
+    rise = 0.8 * gap.max() ** 2 / (2.0 * R)  # the cap's top above the face, its rim below
+    S, SF = capsule(radius=R, length=0.0, n_around=192, cap_rings=96, segments=1)
+    S = S - S.mean(axis=0) + [x, y, rise - R]
+    bone = Obstacle(S, SF)
+    placed = [Placed(bone, name="sphere")]
+    assert bone.signed(P)[0].min() > 0.0  # every slab vertex outside the bone
+    truth = igl.winding_number(P, PF, S) > 0.5
+    assert truth.sum() >= 3
+    deepest = np.sqrt(igl.point_mesh_squared_distance(S[truth], P, PF)[0]).max()
+    assert deepest > 0.1 * edge  # deep enough to be pushed
+    A = vertex_adjacency(PF, len(P))
+    (found,) = bone_vertices_inside(
+        P, PF, placed, Near(P, placed, 0.0), edge=edge,
+        adjacency=(A.indptr.astype(np.int64), A.indices.astype(np.int64)),
+        faces=vertex_faces(PF, len(P)), deep=0.1 * edge,
+    )  # fmt: skip
+    assert set(found.rows) == set(np.flatnonzero(truth))
+    assert found.deepest == pytest.approx(deepest, abs=1e-9)
+
+
 # ------------------------------------------------------------------ sides, on a path
 def _plate(lo, hi, spacing):
     """A closed box with vertices every ``spacing`` or less on its faces."""

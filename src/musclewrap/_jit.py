@@ -83,6 +83,7 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("contact._near", "_within_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_I1})"),
         ("contact._inside", "_nearest_face_kernel",
          f"({_A2}, {_I2}, {_A2}, {_I2}, {_I1}, {_I1}, {_I1}, {_I1}, int64, {_A1}, {_A2}, {_I1})"),
+        ("contact._inside", "_reach_kernel", f"({_A2}, {_I2}, {_I1}, {_I1}, {_I1}, {_A1})"),
         ("contact._muscles", "_closest_kernel", f"({_A2}, {_A2}, {_I2}, {_A1}, {_A2}, {_I1})"),
         ("mesh._geometry", "_normals_kernel", f"({_A2}, {_I2}, {_A2})"),
         ("mesh._winding", "_cells_kernel", f"({_A2}, int64)"),

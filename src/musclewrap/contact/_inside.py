@@ -20,6 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .._typing import FloatArray, IntArray
+from ..constants import defaults
 from ..mesh import WindingGrid, invert_rigid
 from ._near import Near
 from ._placed import Placed
@@ -78,7 +79,12 @@ def bone_vertices_inside(
     further from it than a triangle's vertices from a point inside it (about
     ``edge / sqrt(3)``); of those, the ones convex enough to stand ``deep`` out
     of a muscle triangle whose vertices lie on the bone (`Obstacle.convexity`
-    at least ``8 deep / (1.5 edge)^2``; all of them for ``deep`` = 0).
+    at least ``8 deep / (1.5 edge)^2``; all of them for ``deep`` = 0). Round a
+    muscle vertex whose triangles are larger than that assumes by
+    ``defaults.contact_bone_stretch`` in area (stretched at a pose past anatomy),
+    the bone vertices within 1.5 ``edge`` are held to its own triangles' sag
+    instead (``2 deep / r^2``, ``r`` the largest radius of their smallest
+    enclosing circles).
 
     Their side is the winding number of the whole surface (exact on a closed
     one); from every vertex found inside, its neighbours on the obstacle are
@@ -134,8 +140,21 @@ def bone_vertices_inside(
         if not keep.any():
             cands.append(None)
             continue
-        rows, which = pl.obstacle.vertices_near(Q[keep], 1.5 * edge, sharp)
-        cands.append((near_b, rows, np.flatnonzero(keep)[which]) if len(rows) else None)
+        kept = np.flatnonzero(keep)
+        rows, which = pl.obstacle.vertices_near(Q[kept], 1.5 * edge, sharp)
+        if sharp > 0:
+            # where the triangles round a muscle vertex are much larger than the sag above
+            # assumes (stretched at a pose past anatomy), a flatter bone stands as deep
+            # between their vertices: the bone vertices near it held to its own triangles' sag
+            need = 2.0 * deep / _reach_sq(P, F, faces, near_b[kept])
+            wide = np.flatnonzero(need < sharp / defaults.contact_bone_stretch)
+            if len(wide):
+                more, at = pl.obstacle.vertices_near(Q[kept[wide]], 1.5 * edge)
+                at = wide[at]
+                new = pl.obstacle.convexity[more] > need[at]
+                rows, first = np.unique(np.concatenate([rows, more[new]]), return_index=True)
+                which = np.concatenate([which, at[new]])[first]
+        cands.append((near_b, rows, kept[which]) if len(rows) else None)
     grid: WindingGrid | None = None
     if any(c is not None for c in cands):
         grid = WindingGrid(P, F, lazy=True)
@@ -167,6 +186,51 @@ def bone_vertices_inside(
         dist, C, fi = _depths(B, nearest[rows], m, P, F, adjacency, faces, deep)
         out.append(Inside(rows, B, C, fi, dist))
     return out
+
+
+def _reach_sq(
+    P: FloatArray, F: IntArray, faces: tuple[IntArray, IntArray], m: IntArray
+) -> FloatArray:
+    """Per muscle vertex ``m``, the largest squared radius of its triangles' smallest circles.
+
+    The circumscribed circle of an acute triangle, half the longest edge of another: a
+    point over the triangle lies within that radius of its centre, and a bone of radius
+    ``R`` under it rises at most ``r^2 / 2 R`` above its vertices' plane (compiled).
+    """
+    out = np.empty(len(m))
+    _reach_kernel(P, F, faces[0], faces[1], np.ascontiguousarray(m, dtype=np.int64), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _reach_kernel(P, F, VFp, VFi, m, out):  # noqa: ANN001, ANN202 # pragma: no cover
+    # per vertex: the largest squared radius over its triangles of the smallest circle
+    # round each (the circumscribed one of an acute triangle, half the longest edge else)
+    for i in range(m.shape[0]):
+        v = m[i]
+        best = 1e-300
+        for p in range(VFp[v], VFp[v + 1]):
+            f = VFi[p]
+            a, b, c = F[f, 0], F[f, 1], F[f, 2]
+            e0 = e1 = e2 = 0.0
+            for k in range(3):
+                u = P[b, k] - P[c, k]
+                w = P[c, k] - P[a, k]
+                z = P[a, k] - P[b, k]
+                e0 += u * u
+                e1 += w * w
+                e2 += z * z
+            ux, uy, uz = P[b, 0] - P[a, 0], P[b, 1] - P[a, 1], P[b, 2] - P[a, 2]
+            wx, wy, wz = P[c, 0] - P[a, 0], P[c, 1] - P[a, 1], P[c, 2] - P[a, 2]
+            cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+            area2 = cx * cx + cy * cy + cz * cz  # (2 area)^2
+            longest = max(e0, max(e1, e2))
+            if 2.0 * longest >= e0 + e1 + e2 or not area2 > 0.0:
+                r2 = 0.25 * longest
+            else:
+                r2 = e0 * e1 * e2 / (4.0 * area2)
+            best = max(best, r2)
+        out[i] = best
 
 
 def _depths(
