@@ -951,3 +951,9 @@ def test_a_run_names_the_muscles_the_bones_contact_left_out_of_its_bounds():
     metres = [{k: v * 1e-3 if "depth" in k else v for k, v in r.items()} for r in rows]
     assert "more than 0.0005 m" in _bone_notes(metres, "m")[0]
     assert _bone_notes([row("a", 0, 0.1, 0.2)], "mm") == []
+    # a muscle that keeps its rest overlap 8.5 deep: named only 0.5 deeper than that, and
+    # never for the bone standing in it as it did
+    kept = [row("k", 0, 8.9, 5.0), row("k", 1, 9.2, 5.1)]
+    (note,) = _bone_notes(kept, "mm", {"k": 8.5})
+    assert note.startswith("k: on 1 frame(s) a vertex stays more than 0.5 mm inside a bone ")
+    assert "beyond its kept rest overlap (8.5 mm) (up to 9.2 mm, frame 1" in note

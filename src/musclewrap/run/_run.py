@@ -594,7 +594,7 @@ class _SceneRun:
         )
         self.notes += _conflict_notes(rows, scene.mesh_unit)
         self.notes += _overlap_notes(rows, scene.mesh_unit)
-        self.notes += _bone_notes(rows, scene.mesh_unit)
+        self.notes += _bone_notes(rows, scene.mesh_unit, _kept_depths(self.inputs.contact))
         worst = max(
             (abs(r["relative_volume_error"]) if np.isfinite(r["relative_volume_error"]) else np.inf)
             for r in rows
@@ -770,15 +770,31 @@ def _overlap_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
     return out
 
 
-def _bone_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
+def _kept_depths(contact: dict[str, dict[str, Any]] | None) -> dict[str, float]:
+    """Per muscle that keeps a rest overlap with a bone, how deep it may stay (mesh units)."""
+    out = {}
+    for name, bones in (contact or {}).items():
+        kept = [float(-a.min()) for a in bones.values() if a is not None]
+        if kept:
+            out[name] = max(max(kept), 0.0)
+    return out
+
+
+def _bone_notes(
+    rows: list[dict[str, Any]], unit: str, kept: dict[str, float] | None = None
+) -> list[str]:
     """The notes of the muscles the bones' contact left out of its bounds on some frame.
 
     A vertex deeper than `defaults.bone_note_mm` inside a bone (``penetration_depth_max``
     in report.csv), or a bone's vertex deeper than `defaults.bone_inside_note_mm` inside
     the muscle (``bone_inside_depth_max``): where the finish could not take them apart
     (a pose far past anatomy, a bone the muscles are pressed through). The frame
-    converged and its volume is exact, but a user of the meshes must know it.
+    converged and its volume is exact, but a user of the meshes must know it. A muscle
+    that keeps its rest overlap (``kept``: how deep it may stay, mesh units) is named
+    where it goes that much deeper than it was; the bone standing in it, as it did at
+    rest, is not (its own note says the overlap was kept).
     """
+    kept = kept or {}
     out = []
     for key, mm, what in (
         ("penetration_depth_max", defaults.bone_note_mm, "a vertex stays more than {} inside a bone"),
@@ -786,12 +802,19 @@ def _bone_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
     ):  # fmt: skip
         deep = mm * 1e-3 / UNITS[unit]  # in mesh units
         for name in dict.fromkeys(r["muscle"] for r in rows):
-            mine = [r for r in rows if r["muscle"] == name and r.get(key, np.nan) > deep]
+            if name in kept:
+                if key == "bone_inside_depth_max":
+                    continue
+                more = f" beyond its kept rest overlap ({kept[name]:.3g} {unit})"
+                limit = kept[name] + deep
+            else:
+                more, limit = "", deep
+            mine = [r for r in rows if r["muscle"] == name and r.get(key, np.nan) > limit]
             if not mine:
                 continue
             worst = max(mine, key=lambda r: r[key])
             out.append(
-                f"{name}: on {len(mine)} frame(s) " + what.format(f"{deep:g} {unit}")
+                f"{name}: on {len(mine)} frame(s) " + what.format(f"{deep:g} {unit}") + more
                 + f" (up to {worst[key]:.3g} {unit}, frame {worst['frame']}; {key} in "
                 "report.csv): the bones' contact could not be met there"
             )  # fmt: skip
