@@ -228,8 +228,9 @@ def unfold(
     pattern is its adjacency's); ``shape0``, ``shape``: the shape change
     (`PreparedMuscle.shape_change`) at ``V0`` and ``V``. A fold is a vertex whose shape change the move raised by more than
     ``defaults.fold_rise`` to more than ``defaults.fold_shape`` mean edges. Over the
-    rings within ``defaults.fold_rings`` of the folds (less the ``held`` vertices: those
-    the move had to put where they are), the move's displacement is replaced by the thin
+    rings within ``defaults.fold_rings`` of the folds (less the ``held`` vertices that
+    are not folds: those the move had to put where they are; a fold among them is
+    ironed too, and the fine finish puts it back out of the bone), the move's displacement is replaced by the thin
     plate that meets it round them (`_thin_plate`), and the volume restored exactly
     along the normals there. Returns ``V`` itself where there is no fold, or where the
     volume cannot be restored.
@@ -238,7 +239,7 @@ def unfold(
     if not fold.any():
         return V
     k = defaults.fold_rings
-    free = np.flatnonzero((rings(U, np.flatnonzero(fold), k) <= k) & ~held)
+    free = np.flatnonzero((rings(U, np.flatnonzero(fold), k) <= k) & (~held | fold))
     if not len(free) or len(free) == len(V):
         return V  # nothing to iron, or nothing round it to meet (a closed mesh's whole)
     D = V - V0

@@ -117,7 +117,8 @@ class ContactSteps:
         triangles, fold along its edges (the gluteus maximus past 100 deg of hip
         flexion, 2-37 mm from any bone: BENCHMARKS.md). `musclewrap.contact.unfold`,
         away from the vertices within ``defaults.fold_held`` mean edges of a bone's
-        margin (where the steps had to put them).
+        margin (where the steps had to put them) that are not folds themselves (a fold
+        on the bone is ironed with the rest; the finish puts it back on the bone).
         """
         mu = self.muscle
         shape = mu.shape_change(V)
