@@ -695,19 +695,24 @@ def _shape(V, V0, F):
     return np.abs(np.linalg.norm(U @ V, axis=1) - d0) / mean_edge_length(V0, F)
 
 
+def _shelf():
+    """A capsule, its uniform Laplacian and volume, and a move with a fold: the vertices
+    past z = 50 pushed 6 mm sideways, those before it not (a shelf along a ring)."""
+    from musclewrap.mesh import umbrella_laplacian, volume
+
+    V0, F = capsule(radius=20.0, length=40.0, n_around=48, cap_rings=12, segments=12)
+    D = np.zeros_like(V0)
+    D[V0[:, 2] > 50.0, 0] = 6.0
+    return V0, F, umbrella_laplacian(F, len(V0)), volume(V0, F), V0 + D
+
+
 def test_unfold_irons_a_steps_fold_and_keeps_the_held_vertices_and_the_volume():
     """A move with a fold in it (a shelf along a ring) is ironed out away from the held cap
     (held vertices that are not folds stay where the move put them)."""
     from musclewrap.contact import unfold
-    from musclewrap.mesh import umbrella_laplacian, volume
+    from musclewrap.mesh import volume
 
-    V0, F = capsule(radius=20.0, length=40.0, n_around=48, cap_rings=12, segments=12)
-    U = umbrella_laplacian(F, len(V0))
-    target = volume(V0, F)
-    # the vertices past z = 50 pushed 6 mm sideways, those before it not: a shelf
-    D = np.zeros_like(V0)
-    D[V0[:, 2] > 50.0, 0] = 6.0
-    V = V0 + D
+    V0, F, U, target, V = _shelf()
     held = V0[:, 2] > 60.0  # the cap the move had to put there
     s0, s = _shape(V0, V0, F), _shape(V, V0, F)
     assert s.max() > 0.5  # the shelf is a fold
@@ -731,14 +736,9 @@ def test_unfold_irons_a_fold_among_the_held_vertices():
     other held vertices stay; the finish is what puts those moved back on the bone."""
     from musclewrap.constants import defaults
     from musclewrap.contact import unfold
-    from musclewrap.mesh import umbrella_laplacian, volume
+    from musclewrap.mesh import volume
 
-    V0, F = capsule(radius=20.0, length=40.0, n_around=48, cap_rings=12, segments=12)
-    U = umbrella_laplacian(F, len(V0))
-    target = volume(V0, F)
-    D = np.zeros_like(V0)
-    D[V0[:, 2] > 50.0, 0] = 6.0
-    V = V0 + D
+    V0, F, U, target, V = _shelf()
     held = V0[:, 2] > 40.0
     s0, s = _shape(V0, V0, F), _shape(V, V0, F)
     fold = (s > defaults.fold_shape) & (s - s0 > defaults.fold_rise)

@@ -245,8 +245,8 @@ class Defaults:
         near it are held to those triangles' own sag. The gait2392 scene through a
         random motion past anatomy (the sartorius at hip extension -85 deg): at
         3 the run finds the acetabulum 1.34 mm inside it, as libigl does; at 4,
-        0.77. On the LHDL walk (scratch timing, one process) it costs 0.5-0.7 ms a
-        muscle-frame at 3, 0.9 at 1.5, 0.3 at 4, and changes no mesh.
+        0.77. On the LHDL walk it costs 0.5-0.7 ms a muscle-frame at 3, 0.9 at 1.5,
+        0.3 at 4, and changes no mesh (BENCHMARKS.md, the thresholds' table).
     contact_band : float
         Vertices within this many mean fine edge lengths of an obstacle's
         margin enter the cage's contact step as inequality conditions.

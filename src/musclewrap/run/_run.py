@@ -754,19 +754,31 @@ def _overlap_notes(rows: list[dict[str, Any]], unit: str) -> list[str]:
     """
     out = []
     deep = defaults.overlap_note_mm * 1e-3 / UNITS[unit]  # in mesh units
-    for name in dict.fromkeys(r["muscle"] for r in rows):
-        mine = [
-            r for r in rows if r["muscle"] == name and r.get("muscle_overlap_max", np.nan) > deep
-        ]
-        if not mine:
-            continue
-        worst = max(mine, key=lambda r: r["muscle_overlap_max"])
+    for name, n, worst in _frames_over(rows, "muscle_overlap_max", lambda _: deep):
         out.append(
-            f"{name}: on {len(mine)} frame(s) a vertex stays more than {deep:g} {unit} inside "
+            f"{name}: on {n} frame(s) a vertex stays more than {deep:g} {unit} inside "
             f"another muscle (up to {worst['muscle_overlap_max']:.3g} {unit}, frame "
             f"{worst['frame']}, after {worst.get('muscle_rounds', 0)} rounds; "
             "muscle_overlap_max in report.csv): the muscles could not be taken apart there"
         )
+    return out
+
+
+def _frames_over(
+    rows: list[dict[str, Any]], key: str, limit: Callable[[str], float | None]
+) -> list[tuple[str, int, dict[str, Any]]]:
+    """The muscles whose ``key`` passes ``limit(muscle)`` on some frame, in the rows' order.
+
+    Each with on how many frames and the worst frame's row. A limit of None: not looked at.
+    """
+    out = []
+    for name in dict.fromkeys(r["muscle"] for r in rows):
+        at = limit(name)
+        if at is None:
+            continue
+        mine = [r for r in rows if r["muscle"] == name and r.get(key, np.nan) > at]
+        if mine:
+            out.append((name, len(mine), max(mine, key=lambda r: r[key])))
     return out
 
 
@@ -801,20 +813,19 @@ def _bone_notes(
         ("bone_inside_depth_max", defaults.bone_inside_note_mm, "a bone stands more than {} inside it"),
     ):  # fmt: skip
         deep = mm * 1e-3 / UNITS[unit]  # in mesh units
-        for name in dict.fromkeys(r["muscle"] for r in rows):
-            if name in kept:
-                if key == "bone_inside_depth_max":
-                    continue
-                more = f" beyond its kept rest overlap ({kept[name]:.3g} {unit})"
-                limit = kept[name] + deep
-            else:
-                more, limit = "", deep
-            mine = [r for r in rows if r["muscle"] == name and r.get(key, np.nan) > limit]
-            if not mine:
-                continue
-            worst = max(mine, key=lambda r: r[key])
+        inside = key == "penetration_depth_max"
+
+        def limit(name: str, deep: float = deep, inside: bool = inside) -> float | None:
+            if name not in kept:
+                return deep
+            return kept[name] + deep if inside else None  # the bone stands in it as at rest
+
+        for name, n, worst in _frames_over(rows, key, limit):
+            more = (
+                f" beyond its kept rest overlap ({kept[name]:.3g} {unit})" if name in kept else ""
+            )
             out.append(
-                f"{name}: on {len(mine)} frame(s) " + what.format(f"{deep:g} {unit}") + more
+                f"{name}: on {n} frame(s) " + what.format(f"{deep:g} {unit}") + more
                 + f" (up to {worst[key]:.3g} {unit}, frame {worst['frame']}; {key} in "
                 "report.csv): the bones' contact could not be met there"
             )  # fmt: skip
