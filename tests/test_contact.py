@@ -248,6 +248,42 @@ def test_a_bone_between_a_stretched_muscles_vertices_is_found():
     assert found.deepest == pytest.approx(deepest, abs=1e-9)
 
 
+def test_a_coarse_bones_corner_deep_between_a_muscles_vertices_is_found():
+    # A model's bone has a few hundred vertices (gait2392's pelvis 125, edges of 22 mm):
+    # the corner of its large flat triangles can stand deeper in a muscle than 1.5 of the
+    # muscle's edges from every one of its vertices (the pectineus on gait2392's running
+    # trial: 3.3 mm, reported 0), and its curvature toward its far neighbours is flat.
+    # A sharp pyramid (edges of 30 mm) pokes its apex 3.5 mm up into a slab of edge 2.
+    import igl
+
+    from musclewrap.contact import Near, Placed, bone_vertices_inside, vertex_faces
+    from musclewrap.mesh import vertex_adjacency
+
+    P, PF = _plate([0.0, 0.0, 0.0], [20.0, 20.0, 10.0], 2.0)
+    edge = mean_edge_length(P, PF)
+    bottom = P[np.abs(P[:, 2]) < 1e-9]
+    g = np.stack(np.meshgrid(np.linspace(6, 14, 81), np.linspace(6, 14, 81)), -1).reshape(-1, 2)
+    x, y = g[np.argmax(np.linalg.norm(g[:, None] - bottom[None, :, :2], axis=2).min(axis=1))]
+    S = np.array(
+        [[x, y, 3.5]] + [[x + a, y + b, -26.5] for a, b in [(-3, -3), (3, -3), (3, 3), (-3, 3)]]
+    )
+    SF = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1], [1, 3, 2], [1, 4, 3]])
+    bone = Obstacle(S, SF)
+    placed = [Placed(bone, name="pyramid")]
+    assert bone.signed(P)[0].min() > 0.0  # every slab vertex outside the bone
+    assert np.linalg.norm(P - S[0], axis=1).min() > 1.5 * edge  # the apex far from them all
+    truth = igl.winding_number(P, PF, S) > 0.5
+    assert list(np.flatnonzero(truth)) == [0]
+    A = vertex_adjacency(PF, len(P))
+    (found,) = bone_vertices_inside(
+        P, PF, placed, Near(P, placed, 0.0), edge=edge,
+        adjacency=(A.indptr.astype(np.int64), A.indices.astype(np.int64)),
+        faces=vertex_faces(PF, len(P)), deep=0.1 * edge,
+    )  # fmt: skip
+    assert list(found.rows) == [0]
+    assert found.deepest == pytest.approx(3.5, abs=1e-9)
+
+
 # ------------------------------------------------------------------ sides, on a path
 def _plate(lo, hi, spacing):
     """A closed box with vertices every ``spacing`` or less on its faces."""

@@ -84,7 +84,9 @@ def bone_vertices_inside(
     ``defaults.contact_bone_stretch`` in area (stretched at a pose past anatomy),
     the bone vertices within 1.5 ``edge`` are held to its own triangles' sag
     instead (``2 deep / r^2``, ``r`` the largest radius of their smallest
-    enclosing circles).
+    enclosing circles). And every obstacle vertex with an edge longer than 1.5
+    ``edge`` (a model's coarse bone) within that edge and 1.5 ``edge`` of such a
+    muscle vertex, whatever its convexity (`_coarse_near`).
 
     Their side is the winding number of the whole surface (exact on a closed
     one); from every vertex found inside, its neighbours on the obstacle are
@@ -154,6 +156,10 @@ def bone_vertices_inside(
                 new = pl.obstacle.convexity[more] > need[at]
                 rows, first = np.unique(np.concatenate([rows, more[new]]), return_index=True)
                 which = np.concatenate([which, at[new]])[first]
+        more, at = _coarse_near(pl, Q[kept], 1.5 * edge)
+        if len(more):
+            rows, first = np.unique(np.concatenate([rows, more]), return_index=True)
+            which = np.concatenate([which, at])[first]
         cands.append((near_b, rows, kept[which]) if len(rows) else None)
     grid: WindingGrid | None = None
     if any(c is not None for c in cands):
@@ -186,6 +192,36 @@ def bone_vertices_inside(
         dist, C, fi = _depths(B, nearest[rows], m, P, F, adjacency, faces, deep)
         out.append(Inside(rows, B, C, fi, dist))
     return out
+
+
+def _coarse_near(pl: Placed, Q: FloatArray, reach: float) -> tuple[IntArray, IntArray]:
+    """The obstacle's vertices with an edge longer than ``reach`` that may stand in the muscle.
+
+    Where the obstacle's triangles are larger than the muscle's (a model's bone of a
+    few hundred vertices), a vertex of its inside the muscle lies no further from a
+    muscle vertex ``Q`` near the obstacle than its longest edge and ``reach``: each of
+    its edges to a vertex outside crosses the muscle's surface, whose vertices lie
+    round the crossing on the obstacle. Its curvature toward its neighbours says
+    nothing there (a corner between large flat triangles stands out of a muscle
+    triangle however flat it is over the obstacle's edges): every such vertex within
+    that distance, and its nearest point of ``Q`` (an index into it).
+    """
+    ob = pl.obstacle
+    longest = ob.longest_edges
+    coarse = np.flatnonzero(longest > reach)
+    none = np.zeros(0, dtype=np.int64)
+    if not len(coarse) or not len(Q):
+        return none, none
+    radius = longest[coarse] + reach
+    X = ob.V[coarse]
+    lo, hi = Q.min(axis=0), Q.max(axis=0)
+    box = np.all((X >= lo - radius[:, None]) & (X <= hi + radius[:, None]), axis=1)
+    if not box.any():
+        return none, none
+    coarse, radius, X = coarse[box], radius[box], X[box]
+    d, j = cKDTree(Q).query(X, distance_upper_bound=float(radius.max()))
+    ok = d <= radius
+    return coarse[ok].astype(np.int64), j[ok].astype(np.int64)
 
 
 def _reach_sq(

@@ -428,6 +428,18 @@ class Obstacle:
         return self._convexity
 
     @property
+    def longest_edges(self) -> FloatArray:
+        """Per vertex, the length of its longest edge (0 for a vertex of no triangle)."""
+        if getattr(self, "_longest_edges", None) is None:
+            E = np.vstack([self.F[:, [0, 1]], self.F[:, [1, 2]], self.F[:, [2, 0]]])
+            L = np.linalg.norm(self.V[E[:, 0]] - self.V[E[:, 1]], axis=1)
+            out = np.zeros(len(self.V))
+            np.maximum.at(out, E[:, 0], L)
+            np.maximum.at(out, E[:, 1], L)
+            self._longest_edges = out
+        return self._longest_edges
+
+    @property
     def adjacency(self) -> tuple[IntArray, IntArray]:
         """The vertices' neighbours on the surface, CSR ``(indptr, indices)`` (built once)."""
         if getattr(self, "_adjacency", None) is None:
