@@ -26,6 +26,24 @@ def test_obstacle_matches_a_sphere():
     assert probe.measure(Q[outside]) == (0, 0.0)
 
 
+def test_a_coarse_bones_grid_is_as_fine_as_its_budget_allows():
+    # A model's bone has triangles of 20-70 mm (gait2392's pelvis): a grid of half an edge
+    # put the contact's interpolated distance 2.6 mm off the exact one at a muscle deep in
+    # it. A cube of twelve triangles, 60 mm a side: the grid's distance near its surface
+    # and inside (where the exact one creases along the diagonal planes) within 0.5 mm.
+    import trimesh
+
+    box = trimesh.creation.box(extents=[60.0, 60.0, 60.0])
+    probe = Obstacle(np.asarray(box.vertices), np.asarray(box.faces))
+    assert probe.h < 1.0
+    rng = np.random.default_rng(3)
+    Q = rng.uniform(-36.0, 36.0, size=(4000, 3))
+    idx, phi, _ = probe.interpolate(Q, 6.0)
+    exact = probe.signed(Q[idx])[0]
+    assert len(idx) > 1000 and (exact < 0).sum() > 500
+    assert np.abs(phi - exact).max() < 0.5
+
+
 def _brute_force(probe, Q):
     """Closest-point query with the pseudo-normal side on every point."""
     phi = probe._signed(Q)[0]
@@ -668,7 +686,7 @@ def test_without_the_fine_finish_the_cage_is_the_same(bent):
     # its fine positions are the cage's: W @ x, on the exact volume the cage steps end on
     np.testing.assert_allclose(cage_only.V, d.muscle.W @ cage_only.cage, atol=1e-9)
     assert abs(cage_only.relative_volume_error) <= 1e-12
-    assert np.abs(full.V - cage_only.V).max() > 1.0
+    assert np.abs(full.V - cage_only.V).max() > 0.3
 
 
 def test_the_finish_takes_the_poses_finds_again_to_the_same_bytes(bent):

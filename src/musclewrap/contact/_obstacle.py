@@ -14,7 +14,7 @@ from ..mesh import MeshError, check_mesh, repair_mesh, tidy_mesh
 __all__ = ["Obstacle", "bone_surface"]
 
 #: version of the stored grid; part of the cache key
-_FORMAT = 2  # 2: a band of at least four cells
+_FORMAT = 3  # 2: a band of at least four cells; 3: no coarser than the node budget
 
 
 def bone_surface(
@@ -196,7 +196,12 @@ class Obstacle:
         lo, hi = V.min(axis=0), V.max(axis=0)
         ext = hi - lo
         L = np.linalg.norm(V[F[:, [1, 2, 0]]] - V[F], axis=2)
-        h = float(max((np.prod(ext) / max_grid_nodes) ** (1 / 3), 0.5 * L.mean()))
+        # the finest spacing the node budget allows, whatever the triangles' size: the
+        # contact's conditions take the grid's trilinear distance, and over a model's
+        # coarse bone (gait2392's pelvis: edges of 22 mm) a spacing of half an edge put
+        # it 2.6 mm off the exact one; a flat or thin box keeps 400 cells along its longest
+        # side at most
+        h = float(max((np.prod(ext) / max_grid_nodes) ** (1 / 3), ext.max() / 400.0, 1e-9))
         # every point of a triangle is within (longest edge)/sqrt(3) of one of its vertices
         slack = float(L.max() / np.sqrt(3.0))
         reach = h * np.sqrt(3.0) / 2.0
