@@ -142,7 +142,8 @@ class Obstacle:
 
     Notes
     -----
-    A grid of spacing ``h`` over the bone's bounding box holds, for each node,
+    A grid over the bone's bounding box, of the finest spacing ``h`` that
+    ``max_grid_nodes`` allows (whatever the size of its triangles), holds, for each node,
     an interval for the signed distance: exact (both ends equal) near the
     surface (the "band": nodes within ``k`` cells of a cell holding a bone
     vertex, ``k`` at least 4) and inside; ``[far, inf)`` outside off the band, where ``far > 0``
