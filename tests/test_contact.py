@@ -225,6 +225,29 @@ def test_a_rod_does_not_poke_through_between_vertices(bent, radius):
     assert d.muscle.shape_change(res.V).max() <= 0.5
 
 
+def _farthest_on_bottom(P, xs, ys):
+    """The point of a slab's bottom face (z = 0) farthest from its vertices, on a grid of
+    ``np.linspace(*xs)`` by ``np.linspace(*ys)``: ``x, y`` and that distance."""
+    bottom = P[np.abs(P[:, 2]) < 1e-9]
+    g = np.stack(np.meshgrid(np.linspace(*xs), np.linspace(*ys)), -1).reshape(-1, 2)
+    gap = np.linalg.norm(g[:, None, :] - bottom[None, :, :2], axis=2).min(axis=1)
+    x, y = g[np.argmax(gap)]
+    return x, y, gap.max()
+
+
+def _inside_found(P, PF, placed, edge):
+    """`bone_vertices_inside` of the closed surface ``P, PF``, pushes from a tenth of ``edge``."""
+    from musclewrap.contact import Near, bone_vertices_inside, vertex_faces
+    from musclewrap.mesh import vertex_adjacency
+
+    A = vertex_adjacency(PF, len(P))
+    return bone_vertices_inside(
+        P, PF, placed, Near(P, placed, 0.0), edge=edge,
+        adjacency=(A.indptr.astype(np.int64), A.indices.astype(np.int64)),
+        faces=vertex_faces(PF, len(P)), deep=0.1 * edge,
+    )  # fmt: skip
+
+
 def test_a_bone_between_a_stretched_muscles_vertices_is_found():
     # The run looks for a bone's vertices inside the muscle among those convex enough to
     # stand out of a triangle whose vertices lie on the bone. Where the triangles are
@@ -234,19 +257,14 @@ def test_a_bone_between_a_stretched_muscles_vertices_is_found():
     # every one of them outside it. Each found vertex and the deepest against brute force.
     import igl
 
-    from musclewrap.contact import Near, Placed, bone_vertices_inside, vertex_faces
-    from musclewrap.mesh import vertex_adjacency
+    from musclewrap.contact import Placed
 
     P, PF = _plate([0.0, 0.0, 0.0], [10.0, 10.0, 4.0], 2.0)
     P[:, 0] *= 5.0  # the slab's triangles stretched fivefold along x
     edge = 2.0
-    # the point of the slab's bottom face farthest from its vertices
-    bottom = P[np.abs(P[:, 2]) < 1e-9]
-    g = np.stack(np.meshgrid(np.linspace(10, 40, 301), np.linspace(2, 8, 61)), -1).reshape(-1, 2)
-    gap = np.linalg.norm(g[:, None, :] - bottom[None, :, :2], axis=2).min(axis=1)
-    x, y = g[np.argmax(gap)]
+    x, y, gap = _farthest_on_bottom(P, [10, 40, 301], [2, 8, 61])
     R = 10.0
-    rise = 0.8 * gap.max() ** 2 / (2.0 * R)  # the cap's top above the face, its rim below
+    rise = 0.8 * gap**2 / (2.0 * R)  # the cap's top above the face, its rim below
     S, SF = capsule(radius=R, length=0.0, n_around=192, cap_rings=96, segments=1)
     S = S - S.mean(axis=0) + [x, y, rise - R]
     bone = Obstacle(S, SF)
@@ -256,12 +274,7 @@ def test_a_bone_between_a_stretched_muscles_vertices_is_found():
     assert truth.sum() >= 3
     deepest = np.sqrt(igl.point_mesh_squared_distance(S[truth], P, PF)[0]).max()
     assert deepest > 0.1 * edge  # deep enough to be pushed
-    A = vertex_adjacency(PF, len(P))
-    (found,) = bone_vertices_inside(
-        P, PF, placed, Near(P, placed, 0.0), edge=edge,
-        adjacency=(A.indptr.astype(np.int64), A.indices.astype(np.int64)),
-        faces=vertex_faces(PF, len(P)), deep=0.1 * edge,
-    )  # fmt: skip
+    (found,) = _inside_found(P, PF, placed, edge)
     assert set(found.rows) == set(np.flatnonzero(truth))
     assert found.deepest == pytest.approx(deepest, abs=1e-9)
 
@@ -274,14 +287,11 @@ def test_a_coarse_bones_corner_deep_between_a_muscles_vertices_is_found():
     # A sharp pyramid (edges of 30 mm) pokes its apex 3.5 mm up into a slab of edge 2.
     import igl
 
-    from musclewrap.contact import Near, Placed, bone_vertices_inside, vertex_faces
-    from musclewrap.mesh import vertex_adjacency
+    from musclewrap.contact import Placed
 
     P, PF = _plate([0.0, 0.0, 0.0], [20.0, 20.0, 10.0], 2.0)
     edge = mean_edge_length(P, PF)
-    bottom = P[np.abs(P[:, 2]) < 1e-9]
-    g = np.stack(np.meshgrid(np.linspace(6, 14, 81), np.linspace(6, 14, 81)), -1).reshape(-1, 2)
-    x, y = g[np.argmax(np.linalg.norm(g[:, None] - bottom[None, :, :2], axis=2).min(axis=1))]
+    x, y, _ = _farthest_on_bottom(P, [6, 14, 81], [6, 14, 81])
     S = np.array(
         [[x, y, 3.5]] + [[x + a, y + b, -26.5] for a, b in [(-3, -3), (3, -3), (3, 3), (-3, 3)]]
     )
@@ -292,12 +302,7 @@ def test_a_coarse_bones_corner_deep_between_a_muscles_vertices_is_found():
     assert np.linalg.norm(P - S[0], axis=1).min() > 1.5 * edge  # the apex far from them all
     truth = igl.winding_number(P, PF, S) > 0.5
     assert list(np.flatnonzero(truth)) == [0]
-    A = vertex_adjacency(PF, len(P))
-    (found,) = bone_vertices_inside(
-        P, PF, placed, Near(P, placed, 0.0), edge=edge,
-        adjacency=(A.indptr.astype(np.int64), A.indices.astype(np.int64)),
-        faces=vertex_faces(PF, len(P)), deep=0.1 * edge,
-    )  # fmt: skip
+    (found,) = _inside_found(P, PF, placed, edge)
     assert list(found.rows) == [0]
     assert found.deepest == pytest.approx(3.5, abs=1e-9)
 

@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
-from ..mesh import MeshError, check_mesh, repair_mesh, tidy_mesh
+from ..mesh import MeshError, check_mesh, half_edges, repair_mesh, tidy_mesh
 
 __all__ = ["Obstacle", "bone_surface"]
 
@@ -437,7 +437,7 @@ class Obstacle:
     def longest_edges(self) -> FloatArray:
         """Per vertex, the length of its longest edge (0 for a vertex of no triangle)."""
         if getattr(self, "_longest_edges", None) is None:
-            E = np.vstack([self.F[:, [0, 1]], self.F[:, [1, 2]], self.F[:, [2, 0]]])
+            E = half_edges(self.F)
             L = np.linalg.norm(self.V[E[:, 0]] - self.V[E[:, 1]], axis=1)
             out = np.zeros(len(self.V))
             np.maximum.at(out, E[:, 0], L)

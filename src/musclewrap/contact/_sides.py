@@ -234,20 +234,3 @@ def on_their_side(
     N[turned] = NE[hit]
     phi[turned] = plane
     return phi, C, N, turned
-    plane = np.einsum("ij,ij->i", Q[turned] - E[found], NE[found])
-    # A vertex inside that the entry's tangent plane puts less deep than its nearest way out
-    # does is not one that went past the middle of a thin part (that one lies deeper behind
-    # the plane than the far side is near): it slid along or round the bone since then (a
-    # vertex inside a cartilage's shell of 2-4 mm, moved 11 mm sideways from where it was,
-    # which the plane put in front of itself and nothing took out). It keeps the nearest way.
-    keep = (phi[turned] >= 0.0) | (plane <= phi[turned])
-    turned, found, plane = turned[keep], np.flatnonzero(found)[keep], plane[keep]
-    if not len(turned):
-        return phi, C, N, turned
-    phi, N = phi.copy(), N.copy()
-    if C is not None:
-        C = C.copy()
-        C[turned] = E[found]
-    N[turned] = NE[found]
-    phi[turned] = plane
-    return phi, C, N, turned
