@@ -259,6 +259,16 @@ class Defaults:
         of their own diagonal (0: hard conditions). Softer conditions spread a
         deep push over more of the cage: at deep hip flexion the surface creases
         less (BENCHMARKS.md, "Thresholds, either side").
+    contact_stiff_from : int
+        From this step of a call of the cage's contact steps after the solve (0: the
+        first), each condition is softened by ``contact_softness`` times its own
+        diagonal, not the mean of all (`musclewrap.solver._step.cage_push` ``own``).
+        The mean left a vertex the cage moves only at a high energy (the 19-muscle
+        leg's vastus medialis 13 mm in the model's femur at the running trial's knee
+        flexion) meeting less each step (13.0, 7.9, 5.6, 4.9, 4.5, 4.1 mm after the
+        six), and the fine finish creased it (0.55). From the first step the LHDL
+        squat's gluteus medius creased instead (0.68); from the fourth both stay
+        under 0.5 (BENCHMARKS.md, the thresholds' table).
     contact_points_per_cage_vertex : int
         Conditions on points of the surface (another muscle's vertices, or a bone's,
         standing in the muscle) kept per cage vertex in a cage contact step: the
@@ -469,6 +479,7 @@ class Defaults:
     contact_band: float = 2.0
     contact_softness: float = 0.5
     contact_cage_reach: float = 1.25
+    contact_stiff_from: int = 3
     contact_points_per_cage_vertex: int = 3
     muscle_rounds: int = 30
     muscle_share: float = 0.5

@@ -251,7 +251,7 @@ class ContactSteps:
         inside_pass = 0
         points = None
         found: tuple[FloatArray, list[Inside]] | None = None  # positions, bones inside there
-        for _ in range(defaults.contact_cage_steps):
+        for step_no in range(defaults.contact_cage_steps):
             idx, gap, N = contact_candidates(V, placed, margin, band, near, sides)
             deep = len(idx) and gap.min() < -defaults.contact_cage_depth * edge
             if not deep and inside_pass < defaults.contact_cage_bone_passes:
@@ -263,7 +263,10 @@ class ContactSteps:
                 found = (V, inside)
             if not deep and points is None:
                 break
-            step = self._cage_step(x, V, idx, gap, N, slack, points)
+            # the later steps meet a stiff condition as far as a supple one (the first ones
+            # spread a deep push over the cage)
+            own = step_no >= defaults.contact_stiff_from
+            step = self._cage_step(x, V, idx, gap, N, slack, points, own=own)
             points = None
             if step is None:
                 break
@@ -282,10 +285,12 @@ class ContactSteps:
         N: FloatArray,
         slack: float,
         points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
+        own: bool = False,
     ) -> tuple[FloatArray, FloatArray] | None:
         """One contact step of the cage (`cage_push`), ended on the exact fine volume.
 
-        None where it moves nothing or the volume cannot be restored along ``-H^-1 g``.
+        ``own``: each condition softened by its own diagonal (`cage_push`). None where it
+        moves nothing or the volume cannot be restored along ``-H^-1 g``.
         """
         mu = self.muscle
         # the volume's direction at this step's own cage: one kept through a pose's steps,
@@ -293,8 +298,9 @@ class ContactSteps:
         # (BENCHMARKS.md, "What contact costs": what we tried)
         g, Hg = self._volume_direction(x)
         dx = cage_push(
-            mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points
-        )
+            mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points,
+            own=own,
+        )  # fmt: skip
         need = float(max(-gap.min(initial=0.0), 0.0))
         if points is not None:
             need = max(need, float(-points[1].min()))

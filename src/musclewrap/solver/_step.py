@@ -64,6 +64,7 @@ def cage_push(
     slack: float,
     max_sets: int = 4,
     points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
+    own: bool = False,
 ) -> FloatArray:
     """The cage displacement of least energy that takes fine vertices off the obstacles.
 
@@ -98,6 +99,11 @@ def cage_push(
         the muscle, the muscle's nearest point goes past it). After the vertices'
         one per group, the deepest ``defaults.contact_points_per_cage_vertex`` per
         cage vertex with the largest weight in their rows.
+    own : bool, optional
+        Soften each condition by ``defaults.contact_softness`` times its own diagonal
+        of the conditions' Gram matrix, not the mean diagonal of all: a stiff one (a
+        vertex the cage moves only at a high energy, pinned by its line) is met as far
+        as a supple one (the later steps of a call, ``defaults.contact_stiff_from``).
 
     Returns
     -------
@@ -144,7 +150,7 @@ def cage_push(
         M[:k, :k] = (Y[a] @ Wr[a].T) * (Nn[a] @ Nn[a].T)
         M[:k, k] = M[k, :k] = c[a]
         M[k, k] = gg
-        M[np.arange(k), np.arange(k)] += soft
+        M[np.arange(k), np.arange(k)] += defaults.contact_softness * diag[a] if own else soft
         rhs = np.append(r[a], 0.0)
         try:
             sol = np.linalg.solve(M, rhs)
