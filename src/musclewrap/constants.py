@@ -488,7 +488,7 @@ class Defaults:
     muscle_joint_conditions: int = 2000
     muscle_overlap_depth: float = 0.05
     muscle_fine_depth: float = 0.25
-    muscle_finish_retry: float = 0.5
+    muscle_finish_retry: float = 0.25
     muscle_finish_passes: int = 3
     muscle_facing_reach: float = 15.0
     muscle_rest_rounds: int = 30
