@@ -324,7 +324,8 @@ class Defaults:
         LHDL squat's bottom, the 18 muscles every 50th) and 0.114 (the 19-muscle leg every
         20th): no second pass, the same bytes. At 0.05 the leg would take one on 6 of
         its 11 frames; at 2 a stack pressed 1.7 edges into another would stay (BENCHMARKS.md,
-        "Rounds again after the bones' finish").
+        "Rounds again after the bones' finish"); at 0.5, with ``contact_stiff_from``, the
+        second press of that test stayed 0.43 edges deep (0.25 and 0.3: 0.027).
     muscle_finish_passes : int
         See ``muscle_finish_retry``.
     muscle_fine_depth : float
