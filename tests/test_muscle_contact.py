@@ -260,6 +260,34 @@ def test_three_capsules_stacked_on_a_rod_and_pressed_end_apart(press):
     assert res["a"].V[:, 0].min() < -10.5  # pressed onto the rod
 
 
+@pytest.mark.parametrize(
+    ("depths", "kept"),
+    [((3.0, 1.0, 2.0, 5.0, 6.0), 1), ((3.0, 2.0, 2.5, 2.2, 0.5), 4)],
+)
+def test_rounds_at_their_cap_end_where_they_were_least_deep(monkeypatch, depths, kept):
+    """Rounds that stall can end deeper than they were (the leg stepped together at the
+    deep squat's frame 244: 8.9 mm): at the cap they go back to the positions whose deepest
+    overlap was least, the last ones included. The rounds' steps stubbed: ``depths`` are
+    what each of the 4 rounds starts from, then what the last one left."""
+    import dataclasses
+
+    import musclewrap.solver._together as together
+    from musclewrap.constants import defaults
+
+    monkeypatch.setattr(together, "defaults", dataclasses.replace(defaults, muscle_rounds=4))
+    r = together._Rounds.__new__(together._Rounds)
+    r.count, r.pairs = 0, [("a", "b")]
+    r.state, r.surf = {"a": ("x0", "V0")}, {"a": "surf-V0"}
+    seen = iter(depths)
+    steps = iter(range(1, 5))
+    r._deepest = lambda: (next(seen), None, None, None)
+    r._round = lambda found, met, worst: {"a": (f"x{(k := next(steps))}", f"V{k}")}
+    r._placed = lambda n, V: f"surf-{V}"
+    r.run()
+    assert r.count == 4
+    assert r.state["a"] == (f"x{kept}", f"V{kept}") and r.surf["a"] == f"surf-V{kept}"
+
+
 def test_the_finish_is_taken_again_only_for_the_pairs_kept_apart(monkeypatch):
     """Pressed as above, with only b and c kept apart: a stays deep in b (measured, not
     kept apart), and that is no reason for more rounds or another finish."""

@@ -203,24 +203,41 @@ class _Rounds:
         self.surf.update({n: self._placed(n, r.V) for n, r in final.items()})
 
     def run(self) -> None:
-        """Rounds until every kept pair is apart (to the tolerance), or the rounds' cap."""
+        """Rounds until every kept pair is apart (to the tolerance), or the rounds' cap.
+
+        At the cap the rounds go back to the positions they found least deep (the
+        deepest vertex of any muscle in another, in its muscle's mean edges), where
+        rounds that stall can end deeper than they were (the 19-muscle leg stepped
+        together at the deep squat's frame 244: 8.9 mm, BENCHMARKS.md).
+        """
+        best: tuple[float, dict[str, Any], dict[str, Any]] | None = None
         for _ in range(defaults.muscle_rounds - self.count if self.pairs else 0):
-            # each muscle's side: its vertices inside others go out by its share, and where
-            # another's vertex stands inside it, its surface gives the other share (a muscle
-            # held by a bone cannot take its own; where only one surface has vertices inside
-            # the other, both still move)
-            found = overlaps(self.surf, self.pairs, self.facing, self.memo)
-            met = meetings(found, defaults.muscle_share)
-            # per muscle the deepest of its vertices in another or another's in it, in its edges
-            worst = {n: max(m.depth, m.given) / self.edge[n] for n, m in met.items()}
-            if max(worst.values()) <= defaults.muscle_overlap_depth:
+            deepest, found, met, worst = self._deepest()
+            if deepest <= defaults.muscle_overlap_depth:
                 break  # all out, to the tolerance
+            if best is None or deepest < best[0]:
+                best = (deepest, dict(self.state), dict(self.surf))
             self.count += 1
             new = self._round(found, met, worst)
             for n, (_, V) in new.items():
                 if V is not self.state[n][1]:  # moved: its surface anew (the others stay)
                     self.surf[n] = self._placed(n, V)
             self.state.update(new)
+        else:
+            if best is not None and self._deepest()[0] > best[0]:
+                self.state, self.surf = best[1], best[2]
+
+    def _deepest(self) -> tuple[float, Any, Any, dict[str, float]]:
+        """The muscles' overlaps now: the deepest (mean edges), what was found, each one's."""
+        # each muscle's side: its vertices inside others go out by its share, and where
+        # another's vertex stands inside it, its surface gives the other share (a muscle
+        # held by a bone cannot take its own; where only one surface has vertices inside
+        # the other, both still move)
+        found = overlaps(self.surf, self.pairs, self.facing, self.memo)
+        met = meetings(found, defaults.muscle_share)
+        # per muscle the deepest of its vertices in another or another's in it, in its edges
+        worst = {n: max(m.depth, m.given) / self.edge[n] for n, m in met.items()}
+        return max(worst.values()), found, met, worst
 
     def _round(
         self, found: Any, met: Mapping[str, Any], worst: Mapping[str, float]
