@@ -149,7 +149,14 @@ def main() -> None:
                 mot = read_motion(a.motion)
                 cols = {k: (-v if k in a.negate else v) for k, v in mot.columns.items()}
                 path = Path(tmp) / Path(a.motion).name
-                write_motion(path, mot.time, cols, in_degrees=mot.in_degrees)
+                # a header without inDegrees (OpenSim's gait2392 walk) is read by its values
+                # (`musclewrap.scene`: over 2 pi, degrees): written with the same reading
+                deg = (
+                    mot.in_degrees
+                    if mot.degrees_declared
+                    else bool(max(float(np.abs(v).max()) for v in cols.values()) > 2 * np.pi)
+                )
+                write_motion(path, mot.time, cols, in_degrees=deg)
                 scene = dataclasses.replace(scene, motions=(path,), gif=False)
                 run_scene(scene, out, workers=2, progress=None, frames=a.frames)
             else:
