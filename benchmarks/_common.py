@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["timed_run"]
+__all__ = ["most", "timed_run"]
 
 
 def timed_run(scene: str, out: Path, extra: list[str], checkout: Path | None = None) -> float:
@@ -27,3 +27,9 @@ def timed_run(scene: str, out: Path, extra: list[str], checkout: Path | None = N
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, capture_output=True, env=env)
     return time.perf_counter() - t0
+
+
+def most(rows: list[dict[str, str]], key: str) -> float:
+    """The largest of a report.csv column over ``rows`` (nan where the column is empty)."""
+    vals = [float(x[key]) for x in rows if x.get(key) not in (None, "", "nan")]
+    return max(vals) if vals else float("nan")

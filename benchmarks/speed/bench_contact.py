@@ -48,12 +48,6 @@ def _run(
     return timed_run(scene, out, ["--no-gif", "--frames", frames, *extra], checkout)
 
 
-def _most(rows: list[dict], key: str) -> float:
-    """The largest of a report column over rows (nan where the column is empty)."""
-    vals = [float(x[key]) for x in rows if x.get(key) not in (None, "")]
-    return max(vals) if vals else float("nan")
-
-
 def _same_outputs(a: Path, b: Path) -> str:
     """Whether two run folders hold the same meshes, byte for byte, and report values."""
     meshes = sorted(p.relative_to(a) for p in a.rglob("*.vt[pk]"))
@@ -129,6 +123,9 @@ def main() -> None:
     p.add_argument("--negate", nargs="*", default=[])
     p.add_argument("--compare", nargs="+", type=Path, metavar="CHECKOUT")
     a = p.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the shared helpers
+    from _common import most
+
     walk_frames = a.frames or "0:211:1"
     if a.compare:
         compare(a.scene, walk_frames, a.repeats, a.compare)
@@ -200,7 +197,7 @@ def main() -> None:
                         f"{max(float(x['shape_change_max']) for x in q):.3f} (frames over "
                         f"0.5: {sum(float(x['shape_change_max']) > 0.5 for x in q)}), fit <= "
                         f"{max(float(x['skeleton_fit_mean']) for x in q):.2f}, where the lines "
-                        f"are free <= {_most(q, 'skeleton_fit_free'):.2f}, unconverged "
+                        f"are free <= {most(q, 'skeleton_fit_free'):.2f}, unconverged "
                         f"{sum(x['converged'] != 'True' for x in q)}"
                     )
         return

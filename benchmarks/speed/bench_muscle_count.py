@@ -36,11 +36,6 @@ def _rows(out: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
-def _most(rows: list[dict[str, str]], key: str) -> float:
-    vals = [float(r[key]) for r in rows if r.get(key) not in (None, "", "nan")]
-    return max(vals) if vals else float("nan")
-
-
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("scenes", nargs="*", default=list(SCENES))
@@ -48,7 +43,7 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=1)
     a = p.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the shared helpers
-    from _common import timed_run
+    from _common import most, timed_run
 
     print(f"frames {a.frames}, warm, no GIF, 2 workers, {a.repeats} run(s) each way in turns")
     print(
@@ -79,8 +74,8 @@ def main() -> None:
                 f"| {Path(scene).stem} | {len(muscles)} | {len(rows)} | {t_on:.1f} / {t_off:.1f} s "
                 f"| {t_on / t_off:.2f}x | {extra:.0f} ms "
                 f"| {statistics.median(rounds.values()):g}, {max(rounds.values())} "
-                f"| {_most(rows, 'shape_change_max'):.3f} "
-                f"| {_most(rows, 'muscle_overlap_max'):.3f} mm |",
+                f"| {most(rows, 'shape_change_max'):.3f} "
+                f"| {most(rows, 'muscle_overlap_max'):.3f} mm |",
                 flush=True,
             )
 
