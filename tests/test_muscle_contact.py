@@ -1009,3 +1009,25 @@ def test_a_run_names_the_muscles_the_bones_contact_left_out_of_its_bounds():
     (note,) = _bone_notes(kept, "mm", {"k": 8.5})
     assert note.startswith("k: on 1 frame(s) a vertex stays more than 0.5 mm inside a bone ")
     assert "beyond its kept rest overlap (8.5 mm) (up to 9.2 mm, frame 1" in note
+
+
+def test_a_rounds_fold_is_ironed_out_and_the_volume_kept(pair):
+    """`Deformer.ironed` (each muscle's cage step in a round): a spike the step made is
+    ironed out round it, the volume restored exactly; a step that moved nothing, or made
+    no fold, comes back as it was."""
+    from musclewrap.mesh import mean_edge_length, volume
+
+    d = pair["a"]
+    mu = d.muscle
+    V0 = mu.V
+    assert d.ironed(V0, V0) is V0
+    shifted = V0 + [0.5, 0.0, 0.0]  # rigid: no fold
+    assert d.ironed(V0, shifted) is shifted
+    edge = mean_edge_length(V0, mu.F)
+    i = int(np.argmax(V0[:, 0] - 0.01 * np.abs(V0[:, 2] - 30.0)))  # mid-side, +x
+    V = V0.copy()
+    V[i] += [3.0 * edge, 0.0, 0.0]
+    assert mu.shape_change(V).max() > 1.0
+    ironed = d.ironed(V0, V)
+    assert mu.shape_change(ironed).max() < 0.3
+    assert abs(volume(ironed, mu.F) / mu.volume_rest - 1.0) < 1e-9

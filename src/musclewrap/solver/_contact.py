@@ -101,13 +101,38 @@ class ContactSteps:
         step = self._cage_step(x, V, np.asarray(idx, dtype=np.int64), gap, N, slack, extra)
         return (x, V) if step is None else step
 
+    def ironed(
+        self,
+        V0: FloatArray,
+        V: FloatArray,
+        obstacles: Sequence[Placed | Obstacle] | None = None,
+        margin: float = 0.0,
+        near: Near | None = None,
+        sides: SideReference | None = None,
+    ) -> FloatArray:
+        """``V`` (a round's cage step from ``V0``) with the folds it made ironed out (`_unfolded`).
+
+        What `musclewrap.solver.meet` does to each muscle's cage step in a round: a deep
+        overlap's step folds the fine vertices near the cage's surface as the bones'
+        steps do (the 19-muscle leg's pectineus at the deep squat's bottom: 0.15 -> 1.22
+        mean edges of shape change in its first round, BENCHMARKS.md). The vertices near
+        the ``obstacles`` (``near``: their bounds, from this pose) stay where the step put
+        them, but for the folds themselves.
+        """
+        if V is V0:
+            return V
+        placed = as_placed(obstacles) if obstacles else []
+        if placed and near is None:
+            near = Near(V0, placed, margin)
+        return self._unfolded(V0, V, placed, margin, near, sides)
+
     def _unfolded(
         self,
         V0: FloatArray,
         V: FloatArray,
         placed: Sequence[Placed],
         margin: float,
-        near: Near,
+        near: Near | None,
         sides: SideReference | None,
     ) -> FloatArray:
         """``V`` (the cage steps' result from ``V0``) with the folds they made ironed out.
@@ -125,8 +150,10 @@ class ContactSteps:
         if not shape.max() > defaults.fold_shape:
             return V  # no fold (the common case: nothing more is measured)
         keep = np.zeros(len(V), dtype=bool)
-        reach = defaults.fold_held * self._fine_edge
-        keep[contact_candidates(V, placed, margin, reach, near, sides)[0]] = True
+        if placed:
+            assert near is not None
+            reach = defaults.fold_held * self._fine_edge
+            keep[contact_candidates(V, placed, margin, reach, near, sides)[0]] = True
         return unfold(
             V0, V, mu.F, mu.umbrella, mu.shape_change(V0), shape, keep,
             volume_target=mu.volume_rest,

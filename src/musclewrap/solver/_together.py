@@ -5,7 +5,8 @@ in rounds, every muscle's vertices inside another (`musclewrap.contact.overlaps`
 are taken out by a share of their depth (`defaults.muscle_share`, half: the other
 muscle's vertices inside it take the other half, so the surfaces meet between where
 they were), through the faces that face it at rest, by one least-energy step of its
-cage with its bones' conditions (`Deformer.contact_round`). The rounds are Jacobi
+cage with its bones' conditions (`Deformer.contact_round`), the folds it made ironed
+out (`Deformer.ironed`). The rounds are Jacobi
 rounds: every muscle's step is computed from the same snapshot of all of them, and
 the muscles go in the order of their names, so the result does not depend on the
 order they are given in. Then each muscle's bone finish (`Deformer.settle`) and,
@@ -293,6 +294,14 @@ class _Rounds:
                 margin=self.margin, sides=self.sides.get(n), near=self.nears.get(n),
                 points=points,
             )  # fmt: skip
+        for n in cage:
+            if n in new:
+                # the folds a deep overlap's cage step made, ironed out as the bones' steps'
+                x, V = new[n]
+                new[n] = (x, self.deformers[n].ironed(
+                    self.state[n][1], V, self.obstacles.get(n), self.margin,
+                    self.nears.get(n), self.sides.get(n),
+                ))  # fmt: skip
         return new
 
 
