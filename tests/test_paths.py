@@ -231,3 +231,42 @@ def test_a_waypoint_that_does_not_converge_is_named_in_the_notes(data_dir, tmp_p
     assert len(notes) == 1, r.notes
     assert "hip_flexion_r " in notes[0] and " deg" in notes[0]
     assert "did not converge" in notes[0] and "iteration" in notes[0]
+
+
+@pytest.mark.realdata
+def test_a_motion_that_turns_a_joint_the_other_way_from_the_model_is_named(data_dir):
+    """gait2392's walk flexes the knee negative, Rajagopal 2016 positive (0..120 deg): the
+    knees are named, with the fix, against Rajagopal and not against gait2392; OpenCap's
+    squat, written for Rajagopal's sign, is named against gait2392. Negated in the file,
+    the knee is no longer named, nor where it leaves the range on less than half the frames
+    (issue 46's hard case: `init` and `check` said nothing)."""
+    from musclewrap.model import OpenSimModel
+    from musclewrap.run._check import CheckReport, _check_model
+    from musclewrap.scene import reversed_coordinates
+
+    scene = load_scene(EXAMPLES / "gait2392_leg.toml")
+    motions = data_dir / "opensim" / "motions"
+    walk = read_motion(motions / "subject01_walk1_ik.mot")
+    squat = read_motion(motions / "opencap_squat_videoAndMocap.mot")
+    raj = OpenSimModel(data_dir / "opensim" / "models" / "Rajagopal2016.osim")
+    g = OpenSimModel(scene.osim)
+    coords = ["hip_flexion_r", "hip_adduction_r", "knee_angle_r", "knee_angle_l", "ankle_angle_r"]
+    assert reversed_coordinates(scene, walk, raj, coords) == ["knee_angle_r", "knee_angle_l"]
+    assert reversed_coordinates(scene, walk, g, coords) == []
+    assert reversed_coordinates(scene, squat, g, coords) == ["knee_angle_r", "knee_angle_l"]
+    knee = -walk.columns["knee_angle_r"]
+    negated = dataclasses.replace(walk, columns=dict(walk.columns, knee_angle_r=knee))
+    assert reversed_coordinates(scene, negated, raj, coords) == ["knee_angle_l"]
+    # outside the range on 30 % of the frames (less than half): not a sign
+    some = np.where(np.arange(len(knee)) < 0.3 * len(knee), -knee, knee)
+    partly = dataclasses.replace(walk, columns=dict(walk.columns, knee_angle_r=some))
+    assert reversed_coordinates(scene, partly, raj, coords) == ["knee_angle_l"]
+    # the check says it, with the fix (a scene of no meshes: the model's side alone)
+    bare = dataclasses.replace(
+        scene, muscles=(), bones=(), motions=(motions / "subject01_walk1_ik.mot",)
+    )
+    rep = CheckReport(Path("scene.toml"))
+    assert _check_model(bare, raj, rep)
+    said = [f for f in rep.findings if f.level == "warning" and f.subject == "knee_angle_r"]
+    assert len(said) == 1 and "Rajagopal2016.osim's range [0, 120] deg" in said[0].message
+    assert said[0].fix.startswith("negate the column 'knee_angle_r' in subject01_walk1_ik.mot")

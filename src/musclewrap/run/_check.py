@@ -32,7 +32,16 @@ from ..model import (
     resample_polyline,
 )
 from ..output import draw_check
-from ..scene import UNITS, Drive, MuscleSpec, Scene, drive_scene, load_scene, rest_pose
+from ..scene import (
+    UNITS,
+    Drive,
+    MuscleSpec,
+    Scene,
+    drive_scene,
+    load_scene,
+    rest_pose,
+    reversed_coordinates,
+)
 from ._fibres import choose_areas, describe_areas
 from ._posture import posture_finding, rest_posture
 from ._read import (
@@ -350,6 +359,25 @@ def _check_model(scene: Scene, model: OpenSimModel, rep: CheckReport) -> bool:
                 f"{motion.name}: no column of it is a coordinate of {model.path.name}",
             )
             ok = False
+            continue
+        try:
+            flipped = reversed_coordinates(
+                scene, mot, model, [c for c in driven if c in mot.columns]
+            )
+        except SceneError:
+            flipped = []  # angles in the wrong unit: the run says so, with its fix
+        for c in flipped:
+            lo, hi = np.degrees(model.coordinate_range(c))
+            v = mot.columns[c]
+            rep.add(
+                "warning", c,
+                f"{motion.name} gives '{c}' outside {model.path.name}'s range [{lo:.4g}, {hi:.4g}] "
+                f"deg on most frames, and its negation within it on nearly every frame: the motion "
+                f"turns it the other way from the model (written for another model? gait2392's "
+                f"knee flexes negative, Rajagopal 2016's positive)",
+                f"negate the column '{c}' in {motion.name} (its values now "
+                f"{float(v.min()):.4g} .. {float(v.max()):.4g})",
+            )  # fmt: skip
     return ok
 
 

@@ -30,6 +30,7 @@ from ._drive import (
     parse_frames,
     polyline_length,
     rest_pose,
+    reversed_coordinates,
 )
 from ._keys import OUTPUT_COLUMNS, SCENE_KEYS
 
@@ -109,6 +110,7 @@ __all__ = [
     "random_motion",
     "read_motion",
     "rest_pose",
+    "reversed_coordinates",
     "run_batch",
     "run_scene",
     "write_motion",

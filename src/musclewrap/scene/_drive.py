@@ -15,6 +15,7 @@ from ..constants import defaults
 from ..errors import SceneError, suggest
 from ..mesh import apply_transform, invert_rigid, read_mesh, tidy_mesh
 from ..model import (
+    Motion,
     OpenSimModel,
     axes_rotation,
     check_landmarks,
@@ -39,6 +40,7 @@ __all__ = [
     "parse_frames",
     "polyline_length",
     "rest_pose",
+    "reversed_coordinates",
 ]
 
 
@@ -714,6 +716,42 @@ def _frame_moment_arms(
             )
 
 
+def _reversed(model: OpenSimModel, c: str, v: FloatArray) -> bool:
+    """Whether angle ``c``'s values ``v`` (radians) look written with the opposite sign.
+
+    Outside the model's range on more than half the frames, and within it on all but
+    a twentieth of them once negated: a motion written for a model that turns the
+    joint the other way (gait2392's knee flexes negative, Rajagopal 2016's positive;
+    gait2392's walk reaches +1.1 deg on 4 of its 211 frames). A coordinate that leaves
+    its range on a few frames only is not (its negation could fit a one-sided range).
+    """
+    if not model.is_rotational(c) or not len(v):
+        return False
+    lo, hi = model.coordinate_range(c)
+    outside = (v < lo) | (v > hi)
+    flipped_out = (-v < lo) | (-v > hi)
+    return bool(2 * outside.sum() > len(v) and 20 * flipped_out.sum() <= len(v))
+
+
+def reversed_coordinates(
+    scene: Scene, motion: Motion, model: OpenSimModel, coords: list[str]
+) -> list[str]:
+    """The angles of ``coords`` that ``motion`` seems to give with the opposite sign.
+
+    Each as `_reversed` decides, on every frame of the motion, its angles read as a
+    run reads them (the scene's ``[model] angle_unit`` or the header).
+    """
+    coords = [c for c in coords if c in motion.columns and model.is_rotational(c)]
+    if not coords:
+        return []
+    deg, _ = _angle_in_degrees(scene, motion, model, coords)
+    return [
+        c
+        for c in coords
+        if _reversed(model, c, np.radians(motion.columns[c]) if deg else motion.columns[c])
+    ]
+
+
 def _outside_ranges(
     model: OpenSimModel, coords: list[str], driven: FloatArray, frames: list[int], times: FloatArray
 ) -> list[str]:
@@ -735,6 +773,13 @@ def _outside_ranges(
             f"{len(bad)} frame(s) ({runs}): up to {float(conv(v[worst])):.4g} {unit} at frame "
             f"{frames[worst]} (t = {float(times[frames[worst]]):.4g} s); the model's paths and "
             "the muscles are extrapolated there"
+            + (
+                f"; negated, it lies within the range on nearly every frame run: the motion may turn "
+                f"it the other way from {model.path.name} (written for another model?); negate "
+                "its column if so"
+                if _reversed(model, c, v)
+                else ""
+            )
         )
     return out
 
