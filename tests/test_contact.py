@@ -479,6 +479,50 @@ def test_a_vertex_that_slid_inside_a_shell_leaves_it_the_nearest_way():
     assert np.allclose(N2[1], [0.0, 0.0, 1.0], atol=0.05)
 
 
+def test_a_vertex_inside_the_bone_then_has_no_side_it_came_from():
+    # A plate 4 thick. A vertex that lay 1 inside it then (a rest overlap kept: the VHF
+    # gluteus maximus in Rajagopal's generic sacrum) and is now past its middle leaves it
+    # the nearest way (0.5 down): it came through neither face. One that was above it and
+    # came through the top goes back up the way it came (3.5), as before.
+    from musclewrap.contact import Placed, SideReference, on_their_side
+
+    plate = Obstacle(*_box([-50.0, -50.0, -2.0], [50.0, 50.0, 2.0]))
+    placed = [Placed(plate, name="plate")]
+    then = np.array([[0.0, 0.0, 1.0], [5.0, 0.0, 3.0]])
+    now = np.array([[0.0, 0.0, -1.5], [5.0, 0.0, -1.5]])
+    phi, C, N = plate.signed(now)
+    ref = SideReference(then, placed)
+    assert list(ref.inside(0, np.arange(2))) == [True, False]
+    phi2, _, N2, turned = on_their_side(placed[0], ref, 0, np.arange(2), now, phi, C, N)
+    assert list(turned) == [1]
+    assert phi2[1] == pytest.approx(-3.5) and np.allclose(N2[1], [0.0, 0.0, 1.0])
+    assert phi2[0] == pytest.approx(-0.5) and np.allclose(N2[0], [0.0, 0.0, -1.0])
+
+
+def test_a_kept_overlap_lets_a_vertex_as_deep_as_its_neighbours_within_two_rings():
+    """`kept_allowance`: a vertex may go as deep into the bone as the deepest of its
+    neighbours within ``defaults.kept_overlap_rings`` rings did at rest (the rim of the
+    overlap slides onto vertices that were outside); without ``F``, as deep as itself."""
+    from musclewrap.contact import Placed, kept_allowance
+    from musclewrap.mesh import vertex_adjacency
+
+    V, F = capsule(radius=10.0, length=40.0, n_around=32, cap_rings=8, segments=24)
+    box = Obstacle(*_box([-50.0, -50.0, -50.0], [50.0, -8.0, 150.0]))  # 2 into one side
+    pl = Placed(box, name="box")
+    own = kept_allowance(pl, V, 0.0)
+    spread = kept_allowance(pl, V, 0.0, F, rings=2)
+    inside = np.isfinite(own)
+    assert inside.any() and own[inside].min() == pytest.approx(-2.0, abs=0.01)
+    assert (spread <= own).all()
+    A = vertex_adjacency(F, len(V)).tocsr()
+    rim = np.flatnonzero(~inside & np.isfinite(spread))
+    for i in np.concatenate([rim, np.flatnonzero(~np.isfinite(spread))[:100]]):
+        one = A.indices[A.indptr[i] : A.indptr[i + 1]]
+        two = np.unique(np.concatenate([A.indices[A.indptr[j] : A.indptr[j + 1]] for j in one]))
+        assert spread[i] == np.min(np.concatenate([[own[i]], own[one], own[two]]))
+    assert np.isfinite(spread).sum() > inside.sum()  # the rim's two rings joined it
+
+
 # ------------------------------------------------------------------ scenes
 def _scene_text(data_dir, extra=""):
     lhdl = data_dir / "lhdl"

@@ -108,6 +108,14 @@ class Defaults:
         point is kept: an attachment, where the muscle starts on the bone, not a
         bone the muscle merely lies on at rest and slides over (the psoas on the
         pelvic brim).
+    kept_overlap_rings : int
+        A rest overlap kept (``rest_overlap = "keep"``): each vertex may go as deep into
+        the bone as the deepest of its neighbours within this many rings did at rest
+        (0: as deep as itself), for the muscle slides a little along the bone through a
+        motion. Rajagopal 2016's generic pelvis and sacrum under the VHF gluteus maximus
+        (kept 9.1 and 5.7 mm deep), the walk every 10th frame, the muscle alone with its
+        bones: shape change over 0.5 on 5 of 22 frames (up to 1.86) with 0, none with 2
+        (<= 0.46) or 4 (<= 0.46; BENCHMARKS.md).
     attached_weight : float
         Weight of the fibres' attachment areas held to their paths' first and last
         points (``[fibres] attached``, the default), relative to the Laplacian and
@@ -448,6 +456,7 @@ class Defaults:
     anchor_feather: int = 4
     anchor_reach: float = 0.5
     anchor_end_reach: float = 0.15
+    kept_overlap_rings: int = 2
     attached_weight: float = 1.8
     fibre_area_reach: float = 1.0
     fibre_area_end_reach: float = 0.15

@@ -47,17 +47,36 @@ def rest_push_out(
     return None, rep, "none"
 
 
-def kept_allowance(pl: Placed, V: FloatArray, margin: float) -> FloatArray | None:
+def kept_allowance(
+    pl: Placed,
+    V: FloatArray,
+    margin: float,
+    F: IntArray | None = None,
+    rings: int | None = None,
+) -> FloatArray | None:
     """A kept rest overlap: each vertex nearer the bone than the margin may stay as near.
 
-    Returns the allowance per vertex (`Placed.allowance`), None where no vertex
-    is nearer than the margin.
+    With the muscle's triangles ``F``, each vertex may go as near as the nearest of
+    its neighbours within ``rings`` (default ``defaults.kept_overlap_rings``) was: a
+    muscle slides a little along its bones through a motion, and a vertex the kept
+    overlap's rim slid onto would otherwise be pushed out of a bone its neighbour may
+    stay in (a step the cage cannot take, which the fine finish creases). Returns the
+    allowance per vertex (`Placed.allowance`), None where no vertex is nearer than the
+    margin.
     """
     idx, phi, _, _ = pl.obstacle.query(pl.to_obstacle(V), margin)
     if not len(idx):
         return None
     a = np.full(len(V), np.inf)
     a[idx] = phi
+    rings = defaults.kept_overlap_rings if rings is None else rings
+    if F is not None and rings > 0:
+        A = vertex_adjacency(F, len(V)).tocsr()
+        has = np.diff(A.indptr) > 0
+        for _ in range(rings):
+            near = np.full(len(V), np.inf)
+            near[has] = np.minimum.reduceat(a[A.indices], A.indptr[:-1][has])
+            a = np.minimum(a, near)
     return a
 
 

@@ -65,9 +65,9 @@ class SideReference:
         self.n = int(n)
         self.placed = tuple(placed)
         # per obstacle, made when first asked for: known, directions
-        self._kept: list[tuple[npt.NDArray[np.bool_], FloatArray] | None] = [
+        self._kept: list[tuple[npt.NDArray[np.bool_], FloatArray, FloatArray] | None] = [
             None for _ in self.placed
-        ]
+        ]  # per obstacle: known, directions, signed distances
         self._lower: list[FloatArray | None] = [None for _ in self.placed]
         self._all: FloatArray | None = None  # every vertex then (muscle frame), when needed
         self._frames: list[FloatArray | None] = [None for _ in self.placed]
@@ -85,22 +85,46 @@ class SideReference:
         where it lies on the surface).
         """
         rows = np.asarray(rows, dtype=np.int64)
+        self._known(b, rows)
+        kept = self._kept[b]
+        assert kept is not None
+        return self.positions(b, rows), kept[1][rows]
+
+    def inside(self, b: int, rows: IntArray) -> npt.NDArray[np.bool_]:
+        """Whether vertices ``rows`` were inside obstacle ``b`` then, deeper than its grid's spacing.
+
+        A vertex inside then (a kept rest overlap, or a waypoint that left it there) has
+        no side it came from. One on the surface then (a contact, at the margin: its
+        interpolated distance a hair below 0) keeps its side.
+        """
+        rows = np.asarray(rows, dtype=np.int64)
+        self._known(b, rows)
+        kept = self._kept[b]
+        assert kept is not None
+        return kept[2][rows] < -self.placed[b].obstacle.h
+
+    def _known(self, b: int, rows: IntArray) -> None:
+        """The directions and signed distances then of vertices ``rows``, found once each."""
         kept = self._kept[b]
         if kept is None:
-            kept = self._kept[b] = (np.zeros(self.n, dtype=bool), np.empty((self.n, 3)))
-        known, direction = kept
+            kept = self._kept[b] = (
+                np.zeros(self.n, dtype=bool), np.empty((self.n, 3)), np.empty(self.n)
+            )  # fmt: skip
+        known, direction, phi = kept
         todo = np.unique(rows[~known[rows]])
         if len(todo):
             ob = self.placed[b].obstacle
             Q = self.positions(b, todo)
-            got, _, G = ob.interpolate(Q, np.inf)
+            got, ph, G = ob.interpolate(Q, np.inf)
             direction[todo[got]] = G
+            phi[todo[got]] = ph
             rest = np.ones(len(todo), dtype=bool)
             rest[got] = False
             if rest.any():
-                direction[todo[rest]] = ob.signed(Q[rest])[2]
+                ph, _, G = ob.signed(Q[rest])
+                direction[todo[rest]] = G
+                phi[todo[rest]] = ph
             known[todo] = True
-        return self.positions(b, rows), direction[rows]
 
     def positions(self, b: int, rows: IntArray) -> FloatArray:
         """Positions of vertices ``rows`` then, in obstacle ``b``'s frame."""
@@ -211,7 +235,8 @@ def on_their_side(
     that were turned.
     """
     ref_q, ref_d = reference.at(b, rows)
-    flip = np.flatnonzero(np.einsum("ij,ij->i", N, ref_d) < 0.0)
+    # a vertex inside the obstacle then (a kept rest overlap) came from no side of it
+    flip = np.flatnonzero((np.einsum("ij,ij->i", N, ref_d) < 0.0) & ~reference.inside(b, rows))
     if not len(flip):
         return phi, C, N, flip
     found, E, NE = pl.obstacle.first_entry(ref_q[flip], Q[flip])

@@ -743,6 +743,7 @@ class RestOutcome:
             repr((names, sorted(lines), [self.body_of[b] == spec.body for b in names])),
             repr((spec.name, scene.margin, scene.rest_overlap, scene.mesh_unit)),
             repr((defaults.anchor_reach, defaults.anchor_end_reach, __version__)),
+            repr(defaults.kept_overlap_rings),
         )
 
     @cached_property
@@ -776,7 +777,7 @@ class RestOutcome:
             _, V, keep = _resolve_rest(spec, V, F, placed, scene, cache, _silent, said)
         out: dict[str, np.ndarray] = {"V": V, "notes": np.array(said, dtype=str)}
         for pl in placed:
-            a = kept_allowance(pl, V, scene.margin) if keep else None
+            a = kept_allowance(pl, V, scene.margin, F) if keep else None
             if a is not None:
                 out[f"allowance {pl.name}"] = a
         own = [pl for pl in placed if self.body_of[pl.name] == spec.body]
