@@ -114,8 +114,9 @@ class Defaults:
         (0: as deep as itself), for the muscle slides a little along the bone through a
         motion. Rajagopal 2016's generic pelvis and sacrum under the VHF gluteus maximus
         (kept 9.1 and 5.7 mm deep), the walk every 10th frame, the muscle alone with its
-        bones: shape change over 0.5 on 5 of 22 frames (up to 1.86) with 0, none with 2
-        (<= 0.46) or 4 (<= 0.46; BENCHMARKS.md).
+        bones and no side from inside a bone (`SideReference.inside`): shape change over
+        0.5 on 5 of 22 frames (up to 1.86) with 0, none with 2 (<= 0.46) or 4 (<= 0.46;
+        BENCHMARKS.md, a scratch script).
     attached_weight : float
         Weight of the fibres' attachment areas held to their paths' first and last
         points (``[fibres] attached``, the default), relative to the Laplacian and

@@ -235,8 +235,9 @@ def on_their_side(
     that were turned.
     """
     ref_q, ref_d = reference.at(b, rows)
+    flip = np.flatnonzero(np.einsum("ij,ij->i", N, ref_d) < 0.0)
     # a vertex inside the obstacle then (a kept rest overlap) came from no side of it
-    flip = np.flatnonzero((np.einsum("ij,ij->i", N, ref_d) < 0.0) & ~reference.inside(b, rows))
+    flip = flip[~reference.inside(b, rows[flip])]
     if not len(flip):
         return phi, C, N, flip
     found, E, NE = pl.obstacle.first_entry(ref_q[flip], Q[flip])

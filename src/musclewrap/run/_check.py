@@ -361,9 +361,7 @@ def _check_model(scene: Scene, model: OpenSimModel, rep: CheckReport) -> bool:
             ok = False
             continue
         try:
-            flipped = reversed_coordinates(
-                scene, mot, model, [c for c in driven if c in mot.columns]
-            )
+            flipped = reversed_coordinates(scene, mot, model, driven)
         except SceneError:
             flipped = []  # angles in the wrong unit: the run says so, with its fix
         for c in flipped:
