@@ -20,6 +20,7 @@ __all__ = [
     "available_memory",
     "check_memory",
     "check_mesh",
+    "drop_repeated_faces",
     "merge_duplicate_vertices",
     "orient_faces",
     "split_nonmanifold_vertices",
@@ -400,6 +401,40 @@ def tidy_mesh(V: FloatArray, F: IntArray) -> tuple[FloatArray, IntArray, list[st
         F = F[~rep]
         notes.append(f"removed {int(rep.sum())} faces with repeated vertices")
     return V, F, notes
+
+
+def drop_repeated_faces(F: IntArray) -> tuple[IntArray, int]:
+    """Keep one face of each set of faces on the same three vertices.
+
+    Of a face and its reverse, the one kept is the orientation its neighbours agree
+    with (across each of its edges a neighbour given once runs the edge the other
+    way); ties keep the first. A face and its reverse enclose nothing, but a closest
+    point on the reversed copy has its normal pointing into the solid, where a
+    pseudo-normal sign then says inside. Returns the faces kept (in their order) and
+    how many were dropped.
+    """
+    F = np.asarray(F)
+    if not len(F):
+        return F, 0
+    _, first, inv, counts = np.unique(
+        np.sort(F, axis=1), axis=0, return_index=True, return_inverse=True, return_counts=True
+    )
+    inv = inv.ravel()
+    if counts.max() == 1:
+        return F, 0
+    keep = np.ones(len(F), dtype=bool)
+    n = int(F.max()) + 1
+    half = F[counts[inv] == 1][:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2)
+    runs = set((half[:, 0] * n + half[:, 1]).tolist())  # the directed edges given once
+    for g in np.flatnonzero(counts > 1):
+        rows = np.flatnonzero(inv == g)
+        agree = [
+            sum(int(v) * n + int(u) in runs for u, v in ((a, b), (b, c), (c, a)))
+            for a, b, c in F[rows]
+        ]
+        keep[rows] = False
+        keep[rows[int(np.argmax(agree))] if max(agree) > 0 else first[g]] = True
+    return F[keep], int((~keep).sum())
 
 
 def available_memory() -> int | None:

@@ -173,10 +173,12 @@ def _check(
     bones: dict[str, tuple[FloatArray, IntArray]] = {}
     for b in scene.bones:
         try:
-            V, F, flipped, open_edges = _read_bone(b, cache)
+            V, F, said, open_edges = _read_bone(b, cache)
         except (MeshError, ValueError) as exc:
             rep.add("error", b.name, str(exc))
             continue
+        for n in said:
+            rep.add("note", b.name, f"{b.mesh.name}: {n}")
         if open_edges:
             rep.add(
                 "note", b.name,

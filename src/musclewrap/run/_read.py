@@ -42,6 +42,7 @@ from ..mesh import (
     apply_transform,
     check_mesh,
     clean_mesh,
+    drop_repeated_faces,
     invert_rigid,
     read_mesh,
     self_intersecting_faces,
@@ -193,7 +194,7 @@ class ReadBone:
     def cached(self) -> bool:
         """Read (and, for contact, closed) already."""
         cache = None if self.cache is None else Path(self.cache)
-        read = _mesh_cache_file(self.bone.mesh, cache, "bone|boundary edges")
+        read = _mesh_cache_file(self.bone.mesh, cache, _BONE_TAG)
         if read is None or not read.is_file():
             return False
         if not self.closed:
@@ -210,10 +211,9 @@ class ReadBone:
     def run(self) -> tuple[FloatArray, IntArray, list[str]]:
         b = self.bone
         cache = None if self.cache is None else Path(self.cache)
-        V, F, flipped, open_edges = _read_bone(b, cache)
+        V, F, said, open_edges = _read_bone(b, cache)
         notes = [f"{b.name}: {b.source}"] if b.source else []  # a model's mesh
-        if flipped:
-            notes.append(f"{b.name}: faces were oriented inward: flipped")
+        notes += [f"{b.name}: {n}" for n in said]
         if self.closed:
             V, F = _closed_bone(b, V, F, open_edges, cache, _silent, notes)
         return V, F, notes
@@ -384,29 +384,59 @@ def _read_muscle(
     return d["V"], d["F"], [str(n) for n in d["notes"]], d["input_id"]
 
 
-def _read_bone(b: BoneSpec, cache: Path | None) -> tuple[FloatArray, IntArray, bool, int]:
+def _read_bone(b: BoneSpec, cache: Path | None) -> tuple[FloatArray, IntArray, list[str], int]:
     """Read, tidy and orient outward a bone's mesh (not required to be manifold); cached.
 
-    Returns the vertices (times the bone's ``scale``: a model's mesh), the faces, whether
-    they were flipped, and the number of boundary edges (an open bone: contact has to
-    close it).
+    Faces given twice (the same three vertices, either way round) are kept once where
+    that leaves no edge shared by more than two faces and opens none
+    (`musclewrap.mesh.drop_repeated_faces`): Rajagopal 2016's generic femur gives 5
+    faces twice, 3 reversed, and a closest point on a reversed copy has its normal
+    pointing into the bone (a muscle vertex 18.7 mm outside it was read as that deep
+    inside). Edges still shared by more than two faces are said.
+
+    Returns the vertices (times the bone's ``scale``: a model's mesh), the faces, what
+    was changed or found (notes), and the number of boundary edges (an open bone:
+    contact has to close it).
     """
     path = b.mesh
 
     def build() -> dict[str, np.ndarray]:
         V, F, _ = tidy_mesh(*read_mesh(path))
         check = check_mesh(V, F)
+        said = []
+        if check.nonmanifold_edges:
+            once, dropped = drop_repeated_faces(F)
+            after = check_mesh(V, once)
+            if (
+                dropped
+                and not after.nonmanifold_edges
+                and (after.boundary_edges <= check.boundary_edges)
+            ):
+                F, check = once, after
+                said.append(f"{dropped} faces given twice (the same three vertices): kept once")
+            else:
+                k = check.nonmanifold_edges
+                said.append(
+                    f"{k} edge{'s' if k > 1 else ''} shared by more than two faces: the side "
+                    "of a point next to them may be wrong"
+                )
         flip = check.volume < 0
+        if flip:
+            said.append("faces were oriented inward: flipped")
         return {
             "V": V,
             "F": F[:, ::-1].copy() if flip else F,
-            "flipped": np.array(flip),
+            "notes": np.array(said, dtype=str),
             "boundary_edges": np.array(check.boundary_edges),
         }
 
-    d = _cached_mesh(path, cache, "bone|boundary edges", build)
+    d = _cached_mesh(path, cache, _BONE_TAG, build)
     V = d["V"] if b.scale == (1.0, 1.0, 1.0) else d["V"] * np.asarray(b.scale)
-    return V, d["F"], bool(d["flipped"]), int(d["boundary_edges"])
+    return V, d["F"], [str(x) for x in d["notes"]], int(d["boundary_edges"])
+
+
+#: the cache tag of a bone as read (`_read_bone`): changed where what it keeps changes
+_BONE_TAG = "bone|boundary edges|faces once"
 
 
 def _closed_tag(b: BoneSpec) -> str:
