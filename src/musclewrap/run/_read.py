@@ -392,7 +392,8 @@ def _read_bone(b: BoneSpec, cache: Path | None) -> tuple[FloatArray, IntArray, l
     (`musclewrap.mesh.drop_repeated_faces`): Rajagopal 2016's generic femur gives 5
     faces twice, 3 reversed, and a closest point on a reversed copy has its normal
     pointing into the bone (a muscle vertex 18.7 mm outside it was read as that deep
-    inside). Edges still shared by more than two faces are said.
+    inside). Edges still shared by more than two faces in a closed bone are said (an open
+    one is repaired as contact closes it).
 
     Returns the vertices (times the bone's ``scale``: a model's mesh), the faces, what
     was changed or found (notes), and the number of boundary edges (an open bone:
@@ -414,7 +415,7 @@ def _read_bone(b: BoneSpec, cache: Path | None) -> tuple[FloatArray, IntArray, l
             ):
                 F, check = once, after
                 said.append(f"{dropped} faces given twice (the same three vertices): kept once")
-            else:
+            elif not check.boundary_edges:  # an open bone is repaired as it is closed
                 k = check.nonmanifold_edges
                 said.append(
                     f"{k} edge{'s' if k > 1 else ''} shared by more than two faces: the side "
