@@ -563,9 +563,10 @@ def test_check_fits_the_hip_the_vhf_meshes_were_taken_at_to_the_models_pelvis(da
 
 @pytest.mark.realdata
 def test_check_fits_the_hip_on_a_model_that_assembles_its_knee(data_dir, tmp_path):
-    """Rajagopal 2016 assembles its coupled knee at every pose, moving the tibia 1e-5 m
-    whatever coordinate changes: the hip's coordinates must still be found to move the
-    pelvis and not the landmarks (they were not, and check said nothing of the posture)."""
+    """Rajagopal 2016 couples each patella to its knee (OpenSim's assembly of it moved the
+    tibia 1e-5 m whatever coordinate changed; the coupler is now set exactly): the hip's
+    coordinates must be found to move the pelvis and not the landmarks (they were not,
+    and check said nothing of the posture)."""
     from musclewrap.run import check_scene
 
     vhf, osim = data_dir / "vhf", data_dir / "opensim" / "models" / "Rajagopal2016.osim"

@@ -83,8 +83,9 @@ def rest_posture(
         if c not in rest or not model.is_rotational(c):
             continue
         moved = relative({**rest, c: rest[c] + _NUDGE})
-        # a tenth of the nudge: a model whose constraints are assembled at each pose (the
-        # knee of Rajagopal 2016) moves its bodies by 1e-5 whatever coordinate is nudged
+        # a tenth of the nudge: a model whose constraints OpenSim assembles at each pose
+        # moves its bodies by 1e-5 whatever coordinate is nudged (Rajagopal 2016's knees
+        # did, before `OpenSimModel.set_pose` set their couplers exactly)
         apart = any(not np.allclose(moved[b], base[b], atol=0.1 * _NUDGE) for b in marks)
         moves = any(not np.allclose(moved[b.body], base[b.body], atol=0.1 * _NUDGE) for b in priced)
         if moves and not apart:
