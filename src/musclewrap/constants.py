@@ -117,6 +117,16 @@ class Defaults:
         bones and no side from inside a bone (`SideReference.inside`): shape change over
         0.5 on 5 of 22 frames (up to 1.86) with 0, none with 2 (<= 0.46) or 4 (<= 0.46;
         BENCHMARKS.md, a scratch script).
+    side_inside_spacings : float
+        A vertex that lay inside a bone at its waypoint (or at rest) deeper than this
+        many of the bone's grid spacings has no side of it it came from
+        (`musclewrap.contact.SideReference.inside`): a kept rest overlap, not a vertex
+        that came through. Shallower, it keeps its side (a contact at the margin lies a
+        hair inside by its interpolated distance). Rajagopal 2016's 18-muscle scene, the
+        walk every 10th frame stepped together (BENCHMARKS.md, thresholds): 0.25 and 1
+        keep every shape change <= 0.5 (0.37, 0.40), 4 and no rule (inf) do not (the
+        gluteus maximus 0.90 and 0.60, each on one frame); in another muscle 0.13, 0.09,
+        0.19 and 0.13 mm. The LHDL walk is the same bytes at 0.25, 1 and 4.
     attached_weight : float
         Weight of the fibres' attachment areas held to their paths' first and last
         points (``[fibres] attached``, the default), relative to the Laplacian and
@@ -458,6 +468,7 @@ class Defaults:
     anchor_reach: float = 0.5
     anchor_end_reach: float = 0.15
     kept_overlap_rings: int = 2
+    side_inside_spacings: float = 1.0
     attached_weight: float = 1.8
     fibre_area_reach: float = 1.0
     fibre_area_end_reach: float = 0.15

@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._typing import FloatArray, IntArray
+from ..constants import defaults
 from ._placed import Placed
 
 __all__ = ["SideReference", "on_their_side", "passed_through"]
@@ -95,13 +96,14 @@ class SideReference:
 
         A vertex inside then (a kept rest overlap, or a waypoint that left it there) has
         no side it came from. One on the surface then (a contact, at the margin: its
-        interpolated distance a hair below 0) keeps its side.
+        interpolated distance a hair below 0) keeps its side. How deep counts as inside:
+        `defaults.side_inside_spacings` of the bone's grid spacings.
         """
         rows = np.asarray(rows, dtype=np.int64)
         self._known(b, rows)
         kept = self._kept[b]
         assert kept is not None
-        return kept[2][rows] < -self.placed[b].obstacle.h
+        return kept[2][rows] < -defaults.side_inside_spacings * self.placed[b].obstacle.h
 
     def _known(self, b: int, rows: IntArray) -> None:
         """The directions and signed distances then of vertices ``rows``, found once each."""
