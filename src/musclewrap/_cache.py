@@ -9,8 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._hashing import digest, digest_arrays
-from ._version import __version__
+from ._hashing import cache_version, digest, digest_arrays
 from .mesh import atomic_path
 
 __all__ = ["cached_arrays", "cached_measure", "digest"]
@@ -63,7 +62,7 @@ def cached_measure(
     """`cached_arrays` of a measure of arrays, keyed by the arrays themselves.
 
     ``kind`` names the measure and its version (change it where the measure changes);
-    the package's version is part of the key too. A part may be a string (a setting, or
+    the package's version and its code (`cache_version`) are part of the key too. A part may be a string (a setting, or
     the `digest` of a large array the caller keys many measures by). The file is
     ``cache_dir/measure-<kind>-<key>.npz``; ``cache_dir`` None: no cache.
     """
@@ -72,7 +71,7 @@ def cached_measure(
         key = digest(
             *(a if isinstance(a, str) else np.ascontiguousarray(a) for a in parts),
             kind,
-            __version__,
+            cache_version(),
         )
         path = Path(cache_dir) / f"measure-{kind}-{key[:32]}.npz"
     return cached_arrays(path, build)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["code_digest", "digest", "digest_arrays"]
+__all__ = ["cache_version", "code_digest", "digest", "digest_arrays"]
 
 
 def digest(*parts: bytes | str | np.ndarray) -> str:
@@ -57,3 +57,18 @@ def code_digest() -> str:
         h.update(path.read_bytes())
         h.update(b"|")
     return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=1)
+def cache_version() -> str:
+    """What every cache key holds of the code: the package's version and `code_digest`.
+
+    The version alone let one checkout read what another had made under the same
+    version number: the LHDL sweeps' fibres, measured with a fresh cache on 0e34d33,
+    cover 68.2 % of the published ranges, and with a cache that later code had written
+    (its rest push-out changed, its key did not) the same checkout gave 65.8 %. Once
+    per process (the source is read once).
+    """
+    from ._version import __version__
+
+    return f"{__version__}|{code_digest()}"

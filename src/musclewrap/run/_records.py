@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from .._cache import digest
+from .._hashing import cache_version
 from .._typing import FloatArray, IntArray
-from .._version import __version__
 from ..constants import defaults
 from ..mesh import invert_rigid
 from ..scene import CENTRAL, Stencil
@@ -65,7 +65,7 @@ def fibres_key(muscle_key: str, job: MuscleJob) -> str:
         *(np.asarray(lines[p], dtype=np.float64) for p in sorted(lines)),
         *(np.asarray(T, dtype=np.float64) for _, T in (*spec.origin_bones, *spec.insertion_bones)),
         "|".join(on_bones),
-        f"{spec.count}|{spec.points}|{spec.voxels}|{FIBRES_FORMAT}|{__version__}",
+        f"{spec.count}|{spec.points}|{spec.voxels}|{FIBRES_FORMAT}|{cache_version()}",
         f"{spec.attachments}|{job.margin}|{defaults.fibre_area_reach}|"
         f"{defaults.fibre_area_least}|{defaults.fibre_area_end_reach}|"
         f"{defaults.fibre_area_end_part}",
@@ -157,7 +157,7 @@ class MuscleJob:
             np.asarray(self.F, dtype=np.int64),
             np.asarray(self.input_id, dtype=np.int64),
             *(() if self.cage_around is None else (np.asarray(self.cage_around),)),
-            f"{self.cage_size}|{self.cage_coarsening}|{PREPARATION_FORMAT}|{__version__}",
+            f"{self.cage_size}|{self.cage_coarsening}|{PREPARATION_FORMAT}|{cache_version()}",
         )[:32]
 
     def prepare_path(self) -> Path | None:
