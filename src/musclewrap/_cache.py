@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._hashing import cache_version, digest, digest_arrays
+from ._hashing import cache_key, digest, digest_arrays
 from .mesh import atomic_path
 
 __all__ = ["cached_arrays", "cached_measure", "digest"]
@@ -62,16 +62,15 @@ def cached_measure(
     """`cached_arrays` of a measure of arrays, keyed by the arrays themselves.
 
     ``kind`` names the measure and its version (change it where the measure changes);
-    the package's version and its code (`cache_version`) are part of the key too. A part may be a string (a setting, or
-    the `digest` of a large array the caller keys many measures by). The file is
+    the package's version and its code are part of the key too (`cache_key`). A part may
+    be a string (a setting, or the `digest` of a large array the caller keys many measures
+    by). The file is
     ``cache_dir/measure-<kind>-<key>.npz``; ``cache_dir`` None: no cache.
     """
     path = None
     if cache_dir is not None:
-        key = digest(
-            *(a if isinstance(a, str) else np.ascontiguousarray(a) for a in parts),
-            kind,
-            cache_version(),
+        key = cache_key(
+            *(a if isinstance(a, str) else np.ascontiguousarray(a) for a in parts), kind
         )
         path = Path(cache_dir) / f"measure-{kind}-{key[:32]}.npz"
     return cached_arrays(path, build)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["cache_version", "code_digest", "digest", "digest_arrays"]
+__all__ = ["cache_key", "cache_version", "code_digest", "digest", "digest_arrays"]
 
 
 def digest(*parts: bytes | str | np.ndarray) -> str:
@@ -72,3 +72,8 @@ def cache_version() -> str:
     from ._version import __version__
 
     return f"{__version__}|{code_digest()}"
+
+
+def cache_key(*parts: bytes | str | np.ndarray) -> str:
+    """The `digest` that names a cache file: ``parts`` and the code (`cache_version`)."""
+    return digest(*parts, cache_version())

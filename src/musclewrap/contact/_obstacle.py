@@ -264,11 +264,11 @@ class Obstacle:
     @staticmethod
     def cache_name(V: FloatArray, F: IntArray) -> str:
         """File name of the bone's grid in a cache folder (a hash of its content)."""
-        from .._hashing import cache_version, digest
+        from .._hashing import cache_key
 
         V = np.ascontiguousarray(V, dtype=np.float64)
         F = np.ascontiguousarray(F, dtype=np.int64)
-        return f"bone-probe-{digest(V, F, str(_FORMAT), cache_version())[:32]}.npz"
+        return f"bone-probe-{cache_key(V, F, str(_FORMAT))[:32]}.npz"
 
     @classmethod
     def cached(

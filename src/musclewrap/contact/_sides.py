@@ -92,7 +92,7 @@ class SideReference:
         return self.positions(b, rows), kept[1][rows]
 
     def inside(self, b: int, rows: IntArray) -> npt.NDArray[np.bool_]:
-        """Whether vertices ``rows`` were inside obstacle ``b`` then, deeper than its grid's spacing.
+        """Whether vertices ``rows`` were inside obstacle ``b`` then, deeper than a set depth.
 
         A vertex inside then (a kept rest overlap, or a waypoint that left it there) has
         no side it came from. One on the surface then (a contact, at the margin: its

@@ -42,8 +42,9 @@ def _couplers(osim: Any, model: Any, state: Any) -> tuple[list[tuple[Any, ...]],
     """A model's enforced coordinate couplers, and whether it has other constraints.
 
     The couplers come each after those that set its independent coordinates; constraints
-    of other kinds (or couplers in a cycle) need OpenSim's assembly. Each coupler is (dependent name, independent names, function, scale factor, a
-    vector for the function's arguments).
+    of other kinds (or couplers in a cycle) need OpenSim's assembly. Each coupler is
+    (dependent name, independent names, function, scale factor, a vector for the
+    function's arguments).
     """
     found, other = [], False
     cs = model.getConstraintSet()

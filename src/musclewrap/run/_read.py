@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._cache import cached_arrays, digest
-from .._hashing import cache_version, code_digest
+from .._hashing import cache_key, code_digest
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
 from .._version import __version__
@@ -268,9 +268,9 @@ def fit_bones(
         length = float(np.ptp(V, axis=0).max())
         reach = np.array([np.linalg.norm(V - j, axis=1).min() for j in joints])
         held = np.vstack([*own, joints[reach < 0.1 * length]])
-        key = digest(
+        key = cache_key(
             V, F, held, *(a for m in sorted(near) for a in near[m]),
-            f"{sorted(near)}|{cache_version()}|shaft {_SHAFT_FORMAT}",
+            f"{sorted(near)}|shaft {_SHAFT_FORMAT}",
         )  # fmt: skip
         path = None if cache is None else cache / f"shaft-{key[:32]}.npz"
 
@@ -350,7 +350,7 @@ def _cached_mesh(
 def _mesh_cache_file(path: Path, cache: Path | None, tag: str) -> Path | None:
     if cache is None:
         return None
-    key = digest(path.read_bytes(), f"{tag}|{cache_version()}|first-appearance order")
+    key = cache_key(path.read_bytes(), f"{tag}|first-appearance order")
     return cache / f"mesh-{key[:32]}.npz"
 
 
@@ -484,12 +484,12 @@ def _push_out_rest(
     V: FloatArray, F: IntArray, placed: list[Any], margin: float, cache: Path | None
 ) -> tuple[FloatArray | None, Any, str]:
     """`musclewrap.contact.rest_push_out`, cached by its inputs."""
-    key = digest(
+    key = cache_key(
         V,
         F,
         *(np.asarray(pl.T) for pl in placed),
         "|".join(Obstacle.cache_name(pl.obstacle.V, pl.obstacle.F) for pl in placed),
-        f"{margin}|{cache_version()}|rest-overlap",
+        f"{margin}|rest-overlap",
     )
     path = None if cache is None else cache / f"rest-{key[:32]}.npz"
 
@@ -646,10 +646,10 @@ def _apart_cached(
     names = sorted(rest)
     path = None
     if cache is not None:
-        key = digest(
+        key = cache_key(
             *(a for n in names for a in (rest[n][0], np.asarray(rest[n][1], dtype=np.int64))),
             repr((names, None if pairs is None else sorted(map(tuple, pairs)), resolve)),
-            repr((defaults, cache_version(), _APART_FORMAT)),
+            repr((defaults, _APART_FORMAT)),
         )
         path = Path(cache) / f"apart-at-rest-{key[:32]}.npz"
     made: list[Any] = []
@@ -765,7 +765,7 @@ class RestOutcome:
         """Hash of everything the outcome depends on (names its cache file; once)."""
         scene, spec, names = self.scene, self.spec, list(self.bones)
         lines = self.lines
-        return digest(
+        return cache_key(
             self.V,
             self.F,
             *(self.bones[b].probe for b in names),
@@ -773,7 +773,7 @@ class RestOutcome:
             *(np.asarray(lines[k], dtype=np.float64) for k in sorted(lines)),
             repr((names, sorted(lines), [self.body_of[b] == spec.body for b in names])),
             repr((spec.name, scene.margin, scene.rest_overlap, scene.mesh_unit)),
-            repr((defaults.anchor_reach, defaults.anchor_end_reach, cache_version())),
+            repr((defaults.anchor_reach, defaults.anchor_end_reach)),
             repr(defaults.kept_overlap_rings),
         )
 

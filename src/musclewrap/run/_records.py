@@ -17,8 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .._cache import digest
-from .._hashing import cache_version
+from .._hashing import cache_key as key_of
 from .._typing import FloatArray, IntArray
 from ..constants import defaults
 from ..mesh import invert_rigid
@@ -59,13 +58,13 @@ def fibres_key(muscle_key: str, job: MuscleJob) -> str:
         for side, bones in (("o", spec.origin_bones), ("i", spec.insertion_bones))
         for b, _ in bones
     ]
-    return digest(
+    return key_of(
         muscle_key,
         *areas,
         *(np.asarray(lines[p], dtype=np.float64) for p in sorted(lines)),
         *(np.asarray(T, dtype=np.float64) for _, T in (*spec.origin_bones, *spec.insertion_bones)),
         "|".join(on_bones),
-        f"{spec.count}|{spec.points}|{spec.voxels}|{FIBRES_FORMAT}|{cache_version()}",
+        f"{spec.count}|{spec.points}|{spec.voxels}|{FIBRES_FORMAT}",
         f"{spec.attachments}|{job.margin}|{defaults.fibre_area_reach}|"
         f"{defaults.fibre_area_least}|{defaults.fibre_area_end_reach}|"
         f"{defaults.fibre_area_end_part}",
@@ -152,12 +151,12 @@ class MuscleJob:
     @cached_property
     def cache_key(self) -> str:
         """Hash of the mesh and the preparation's settings (names its cache file; once)."""
-        return digest(
+        return key_of(
             np.asarray(self.V, dtype=np.float64),
             np.asarray(self.F, dtype=np.int64),
             np.asarray(self.input_id, dtype=np.int64),
             *(() if self.cage_around is None else (np.asarray(self.cage_around),)),
-            f"{self.cage_size}|{self.cage_coarsening}|{PREPARATION_FORMAT}|{cache_version()}",
+            f"{self.cage_size}|{self.cage_coarsening}|{PREPARATION_FORMAT}",
         )[:32]
 
     def prepare_path(self) -> Path | None:

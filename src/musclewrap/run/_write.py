@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from .._cache import cached_arrays, digest
-from .._hashing import cache_version
+from .._cache import cached_arrays
+from .._hashing import cache_key
 from .._typing import FloatArray, IntArray
 from ..mesh import apply_transform, write_mesh
 from ..output import plot_convergence, plot_penetration, plot_volume_error, write_csv, write_pvd
@@ -123,11 +123,7 @@ def _bone_display(
     """
     if faces == 0 or len(F) <= faces:
         return V, F
-    path = (
-        None
-        if cache is None
-        else cache / f"bone-{digest(V, F, str(faces), cache_version())[:32]}.npz"
-    )
+    path = None if cache is None else cache / f"bone-{cache_key(V, F, str(faces))[:32]}.npz"
 
     def build() -> dict[str, np.ndarray]:
         DV, DF = _decimate(V, F, faces)
