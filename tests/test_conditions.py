@@ -195,8 +195,10 @@ def test_a_muscle_bound_with_windows_is_at_rest_at_rest_and_rigid_under_a_rigid_
 
     rest = {"a": np.array([[0.0, 0, 0], [0, 3.0, 100], [0, 0, 200]])}
     d = small_muscle.bind(rest, line_window=1.0)
-    plain = small_muscle.bind(rest)
+    plain = small_muscle.bind(rest, line_window=0.0)
+    default = small_muscle.bind(rest)  # half a spacing either side: no stairs by default
     assert d.sampling.halfwidths is not None and plain.sampling.halfwidths is None
+    assert default.sampling.halfwidths is not None
     assert np.array_equal(d.rest_samples, plain.rest_samples)
     assert np.abs(d._targets(rest, None)[1] - d.rest_samples).max() < 1e-12
     assert np.abs(d.deform(rest).V - small_muscle.V).max() < 1e-9
@@ -206,11 +208,11 @@ def test_a_muscle_bound_with_windows_is_at_rest_at_rest_and_rigid_under_a_rigid_
     assert np.abs(got - (d.rest_samples @ R.T + t)).max() < 1e-9
     # the corner slides along z past the samples
     kinks = []
-    for b in (plain, d):
+    for b in (plain, d, default):
         s = [b._targets({"a": np.array([[0.0, 0, 0], [0, 8, c], [0, 0, 200]])}, None)[1]
              for c in np.linspace(95.0, 105.0, 201)]  # fmt: skip
         kinks.append(np.abs(np.diff(np.array(s), 2, axis=0)).max())
-    assert kinks[0] > 10 * kinks[1]
+    assert kinks[0] > 10 * kinks[1] and kinks[0] > 10 * kinks[2]
     with pytest.raises(ValueError, match="line_window must be 0 or positive"):
         small_muscle.bind(rest, line_window=-1.0)
 

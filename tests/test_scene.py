@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from musclewrap.cli import main
+from musclewrap.constants import defaults
 from musclewrap.mesh import write_mesh
 from musclewrap.scene import (
     REPORT_FIELDS,
@@ -52,6 +53,8 @@ def test_fibre_settings_are_checked(tmp_path, table, message):
 def test_line_window_is_read_and_checked(tmp_path):
     _, toml = _write_demo(tmp_path, n_frames=2)
     good = toml.read_text()
+    assert load_scene(toml).line_window == defaults.line_window == 0.5
+    toml.write_text("line_window = 0\n" + good)
     assert load_scene(toml).line_window == 0.0
     toml.write_text("line_window = 1\n" + good)
     assert load_scene(toml).line_window == 1.0

@@ -146,7 +146,7 @@ class MuscleJob:
     #: muscles that overlap in a round step together (``[collisions] together``)
     together: bool = False
     #: the action lines' sample windows (the scene's ``line_window``)
-    line_window: float = 0.0
+    line_window: float = field(default_factory=lambda: defaults.line_window)
 
     @cached_property
     def cache_key(self) -> str:

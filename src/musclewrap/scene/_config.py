@@ -158,7 +158,7 @@ class Scene:
     muscle_pairs: tuple[tuple[str, str], ...] | None = None
     muscle_together: bool = field(default_factory=lambda: defaults.muscle_joint)
     #: each action-line sample the line's mean over this many sample spacings either side
-    line_window: float = 0.0
+    line_window: float = field(default_factory=lambda: defaults.line_window)
     extra: dict[str, Any] = field(default_factory=dict)
     #: with a line CSV: the bodies' poses per frame (``[lines] bodies``)
     bodies_csv: Path | None = None
@@ -203,9 +203,9 @@ def _get(
 
 
 def _line_window(raw: Mapping[str, Any], src: Path) -> float:
-    """The scene's ``line_window`` (default 0), refused unless finite and not negative."""
+    """The scene's ``line_window`` (default ``defaults.line_window``), finite and not negative."""
     if "line_window" not in raw:
-        return 0.0
+        return defaults.line_window
     w = raw["line_window"]
     if isinstance(w, bool) or not isinstance(w, int | float) or not (np.isfinite(w) and w >= 0):
         raise SceneError(f"{src}: line_window must be 0 or a positive number of sample "
