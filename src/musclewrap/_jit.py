@@ -34,8 +34,8 @@ def kernels_cached() -> bool:
 #: called with. On a first run a second process compiles the pose's and some of the
 #: contact's while the run's own compiles the preparation's and the contact's others
 #: (`HERE`), before its workers start. Kernels that only these call are compiled with them.
-#: A test checks that the demo compiles nothing else. A kernel the demo does not call is
-#: left to its first call (the paths' windows, `line_window`: about 1 s in each worker).
+#: A test checks that the demo compiles nothing else. A kernel the demo does not call is left
+#: to its first call.
 _A2, _A1, _I2, _I1 = "float64[:, ::1]", "float64[::1]", "int64[:, ::1]", "int64[::1]"
 _A3, _F2 = "float64[:, :, ::1]", "float32[:, ::1]"
 KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
@@ -66,6 +66,8 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("mesh._volume", "_mean_rows_kernel", f"({_A2},)"),
         ("conditions._lines", "_arclength_kernel", f"({_A2},)"),
         ("conditions._lines", "_polyline_at_kernel", f"({_A2}, {_A1}, {_A2})"),
+        # the samples' windows (`line_window`, 0.5 by default since 2026-11-30)
+        ("conditions._lines", "_window_mean_kernel", f"({_A2}, {_A2}, {_A1}, {_A1}, {_A2})"),
     ),
     # a scene with bones or muscles in contact (the demo's): the bones' distance grids,
     # which muscle vertices are near them, winding numbers, the nearest triangles
