@@ -191,7 +191,9 @@ def _polyline_at_kernel(P, t, out):  # noqa: ANN001, ANN202 # pragma: no cover -
 def _window_mean_kernel(X, P, t, w, out):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
     # the mean of the piecewise-linear function through the rows of P at the normalized
     # arc lengths of the points X, over [t - w, t + w], exactly: the difference of its
-    # running integral over the window's width; where w is 0, its value at t
+    # running integral over the window's width; where w is 0, its value at t. All in one
+    # function: a helper for the integral at a point compiled apart, 0.24 s more of a
+    # first run (0.83 against 0.59 s)
     s = _arclength_kernel(X)
     last = P.shape[0] - 1
     D = P.shape[1]
@@ -200,43 +202,31 @@ def _window_mean_kernel(X, P, t, w, out):  # noqa: ANN001, ANN202 # pragma: no c
         h = s[j + 1] - s[j]
         for k in range(D):
             cum[j + 1, k] = cum[j, k] + 0.5 * h * (P[j, k] + P[j + 1, k])
-    lo_v = np.empty(D)
-    hi_v = np.empty(D)
     for i in range(t.shape[0]):
         wi = w[i]
-        if not wi > 0.0:
-            _integral_at(P, s, cum, t[i], lo_v, 1)
+        value = not wi > 0.0  # the function's value at t, else its integral at t -/+ w
+        for k in range(D):
+            out[i, k] = 0.0
+        for end in range(1 if value else 2):
+            u = t[i] if value else (t[i] + wi if end else t[i] - wi)
+            sign = 1.0 if value or end else -1.0
+            if u <= s[0] or u >= s[last]:  # clamped to the ends
+                e = 0 if u <= s[0] else last
+                for k in range(D):
+                    out[i, k] += sign * (P[e, k] if value else cum[e, k])
+                continue
+            j = _segment_of(s, u)
+            h = s[j + 1] - s[j]
+            d = u - s[j]
             for k in range(D):
-                out[i, k] = lo_v[k]
-            continue
-        _integral_at(P, s, cum, t[i] - wi, lo_v, 0)
-        _integral_at(P, s, cum, t[i] + wi, hi_v, 0)
-        for k in range(D):
-            out[i, k] = (hi_v[k] - lo_v[k]) / (2.0 * wi)
-
-
-@numba.njit(cache=True)
-def _integral_at(P, s, cum, u, out, value):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
-    # value 0: the running integral at u (clamped to [0, 1]); 1: the function's value there
-    last = P.shape[0] - 1
-    D = P.shape[1]
-    if u <= s[0]:
-        for k in range(D):
-            out[k] = P[0, k] if value else cum[0, k]
-        return
-    if u >= s[last]:
-        for k in range(D):
-            out[k] = P[last, k] if value else cum[last, k]
-        return
-    j = _segment_of(s, u)
-    h = s[j + 1] - s[j]
-    d = u - s[j]
-    for k in range(D):
-        slope = (P[j + 1, k] - P[j, k]) / h
-        if value:
-            out[k] = P[j, k] + d * slope
-        else:
-            out[k] = cum[j, k] + d * P[j, k] + 0.5 * d * d * slope
+                slope = (P[j + 1, k] - P[j, k]) / h
+                if value:
+                    out[i, k] += P[j, k] + d * slope
+                else:
+                    out[i, k] += sign * (cum[j, k] + d * P[j, k] + 0.5 * d * d * slope)
+        if not value:
+            for k in range(D):
+                out[i, k] /= 2.0 * wi
 
 
 def window_mean(
