@@ -451,8 +451,9 @@ def _check_published_cover(out):
     """Issue 48's figure, held where it stands: the fibres' moment arms over each sweep (the
     smallest and largest across fibres and frames) overlap every published range of the
     same specimen (`LHDL_FIBRE_RANGES`), and cover on average at least 63 % of their widths
-    (64.8 % on df206db, 63.4 % with the samples' windows by default since 0fe42a8). A change to the contact fell from 68.2 to 65.8 % unseen (b185d8e;
-    BENCHMARKS.md, "Where the 68.5 % went"): a fall past the floor fails here."""
+    (64.8 % on df206db, 63.4 % with the samples' windows by default since 0fe42a8). A
+    change to the contact fell from 68.2 to 65.8 % unseen (b185d8e; BENCHMARKS.md, "Where
+    the 68.5 % went"): a fall past the floor fails here."""
     from musclewrap.fibres import LHDL_FIBRE_RANGES
 
     covers = []

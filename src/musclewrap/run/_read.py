@@ -18,10 +18,9 @@ from typing import Any
 import numpy as np
 
 from .._cache import cached_arrays, digest
-from .._hashing import cache_key, code_digest
+from .._hashing import cache_key, cache_version
 from .._paths import overwrite_clash
 from .._typing import FloatArray, IntArray
-from .._version import __version__
 from ..conditions import placement_problem
 from ..constants import defaults
 from ..contact import (
@@ -892,7 +891,7 @@ def run_key(scene: Scene, drive: Drive, collisions: bool) -> str:
     return digest(
         *(f.read_bytes() for f in files),
         np.asarray(drive.frames),
-        f"{__version__}|{code_digest()}|collisions={collisions}"
+        f"{cache_version()}|collisions={collisions}"
         + ("|together" if scene.muscle_together else "")
         + (f"|line_window={scene.line_window!r}" if scene.line_window else ""),
     )
