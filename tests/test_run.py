@@ -620,8 +620,16 @@ def test_a_run_is_not_resumed_under_other_code_of_the_same_version(tmp_path, mon
     assert len(code_digest()) == 64 and code_digest() == code_digest()
     first = key()
     assert key() == first  # the same code, the same key
-    monkeypatch.setattr(read, "code_digest", lambda: "another checkout")
-    assert key() != first
+    # the key's code comes through `cache_version` (read once per process): cleared either side
+    from musclewrap import _hashing
+
+    monkeypatch.setattr(_hashing, "code_digest", lambda: "another checkout")
+    _hashing.cache_version.cache_clear()
+    try:
+        assert key() != first
+    finally:
+        monkeypatch.undo()
+        _hashing.cache_version.cache_clear()
 
 
 def test_a_cache_made_by_other_code_of_the_same_version_is_not_read(tmp_path):
