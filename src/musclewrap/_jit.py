@@ -120,14 +120,23 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
 #: a scratch timing of each side, 2026-11-27): with the winding grid's binning here too
 #: (it was the helper's, which then finished 1.4-2.2 s after this side) and the paths'
 #: windows not compiled, the demo's first run took 22.9-25.6 s against 25.1-27.7 s
-#: (`bench_first_run.py`, three each in turns)
+#: (`bench_first_run.py`, three each in turns). The nearest face's kernel is here since
+#: 2026-11-30 (it shares the closest point on a triangle with `_closest_kernel`: compiled
+#: once, not in both processes), and the boxes' four kernels, which balance the two sides
+#: (the demo's first run 16.6 / 16.6 s against 17.3 / 17.0 s with them in the helper, in
+#: turns, kernels without numpy's reductions and zeroed arrays: see `_closest_kernel`)
 HERE = (
     "_closest_kernel",
+    "_nearest_face_kernel",
     "_region_kernel",
     "_query_kernel",
     "_bin_kernel",
     "_cells_kernel",
     "_flood_kernel",
+    "_in_box_kernel",
+    "_scatter_kernel",
+    "_projected_box_kernel",
+    "_in_oriented_box_kernel",
 )
 
 #: on a first run, the preparation's kernels that the helper compiles (after the pose's)

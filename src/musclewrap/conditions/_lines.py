@@ -144,11 +144,15 @@ def distinct_mask(P: FloatArray) -> npt.NDArray[np.bool_]:
 
 @numba.njit(cache=True)
 def _arclength_kernel(P):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
-    s = np.zeros(P.shape[0])
+    s = np.empty(P.shape[0])
+    s[0] = 0.0
     for i in range(1, P.shape[0]):
         d0, d1, d2 = P[i, 0] - P[i - 1, 0], P[i, 1] - P[i - 1, 1], P[i, 2] - P[i - 1, 2]
         s[i] = s[i - 1] + np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-    return s / s[-1]
+    total = s[P.shape[0] - 1]
+    for i in range(P.shape[0]):
+        s[i] /= total
+    return s
 
 
 @numba.njit(cache=True)
@@ -197,7 +201,9 @@ def _window_mean_kernel(X, P, t, w, out):  # noqa: ANN001, ANN202 # pragma: no c
     s = _arclength_kernel(X)
     last = P.shape[0] - 1
     D = P.shape[1]
-    cum = np.zeros((P.shape[0], D))  # the integral from 0 to each point
+    cum = np.empty((P.shape[0], D))  # the integral from 0 to each point
+    for k in range(D):
+        cum[0, k] = 0.0
     for j in range(last):
         h = s[j + 1] - s[j]
         for k in range(D):

@@ -150,25 +150,34 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
     # same distance, point and row as every triangle's (the tests compare them with the
     # loop over all of them); numpy's division: a triangle of no area gives NaN, never
     # taken, where a loop that reached it first would have raised
+    # (element loops for the centroids' box, the radii's mean and the wide ones: numpy's
+    # reductions and np.flatnonzero compiled here took 0.7 s of a first run, the same
+    # values for a surface of finite positions)
     m = F.shape[0]
     cen = np.empty((m, 3))
     rad = np.empty(m)
+    lo = np.empty(3)
+    ext = np.empty(3)  # the centroids' largest coordinates, then their extent
+    total = 0.0
     for f in range(m):
         r = 0.0
         for k in range(3):
-            cen[f, k] = (V[F[f, 0], k] + V[F[f, 1], k] + V[F[f, 2], k]) / 3.0
+            c = (V[F[f, 0], k] + V[F[f, 1], k] + V[F[f, 2], k]) / 3.0
+            cen[f, k] = c
+            if f == 0 or c < lo[k]:
+                lo[k] = c
+            if f == 0 or c > ext[k]:
+                ext[k] = c
         for j in range(3):
             e = 0.0
             for k in range(3):
                 e += (V[F[f, j], k] - cen[f, k]) ** 2
             r = max(r, e)
         rad[f] = np.sqrt(r)
-    lo = np.empty(3)
-    ext = np.empty(3)
+        total += rad[f]
     for k in range(3):
-        lo[k] = cen[:, k].min()
-        ext[k] = cen[:, k].max() - lo[k]
-    h = max(2.0 * rad.mean(), 1e-12 * max(ext[0], ext[1], ext[2]), 1e-300)
+        ext[k] -= lo[k]
+    h = max(2.0 * (total / m), 1e-12 * max(ext[0], ext[1], ext[2]), 1e-300)
     dims = np.empty(3, dtype=np.int64)
     while True:  # cells about a triangle wide, at most 8 a triangle
         for k in range(3):
@@ -179,12 +188,21 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
     # triangles wider than two cells (four times the mean) are looked at for every point
     # (a few slivers would otherwise hold the rings open); the rest bound how far the
     # rings go, two rings more at most
-    wide = np.flatnonzero(rad > 2.0 * h)
+    n_wide = 0
+    for f in range(m):
+        if rad[f] > 2.0 * h:
+            n_wide += 1
+    wide = np.empty(n_wide, dtype=np.int64)
+    n_wide = 0
     big = 0.0
-    boxes = np.zeros((m, 6), dtype=np.int64)  # each in its centroid's cell, the wide in none
+    boxes = np.empty((m, 6), dtype=np.int64)  # each in its centroid's cell, the wide in none
     for f in range(m):
         if rad[f] > 2.0 * h:
             boxes[f, 0] = 1
+            for k in range(1, 6):
+                boxes[f, k] = 0
+            wide[n_wide] = f
+            n_wide += 1
             continue
         big = max(big, rad[f])
         for k in range(3):

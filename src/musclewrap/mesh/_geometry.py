@@ -172,13 +172,17 @@ def oriented_box(P: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
 def _scatter_kernel(P):  # noqa: ANN001, ANN202 # pragma: no cover
     # sum over the points of (p - mean)(p - mean)^T, the mean taken first
     n = P.shape[0]
-    c = np.zeros(3)
+    c = np.empty(3)
+    S = np.empty((3, 3))
+    for a in range(3):
+        c[a] = 0.0
+        for b in range(3):
+            S[a, b] = 0.0
     for i in range(n):
         for a in range(3):
             c[a] += P[i, a]
     for a in range(3):
         c[a] /= max(n, 1)
-    S = np.zeros((3, 3))
     for i in range(n):
         d0, d1, d2 = P[i, 0] - c[0], P[i, 1] - c[1], P[i, 2] - c[2]
         S[0, 0] += d0 * d0
@@ -193,8 +197,10 @@ def _scatter_kernel(P):  # noqa: ANN001, ANN202 # pragma: no cover
 
 @numba.njit(cache=True)
 def _projected_box_kernel(P, R):  # noqa: ANN001, ANN202 # pragma: no cover
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for k in range(3):
+        lo[k], hi[k] = np.inf, -np.inf
     for i in range(P.shape[0]):
         for k in range(3):
             x = P[i, 0] * R[0, k] + P[i, 1] * R[1, k] + P[i, 2] * R[2, k]

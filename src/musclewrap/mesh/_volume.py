@@ -201,7 +201,7 @@ _CHUNKS = 16
 
 def _volume_py(V, F, c):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
     m = F.shape[0]
-    part = np.zeros(_CHUNKS)
+    part = np.empty(_CHUNKS)  # each chunk's sum (every entry written)
     for ch in numba.prange(_CHUNKS):
         s = 0.0
         for f in range(ch * m // _CHUNKS, (ch + 1) * m // _CHUNKS):
@@ -227,7 +227,9 @@ def _volume_py(V, F, c):  # noqa: ANN001, ANN202 # pragma: no cover - compiled
 @numba.njit(fastmath=_FACE_MATH, cache=True)
 def _gradient_kernel(V, F, c):  # pragma: no cover - compiled
     # d/da det(a, b, d) = b x d, and cyclically; scalars only (no array per face)
-    G = np.zeros((V.shape[0], 3))
+    G = np.empty((V.shape[0], 3))
+    for i in range(V.shape[0]):
+        G[i, 0] = G[i, 1] = G[i, 2] = 0.0
     for f in range(F.shape[0]):
         a, b, d = F[f, 0], F[f, 1], F[f, 2]
         ax, ay, az = V[a, 0] - c[0], V[a, 1] - c[1], V[a, 2] - c[2]
@@ -248,7 +250,7 @@ def _gradient_kernel(V, F, c):  # pragma: no cover - compiled
 def _cubic_pair_py(XU, F):  # pragma: no cover - compiled
     # volume of XU[:, :3] - t * XU[:, 3:] as a cubic in t, read in place
     m = F.shape[0]
-    part = np.zeros((_CHUNKS, 4))
+    part = np.empty((_CHUNKS, 4))  # each chunk's sums (every entry written)
     for ch in numba.prange(_CHUNKS):
         p0 = 0.0
         p1 = 0.0
@@ -276,11 +278,13 @@ def _cubic_pair_py(XU, F):  # pragma: no cover - compiled
             p2 += a0 * bbx + a1 * bby + a2 * bbz + b0 * mx + b1 * my + b2 * mz
             p3 += b0 * bbx + b1 * bby + b2 * bbz
         part[ch, 0], part[ch, 1], part[ch, 2], part[ch, 3] = p0, p1, p2, p3
-    out = np.zeros(4)
-    for ch in range(_CHUNKS):
-        for k in range(4):
-            out[k] += part[ch, k]
-    return out / 6.0
+    out = np.empty(4)
+    for k in range(4):
+        s = 0.0
+        for ch in range(_CHUNKS):
+            s += part[ch, k]
+        out[k] = s / 6.0
+    return out
 
 
 # Each reduction is compiled twice: threads pay off from about 10K faces (1.2-2x faster

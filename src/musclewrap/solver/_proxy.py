@@ -111,10 +111,14 @@ def _plain_iterations(P_ls, Wd, B, Fd, Vd0, plain, tol_dir, floor, rate):  # pra
     gT = np.empty((3, n), dtype=B.dtype)
     uT = np.empty((3, m), dtype=B.dtype)
     u = np.empty((m, 3), dtype=B.dtype)
-    u_prev = np.zeros((m, 3))
+    u_prev = np.empty((m, 3))
+    best_u = np.empty((m, 3))
+    for j in range(m):
+        for k in range(3):
+            u_prev[j, k] = best_u[j, k] = 0.0
     Pu = np.empty((n, 3), dtype=B.dtype)
     lam, prev_step = 0.0, 0.0
-    best_e, best_lam, best_u = np.inf, 0.0, np.zeros((m, 3))
+    best_e, best_lam = np.inf, 0.0
     status, its = PLAIN_SLOW, 0
     for its in range(1, plain + 1):
         for i in range(n):

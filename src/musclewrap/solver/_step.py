@@ -15,7 +15,9 @@ __all__ = ["cage_push"]
 def _deepest_one_kernel(gap, group, size):  # noqa: ANN001, ANN202 # pragma: no cover
     # per group (0 <= group < size) the row of the smallest gap, the earlier on a tie (a
     # NaN only where the group has nothing else), in the order of the groups
-    best = np.full(size, -1, dtype=np.int64)
+    best = np.empty(size, dtype=np.int64)
+    for g in range(size):
+        best[g] = -1
     for i in range(gap.shape[0]):
         g = group[i]
         b = best[g]
