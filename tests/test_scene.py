@@ -50,6 +50,16 @@ def test_fibre_settings_are_checked(tmp_path, table, message):
         load_scene(toml)
 
 
+def test_fibres_attach_on_the_bones_by_default(tmp_path):
+    """``[fibres] attachments``: "bones" unless the scene says "ends" (issue 48, item 1)."""
+    _, toml = _write_demo(tmp_path, n_frames=2)
+    good = toml.read_text()
+    toml.write_text(good + "[fibres]\ncount = 5\n")
+    assert load_scene(toml).fibres.attachments == "bones"
+    toml.write_text(good + '[fibres]\ncount = 5\nattachments = "ends"\n')
+    assert load_scene(toml).fibres.attachments == "ends"
+
+
 def test_line_window_is_read_and_checked(tmp_path):
     _, toml = _write_demo(tmp_path, n_frames=2)
     good = toml.read_text()

@@ -99,7 +99,7 @@ class FibreSettings:
     insertion: IntArray | None = None
     origin_bones: tuple[tuple[str, FloatArray], ...] = ()
     insertion_bones: tuple[tuple[str, FloatArray], ...] = ()
-    attachments: str = "ends"
+    attachments: str = "bones"
     #: the deformation holds the areas to their paths' ends (`musclewrap.Deformer`), as
     #: ``[fibres] attached`` (true by default) says
     attached: bool = True

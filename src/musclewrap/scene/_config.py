@@ -85,8 +85,9 @@ class FibreSpec:
     coordinate, millimetres for a translational one. ``landmark_radius`` (mesh units):
     a muscle's ``fibre_origin`` or ``fibre_insertion`` given as landmark points is the
     surface within this distance of them. ``attachments``: where a muscle's fibres
-    attach where it gives no areas, ``"ends"`` (its end caps) or ``"bones"``
-    (`musclewrap.fibres.areas_on_bones`). ``moment_arm_contact``: the
+    attach where it gives no areas, ``"bones"`` (the default: where it lies on a bone of
+    its ends' bodies, `musclewrap.fibres.areas_on_bones`; its end cap where the scene
+    has no such bone) or ``"ends"`` (its end caps). ``moment_arm_contact``: the
     poses on either side of a frame are deformed with the bones' contact (False by
     default: the contact's cage step is not smooth in the pose, and its jumps over a
     step of 1 degree dominated the differences on the LHDL sweeps). ``attached``
@@ -103,7 +104,7 @@ class FibreSpec:
     voxels: int = 60_000
     moment_arm_contact: bool = False
     landmark_radius: float = 10.0
-    attachments: str = "ends"
+    attachments: str = "bones"
     attached: bool = True
     output: bool = True
 

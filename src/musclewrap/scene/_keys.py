@@ -141,9 +141,10 @@ SCENE_KEYS: dict[str, dict[str, str]] = {
         "contact (default false).",
         "landmark_radius": "Radius of an attachment area given as landmark points (mesh "
         "units, default 10).",
-        "attachments": "Where the fibres attach where a muscle gives no areas: ``ends`` (its "
-        "end caps along its lines, the default) or ``bones`` (where it lies on a bone of its "
-        "origin's or insertion's body near its paths' ends; docs/fibres.md).",
+        "attachments": "Where the fibres attach where a muscle gives no areas: ``bones`` (where "
+        "it lies on a bone of its origin's or insertion's body near its paths' ends, the "
+        "default; its end cap where the scene has no such bone) or ``ends`` (its end caps "
+        "along its lines; docs/fibres.md).",
         "attached": "Hold each muscle's attachment areas to its paths' first and last points "
         "through the motion, turning with their bodies and the paths' end segments, for its "
         "surface and fibres (default true; docs/fibres.md).",
