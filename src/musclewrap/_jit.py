@@ -8,9 +8,10 @@ import sys
 from typing import TextIO
 
 #: what compiling the kernels adds to the demo's first run: 13 s in issue 26's sitting, 33 s
-#: in a slow one with the contact's newer kernels (`benchmarks/speed/bench_first_run.py`,
-#: BENCHMARKS.md, "First run and the demo")
-FIRST_RUN_SECONDS = "15-35 s"
+#: in a slow one with the contact's newer kernels; 10-12 s since the kernels lost numpy's
+#: reductions and zeroed arrays (2026-11-30), about twice that in a slow sitting
+#: (`benchmarks/speed/bench_first_run.py`, BENCHMARKS.md, "First run and the demo")
+FIRST_RUN_SECONDS = "10-25 s"
 
 
 def kernels_cached() -> bool:
