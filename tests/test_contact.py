@@ -878,3 +878,33 @@ def test_unfold_with_nothing_round_the_folds_to_meet_leaves_the_move():
     s0, s = _shape(V0, V0, F), _shape(V, V0, F)
     held = np.zeros(len(V0), dtype=bool)
     assert unfold(V0, V, F, U, s0, s, held, volume_target=volume(V0, F)) is V
+
+
+@pytest.mark.realdata
+def test_a_frame_is_the_same_bytes_alone_or_in_a_chunk_of_fifty(data_dir, tmp_path):
+    """A frame's result with contact does not depend on the frames run with it.
+
+    Its sides come from its waypoint (`FollowPath`), computed from the rest pose along
+    the lattice whatever frames a run holds: the frame alone, in a chunk of fifty, and in
+    a run split over two workers give the same bytes (issue 44's test of a warm start).
+    """
+    from musclewrap.run._plan import chunks
+    from musclewrap.scene import load_scene, run_scene
+
+    toml = tmp_path / "s.toml"
+    toml.write_text(_scene_text(data_dir))
+    frame = 148  # the walk's swing: the psoas in contact with the iliac bone
+
+    def run(out, frames, workers):
+        run_scene(
+            load_scene(toml), tmp_path / out, frames=frames, cache_dir=tmp_path / "c",
+            progress=None, render=False, workers=workers,
+        )  # fmt: skip
+        return (tmp_path / out / "psoas" / f"psoas_{frame:04d}.vtp").read_bytes()
+
+    alone = run("alone", f"{frame}:{frame + 1}", 1)
+    # one chunk of fifty frames, the frame in its middle
+    assert run("fifty", f"{frame - 30}:{frame + 20}", 1) == alone
+    # two workers: two chunks of 25 (`chunks`), the frame the first of the second
+    assert chunks(50, 1, 2) == [range(0, 25), range(25, 50)]
+    assert run("two", f"{frame - 25}:{frame + 25}", 2) == alone
