@@ -267,6 +267,34 @@ def test_a_first_runs_two_shares_compile_every_kernel_once():
     }
 
 
+def test_the_kernels_build_no_arrays_by_numpys_constructors_or_reductions():
+    """Inside a first run's kernels (and the compiled helpers beside them), no ``np.zeros``,
+    ``np.full``, ``np.ones``, ``np.flatnonzero``, ``np.searchsorted`` or array
+    ``min``/``max``/``mean``/``sum``: Numba compiles each such call's implementation again in
+    every kernel that makes it (0.1-0.3 s each), which took a first run over 3x the second
+    (`musclewrap._jit`, "element loops")."""
+    import importlib
+    import inspect
+    import re
+
+    from numba.core.registry import CPUDispatcher
+
+    from musclewrap._jit import KERNELS
+
+    banned = re.compile(
+        r"np\.(?:zeros|full|ones|flatnonzero|searchsorted)\(|\.(?:min|max|mean|sum)\(\)"
+    )
+    found, seen = [], 0
+    for m in sorted({m for ks in KERNELS.values() for m, _, _ in ks}):
+        mod = importlib.import_module(f"musclewrap.{m}")
+        for name, obj in vars(mod).items():
+            if isinstance(obj, CPUDispatcher) and obj.py_func.__module__ == mod.__name__:
+                seen += 1
+                if banned.search(inspect.getsource(obj.py_func)):
+                    found.append(f"{m}.{name}")
+    assert seen >= 40 and not found, found
+
+
 def test_a_source_rewritten_with_the_same_text_is_still_cached(files):
     # Numba keys its cache by the source's text: a checkout or a reinstall that rewrites a
     # kernel's file unchanged (a newer time) keeps its kernels, and a first run is not said

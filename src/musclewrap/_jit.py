@@ -31,6 +31,13 @@ def kernels_cached() -> bool:
         return True
 
 
+#: Element loops: inside these kernels and the compiled helpers beside them, arrays are made
+#: by ``np.empty`` and filled by loops, and reduced by loops, never by ``np.zeros``,
+#: ``np.full``, ``np.flatnonzero`` or an array's ``min``/``max``/``mean``: Numba compiles each
+#: such call's implementation again in every kernel that makes it (0.1-0.3 s each, by Numba's
+#: compile events per process); without them the demo's first run fell from 3.1-3.2x its
+#: second to 2.7-2.9x (`bench_first_run.py`, BENCHMARKS.md). A test holds the rule.
+#:
 #: the kernels of a pose, of a preparation and of the contact, each with the signature it is
 #: called with. On a first run a second process compiles the pose's and some of the
 #: contact's while the run's own compiles the preparation's and the contact's others
@@ -124,8 +131,8 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
 #: (`bench_first_run.py`, three each in turns). The nearest face's kernel is here since
 #: 2026-11-30 (it shares the closest point on a triangle with `_closest_kernel`: compiled
 #: once, not in both processes), and the boxes' four kernels, which balance the two sides
-#: (the demo's first run 16.6 / 16.6 s against 17.3 / 17.0 s with them in the helper, in
-#: turns, kernels without numpy's reductions and zeroed arrays: see `_closest_kernel`)
+#: (the demo's first run with empty caches, as `bench_first_run.py` starts it, 16.6 / 16.6 s
+#: against 17.3 / 17.0 s with them in the helper, two each in turns, 2026-11-30)
 HERE = (
     "_closest_kernel",
     "_nearest_face_kernel",

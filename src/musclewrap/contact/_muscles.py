@@ -156,8 +156,8 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
     m = F.shape[0]
     cen = np.empty((m, 3))
     rad = np.empty(m)
-    lo = np.empty(3)
-    ext = np.empty(3)  # the centroids' largest coordinates, then their extent
+    lo = np.empty(3)  # the centroids' box
+    hi = np.empty(3)
     total = 0.0
     for f in range(m):
         r = 0.0
@@ -166,8 +166,8 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
             cen[f, k] = c
             if f == 0 or c < lo[k]:
                 lo[k] = c
-            if f == 0 or c > ext[k]:
-                ext[k] = c
+            if f == 0 or c > hi[k]:
+                hi[k] = c
         for j in range(3):
             e = 0.0
             for k in range(3):
@@ -175,8 +175,9 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
             r = max(r, e)
         rad[f] = np.sqrt(r)
         total += rad[f]
+    ext = np.empty(3)
     for k in range(3):
-        ext[k] -= lo[k]
+        ext[k] = hi[k] - lo[k]
     h = max(2.0 * (total / m), 1e-12 * max(ext[0], ext[1], ext[2]), 1e-300)
     dims = np.empty(3, dtype=np.int64)
     while True:  # cells about a triangle wide, at most 8 a triangle
@@ -188,11 +189,7 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
     # triangles wider than two cells (four times the mean) are looked at for every point
     # (a few slivers would otherwise hold the rings open); the rest bound how far the
     # rings go, two rings more at most
-    n_wide = 0
-    for f in range(m):
-        if rad[f] > 2.0 * h:
-            n_wide += 1
-    wide = np.empty(n_wide, dtype=np.int64)
+    wide = np.empty(m, dtype=np.int64)
     n_wide = 0
     big = 0.0
     boxes = np.empty((m, 6), dtype=np.int64)  # each in its centroid's cell, the wide in none
@@ -208,6 +205,7 @@ def _closest_kernel(P, V, F, dist, C, face):  # noqa: ANN001, ANN202 # pragma: n
         for k in range(3):
             c = min(dims[k] - 1, int((cen[f, k] - lo[k]) / h))
             boxes[f, 2 * k] = boxes[f, 2 * k + 1] = c
+    wide = wide[:n_wide]
     start, items = bin_boxes(boxes, dims[0], dims[1], dims[2])
     ring_max = max(dims[0], dims[1], dims[2])
     at = np.empty(3, dtype=np.int64)

@@ -92,14 +92,15 @@ def _energy_kernel(indptr, indices, data, S, x, d_L, s_cur, w2):  # noqa: ANN001
             a2 += v * x[j, 2]
         a0, a1, a2 = a0 - d_L[r, 0], a1 - d_L[r, 1], a2 - d_L[r, 2]
         e1 += a0 * a0 + a1 * a1 + a2 * a2
-    Sx = np.zeros((S.shape[0], 3))
+    Sx = np.empty((S.shape[0], 3))  # (np.zeros compiles again in every kernel: `_jit`)
     e2 = 0.0
     for r in range(S.shape[0]):
-        for j in range(S.shape[1]):
-            for k in range(3):
-                Sx[r, k] += S[r, j] * x[j, k]
         for k in range(3):
-            e2 += (Sx[r, k] - s_cur[r, k]) ** 2
+            a = 0.0
+            for j in range(S.shape[1]):
+                a += S[r, j] * x[j, k]
+            Sx[r, k] = a
+            e2 += (a - s_cur[r, k]) ** 2
     return e1 + w2 * e2, Sx
 
 
