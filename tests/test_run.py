@@ -1046,3 +1046,60 @@ def test_workers_exit_though_nobody_reads_their_ticks():
     finally:
         for proc in list((getattr(ex.pool, "_processes", None) or {}).values()):
             proc.kill()
+
+
+class _Held:
+    """A task that does nothing; `_Pool` runs it when told."""
+
+    def __init__(self, name):
+        self.name = name
+
+    def run(self):
+        return self.name
+
+
+def test_pictures_wait_for_an_idle_worker_not_in_the_pool():
+    """The pictures (priority `LATE`) were handed to the pool as soon as they were ready,
+    four at a time, and the paper comparison the report waits for queued behind them:
+    the LHDL walk's report and plots were drawn after its last picture, not beside them.
+    A late task now goes only to an idle worker; a task of higher priority made ready
+    meanwhile goes before every late one still waiting."""
+    from concurrent.futures import Future
+
+    from musclewrap.run._execute import LATE, Executor, Node, Runner
+
+    class _Pool(Executor):
+        workers = 2
+        fine_progress = False
+
+        def __init__(self):
+            self.handed, self.futures = [], []
+
+        def submit(self, task):
+            f = Future()
+            self.handed.append(task.name)
+            self.futures.append((task, f))
+            return f
+
+    pool = _Pool()
+    runner = Runner(pool, None)
+    runner.add([Node(("frames",), _Held("frames"))])
+    runner.add(
+        [Node(("pic", i), _Held(f"pic{i}"), (("frames",),), priority=LATE) for i in range(4)]
+    )
+    runner.add([Node(("compare",), _Held("compare"), (("frames",),), priority=3)])
+    task, f = pool.futures.pop(0)
+    f.set_result(task.run())  # the frames are done: the pictures and the comparison ready
+    runner.poll(0)
+    assert pool.handed == ["frames", "compare", "pic0"]  # two workers busy: no picture queued
+    for task, f in pool.futures[:1]:
+        f.set_result(task.run())
+    pool.futures = pool.futures[1:]
+    runner.poll(0)
+    assert pool.handed == ["frames", "compare", "pic0", "pic1"]
+    while pool.futures:
+        task, f = pool.futures.pop(0)
+        f.set_result(task.run())
+        runner.poll(0)
+    assert pool.handed == ["frames", "compare", "pic0", "pic1", "pic2", "pic3"]
+    assert not runner.busy()

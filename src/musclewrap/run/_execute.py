@@ -217,6 +217,10 @@ class ProcessExecutor(Executor):
         self.pool.shutdown(wait=True, cancel_futures=cancel)
 
 
+#: the priority from which a ready task is handed out only to an idle worker (`Runner`)
+LATE = 4
+
+
 @dataclass
 class Node:
     """One task of a plan.
@@ -239,7 +243,8 @@ class Node:
         whole tasks only).
     priority : int
         Among ready tasks, lower goes first (reading a scene before deforming the
-        last one: the workers never wait for the main process to plan).
+        last one: the workers never wait for the main process to plan); from `LATE`
+        on, a task waits for an idle worker rather than queue in the pool.
     """
 
     key: Hashable
@@ -328,6 +333,11 @@ class Runner:
 
     def _submit(self) -> None:
         while self.ready and self.running < self.capacity:
+            if self.ready[0][0] >= LATE and self.running >= self.executor.workers:
+                # the last tasks of a scene (its pictures) only to an idle worker: queued in
+                # the pool, they held its paper comparison, and the report and plots that
+                # wait for it, behind them (the LHDL walk's end, 4.0 s after its last task)
+                break
             n = heapq.heappop(self.ready)[2]
             del self.waiting[n.key]
             task = n.task

@@ -42,6 +42,7 @@ from ..output import (
 from ..scene import Drive, Scene
 from ._dask import DaskExecutor
 from ._execute import (
+    LATE,
     Executor,
     LocalExecutor,
     Node,
@@ -659,7 +660,7 @@ class _SceneRun:
                     self._picture_task(pictures, shown, after),
                     after,
                     done=self._pictures_done(bar, len(pictures)),
-                    priority=4,
+                    priority=LATE,
                 )
             )
             self.picture_keys.append(key)
