@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["most", "timed_run"]
+__all__ = ["most", "negated_motion", "timed_run"]
 
 
 def timed_run(scene: str, out: Path, extra: list[str], checkout: Path | None = None) -> float:
@@ -33,3 +33,27 @@ def most(rows: list[dict[str, str]], key: str) -> float:
     """The largest of a report.csv column over ``rows`` (nan where the column is empty)."""
     vals = [float(x[key]) for x in rows if x.get(key) not in (None, "", "nan")]
     return max(vals) if vals else float("nan")
+
+
+def negated_motion(motion: str | Path, negate: list[str], folder: Path) -> Path:
+    """The motion file with the columns ``negate`` negated, written into ``folder``.
+
+    For a motion recorded on a model whose sign for those coordinates is the other
+    (OpenCap's knee_angle_r is flexion positive, gait2392's negative).
+    """
+    import numpy as np
+
+    from musclewrap.scene import read_motion, write_motion
+
+    mot = read_motion(motion)
+    cols = {k: (-v if k in negate else v) for k, v in mot.columns.items()}
+    path = Path(folder) / Path(motion).name
+    # a header without inDegrees (OpenSim's gait2392 walk) is read by its values
+    # (`musclewrap.scene`: over 2 pi, degrees): written with the same reading
+    deg = (
+        mot.in_degrees
+        if mot.degrees_declared
+        else bool(max(float(np.abs(v).max()) for v in cols.values()) > 2 * np.pi)
+    )
+    write_motion(path, mot.time, cols, in_degrees=deg)
+    return path

@@ -13,6 +13,10 @@ cProfile slows the Python parts more than the compiled ones: read it for where, 
 (ms per muscle-frame, the pose's solve beside them), then the same frames with
 ``--no-collisions``: what the contact's own work costs a muscle-frame, measured as it runs.
 
+``--calls``: no cProfile; per query of the bones (`Obstacle.bounds`, ``interpolate``,
+``query``, ``measure``, ``signed``, ``vertices_near``), how often a muscle-frame calls it,
+with how many points, and what a call costs: the contact's queries are many and small.
+
 ``--candidates``: no cProfile; per muscle and bone, how many of its vertices each cage step
 (after the solve, and in the rounds) takes as candidates (within ``defaults.contact_band`` of the bone's margin),
 and per muscle how many steps each call of the bones' contact after the solve takes (and how
@@ -183,6 +187,56 @@ def candidates(scene, frames: str) -> None:  # noqa: ANN001
         ) + f"; at the cap {100 * n[cap:].sum() / len(got):.1f} %")  # fmt: skip
 
 
+#: what --calls counts: the obstacles' queries, each called with its points first
+_QUERIES = ("bounds", "interpolate", "query", "measure", "signed", "vertices_near")
+
+
+def calls(scene, frames: str) -> None:  # noqa: ANN001
+    """Per query of the bones (`Obstacle`'s), calls a muscle-frame, points a call, cost a call.
+
+    The second of two runs (the first warms the caches), one process, one thread. A
+    query's own time includes the ones it makes (``query`` calls ``bounds``).
+    """
+    import numpy as np
+
+    from musclewrap.contact import _obstacle
+    from musclewrap.scene import run_scene
+
+    sizes: dict[str, list[int]] = collections.defaultdict(list)
+    spent: dict[str, float] = collections.defaultdict(float)
+    kept = {k: getattr(_obstacle.Obstacle, k) for k in _QUERIES}
+
+    def timed(name, f):  # noqa: ANN001, ANN202
+        def call(self, Q, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
+            t0 = time.perf_counter()
+            try:
+                return f(self, Q, *args, **kw)
+            finally:
+                spent[name] += time.perf_counter() - t0
+                sizes[name].append(len(Q))
+
+        return call
+
+    n = len(scene.muscles) * len(range(*(int(x) for x in frames.split(":"))))
+    with tempfile.TemporaryDirectory() as tmp:
+        kw = dict(frames=frames, workers=1, render=False, progress=None,
+                  cache_dir=Path(tmp) / "cache")  # fmt: skip
+        run_scene(scene, Path(tmp) / "warm", **kw)
+        for k, f in kept.items():
+            setattr(_obstacle.Obstacle, k, timed(k, f))
+        try:
+            run_scene(scene, Path(tmp) / "timed", **kw)
+        finally:
+            for k, f in kept.items():
+                setattr(_obstacle.Obstacle, k, f)
+    print(f"{scene.name}: frames {frames}, {n} muscle-frames, one process, one thread, warm")
+    for k in _QUERIES:
+        v = np.array(sizes.get(k, [0]))
+        print(f"  {k:<14} {len(sizes.get(k, [])) / n:6.1f} calls a muscle-frame, points a call "
+              f"median {np.median(v):6.0f} mean {v.mean():6.0f}; {1e3 * spent[k] / n:5.2f} ms "
+              f"a muscle-frame, {1e6 * spent[k] / max(len(sizes.get(k, [])), 1):5.0f} us a call")  # fmt: skip
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("scene", nargs="?", default=str(ROOT / "examples" / "lhdl_walk.toml"))
@@ -192,6 +246,7 @@ def main() -> None:
     p.add_argument("--top", type=int, default=40)
     p.add_argument("--phases", action="store_true")
     p.add_argument("--candidates", action="store_true")
+    p.add_argument("--calls", action="store_true")
     a = p.parse_args()
     import numba
     from threadpoolctl import threadpool_limits
@@ -212,6 +267,9 @@ def main() -> None:
         return
     if a.candidates:
         candidates(scene, a.frames)
+        return
+    if a.calls:
+        calls(scene, a.frames)
         return
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "cache"

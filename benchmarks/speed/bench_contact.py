@@ -141,19 +141,12 @@ def main() -> None:
             out = a.keep or Path(tmp) / "on"
             t0 = time.perf_counter()
             if a.motion is not None:
-                from musclewrap.scene import run_scene, write_motion
+                from musclewrap.scene import run_scene
 
-                mot = read_motion(a.motion)
-                cols = {k: (-v if k in a.negate else v) for k, v in mot.columns.items()}
-                path = Path(tmp) / Path(a.motion).name
-                # a header without inDegrees (OpenSim's gait2392 walk) is read by its values
-                # (`musclewrap.scene`: over 2 pi, degrees): written with the same reading
-                deg = (
-                    mot.in_degrees
-                    if mot.degrees_declared
-                    else bool(max(float(np.abs(v).max()) for v in cols.values()) > 2 * np.pi)
-                )
-                write_motion(path, mot.time, cols, in_degrees=deg)
+                sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the helpers
+                from _common import negated_motion
+
+                path = negated_motion(a.motion, a.negate, Path(tmp))
                 scene = dataclasses.replace(scene, motions=(path,), gif=False)
                 run_scene(scene, out, workers=2, progress=None, frames=a.frames)
             else:
