@@ -7,7 +7,7 @@ Solves each frame as a run solves it (`musclewrap.run.LiveScene`, one process), 
 prints per round of `musclewrap.solver.meet` the deepest overlap (in its muscle's mean
 edges, what the rounds stop on: ``defaults.muscle_overlap_depth``) and the three muscles
 deepest in another or with another deepest in them; then the pose's time and each
-muscle's exact overlap after the finish (mm), the deepest five. ``--set``: a default of
+muscle's exact overlap after the finish (mm), the deepest five, and the largest three shape changes. ``--set``: a default of
 `musclewrap.constants.defaults` changed in this process first (``contact_cage_reach=3``).
 ``--motion``, ``--negate``: as `bench_contact.py`'s. For the stacked leg at the deep squat's
 bottom (issue 46, item 3):
@@ -76,6 +76,12 @@ def main() -> None:
             left = sorted(((r["muscle_overlap_max"], n) for n, r in res.rows.items()), reverse=True)
             print("  after the finish, in another muscle (mm): "
                   + ", ".join(f"{n} {d:.3f}" for d, n in left[:5]))  # fmt: skip
+            solvers, results, _ = res.solved
+            shape = sorted(
+                ((float(solvers[n].muscle.shape_change(r.V).max()), n) for n, r in results.items()),
+                reverse=True,
+            )
+            print("  shape change: " + ", ".join(f"{n} {d:.3f}" for d, n in shape[:3]))
 
 
 if __name__ == "__main__":
