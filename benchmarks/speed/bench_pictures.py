@@ -49,7 +49,14 @@ def main() -> None:
     import numpy as np
 
     from musclewrap.output import PictureTask, render_series, save_gif
-    from musclewrap.output._render import Renderer, _timesteps, label_files, to_256_colours
+    from musclewrap.output._render import (
+        Renderer,
+        _timesteps,
+        frame_view,
+        label_files,
+        muscles_box,
+        to_256_colours,
+    )
     from musclewrap.scene import load_scene
 
     scene = load_scene(a.scene)
@@ -63,10 +70,10 @@ def main() -> None:
         pvd = out / "scene.pvd"
         steps = _timesteps(pvd)
         colours: dict[str, str] = {}
-        camera = label_files(steps[0][1], bones, colours)
         shown = tuple((t, label_files(f, bones, colours)) for t, f in steps[:: scene.gif_every])
         n = len(shown)
-        task = PictureTask(str(out), camera, shown, 0, n // 2, scene.image_size)
+        view = frame_view(*muscles_box(out, shown), (0.0, 0.0), scene.image_size)
+        task = PictureTask(str(out), view, shown, 0, n // 2, scene.image_size)
         print(f"{a.scene}: {n} pictures of {scene.image_size[0]} x {scene.image_size[1]}, "
               f"medians of {a.repeats}")  # fmt: skip
 
