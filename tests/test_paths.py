@@ -72,7 +72,12 @@ def test_random_motion_is_smooth_seeded_and_in_range(tmp_path):
         assert np.abs(np.diff(v)).max() <= 3 * (hi - lo) * 1.5 / 100
     path = write_motion(tmp_path / "m.mot", t, cols)
     m = read_motion(path)
-    assert m.in_degrees and np.allclose(m.time, t) and np.allclose(m.columns["b"], cols["b"])
+    # to the bit: a pose written and run is the pose asked for (ten decimals moved the
+    # viewer's written pose of the LHDL walk by 5e-11 deg, and its iliacus by 0.04 mm)
+    assert m.in_degrees and np.array_equal(m.time, t)
+    assert all(np.array_equal(m.columns[k], cols[k]) for k in cols)
+    tiny = write_motion(tmp_path / "t.mot", np.array([0.0, 1e-7]), {"a": np.array([1e-300, -2.5])})
+    assert np.array_equal(read_motion(tiny).columns["a"], [1e-300, -2.5])
     with pytest.raises(ValueError, match="increasing"):
         write_motion(tmp_path / "bad.mot", t[::-1], cols)
     assert not (tmp_path / "bad.mot").exists()
