@@ -1088,18 +1088,17 @@ def test_pictures_wait_for_an_idle_worker_not_in_the_pool():
         [Node(("pic", i), _Held(f"pic{i}"), (("frames",),), priority=LATE) for i in range(4)]
     )
     runner.add([Node(("compare",), _Held("compare"), (("frames",),), priority=3)])
-    task, f = pool.futures.pop(0)
-    f.set_result(task.run())  # the frames are done: the pictures and the comparison ready
-    runner.poll(0)
-    assert pool.handed == ["frames", "compare", "pic0"]  # two workers busy: no picture queued
-    for task, f in pool.futures[:1]:
-        f.set_result(task.run())
-    pool.futures = pool.futures[1:]
-    runner.poll(0)
-    assert pool.handed == ["frames", "compare", "pic0", "pic1"]
-    while pool.futures:
+
+    def finish_oldest():
         task, f = pool.futures.pop(0)
         f.set_result(task.run())
         runner.poll(0)
+
+    finish_oldest()  # the frames are done: the pictures and the comparison ready
+    assert pool.handed == ["frames", "compare", "pic0"]  # two workers busy: no picture queued
+    finish_oldest()
+    assert pool.handed == ["frames", "compare", "pic0", "pic1"]
+    while pool.futures:
+        finish_oldest()
     assert pool.handed == ["frames", "compare", "pic0", "pic1", "pic2", "pic3"]
     assert not runner.busy()

@@ -231,10 +231,11 @@ def calls(scene, frames: str) -> None:  # noqa: ANN001
                 setattr(_obstacle.Obstacle, k, f)
     print(f"{scene.name}: frames {frames}, {n} muscle-frames, one process, one thread, warm")
     for k in _QUERIES:
-        v = np.array(sizes.get(k, [0]))
-        print(f"  {k:<14} {len(sizes.get(k, [])) / n:6.1f} calls a muscle-frame, points a call "
+        got = sizes.get(k, [])
+        v = np.array(got or [0])
+        print(f"  {k:<14} {len(got) / n:6.1f} calls a muscle-frame, points a call "
               f"median {np.median(v):6.0f} mean {v.mean():6.0f}; {1e3 * spent[k] / n:5.2f} ms "
-              f"a muscle-frame, {1e6 * spent[k] / max(len(sizes.get(k, [])), 1):5.0f} us a call")  # fmt: skip
+              f"a muscle-frame, {1e6 * spent[k] / max(len(got), 1):5.0f} us a call")  # fmt: skip
 
 
 def main() -> None:

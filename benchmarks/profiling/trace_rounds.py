@@ -6,9 +6,10 @@ r"""The rounds that take one pose's muscles out of each other, round by round.
 Solves each frame as a run solves it (`musclewrap.run.LiveScene`, one process), and
 prints per round of `musclewrap.solver.meet` the deepest overlap (in its muscle's mean
 edges, what the rounds stop on: ``defaults.muscle_overlap_depth``) and the three muscles
-deepest in another or with another deepest in them; then the pose's time and each
-muscle's exact overlap after the finish (mm), the deepest five, and the largest three shape changes. ``--set``: a default of
-`musclewrap.constants.defaults` changed in this process first (``contact_cage_reach=3``).
+deepest in another or with another deepest in them; then the pose's time, the five
+deepest exact overlaps after the finish (mm) and the three largest shape changes.
+``--set``: a default of `musclewrap.constants.defaults` changed in this process first
+(``contact_cage_reach=3``).
 ``--motion``, ``--negate``: as `bench_contact.py`'s. For the stacked leg at the deep squat's
 bottom (issue 46, item 3):
 
