@@ -132,6 +132,7 @@ def main() -> None:
         return
     import dataclasses
 
+    from musclewrap.constants import defaults
     from musclewrap.run import verify_run
     from musclewrap.scene import load_scene, read_motion
 
@@ -172,9 +173,11 @@ def main() -> None:
                 for x in rep:
                     rounds[x["frame"]] = int(float(x.get("muscle_rounds") or 0))
                 r_all = sorted(rounds.values())
+                cap = sum(r >= defaults.muscle_rounds for r in r_all)
                 print(
                     f"{m.stem}: {len(rounds)} frames run in {wall:.0f} s (2 workers); rounds a "
-                    f"frame median {r_all[len(r_all) // 2]}, most {r_all[-1]}; independent check "
+                    f"frame median {r_all[len(r_all) // 2]}, most {r_all[-1]}, at the cap "
+                    f"({defaults.muscle_rounds}) on {cap}; independent check "
                     f"on {len(rows) // len(scene.muscles)} frames"
                 )
                 for mu in scene.muscles:
