@@ -1031,3 +1031,31 @@ def test_a_rounds_fold_is_ironed_out_and_the_volume_kept(pair):
     ironed = d.ironed(V0, V)
     assert mu.shape_change(ironed).max() < 0.3
     assert abs(volume(ironed, mu.F) / mu.volume_rest - 1.0) < 1e-9
+
+
+def test_a_rounds_cage_step_moves_no_vertex_further_than_its_reach(pair):
+    """`ContactSteps._end_step` with ``far`` (a muscle's round): a step that would swing the
+    capsule's far end while its conditions' vertices (at the near end) hardly move is scaled
+    down until no vertex moves further than ``far`` times the need; without ``far`` only
+    the conditions' vertices are held, and the far end swings."""
+    from musclewrap.mesh import mean_edge_length, volume
+
+    d = pair["a"]
+    mu = d.muscle
+    x, V = mu.cage.C.copy(), mu.V.copy()
+    edge = mean_edge_length(V, mu.F)
+    # the cage bent about its near end: x moves with the square of the height
+    dx = np.zeros_like(x)
+    dx[:, 0] = 5.0 * edge * (x[:, 2] / 60.0) ** 2
+    idx = np.flatnonzero(V[:, 2] < 2.0)  # the near end's vertices, which move least
+    need = 0.2 * edge
+    g, Hg = d._volume_direction(x)
+    free = d._end_step(x, V, dx, Hg, idx, need)
+    held = d._end_step(x, V, dx, Hg, idx, need, far=1.0)
+    move_free = np.linalg.norm(free[1] - V, axis=1)
+    move_held = np.linalg.norm(held[1] - V, axis=1)
+    assert move_free.max() > 10.0 * need  # the near end's limit leaves the far end free
+    assert move_held.max() <= 1.0 * need * 1.02  # (the volume's restoring step: the rest)
+    assert move_held.max() >= 0.9 * need
+    for _, P in (free, held):
+        assert abs(volume(P, mu.F) / mu.volume_rest - 1.0) < 1e-12

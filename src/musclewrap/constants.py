@@ -354,6 +354,17 @@ class Defaults:
         A muscle no deeper than this many of its mean edge lengths inside another
         (nor the other in it) takes its round on its fine vertices
         (`musclewrap.contact.nudge`), not by a step of its cage.
+    muscle_step_reach : float
+        A round's cage step moves no fine vertex of its muscle further than this many
+        times its deepest need (the step scaled down to it; ``contact_cage_reach`` holds
+        only those near the contact). Where the conditions conflict (muscles stacked
+        between bones) a step held only there can swing a part of the muscle far from
+        every contact into a muscle it had no condition on. The 19-muscle leg at the deep
+        squat's bottom, 15 frames (BENCHMARKS.md, "The squat's bottom, round by round"):
+        frames deeper than 0.5 mm in another muscle 7 without, 5 at 1, 4 at 0.75, the
+        deepest 2.15, 1.24 and 1.99 mm, the largest shape change 0.85, 0.54 and 0.57; at
+        2 no step of those frames is held. It costs rounds where they converge anyway
+        (the LHDL walk every 4th frame a round more on 40 of 212 muscle-frames).
     muscle_facing_reach : float
         A muscle's faces within this distance (mesh units) of another muscle at
         rest, with the other in front of them, or inside it, are where the other's
@@ -513,6 +524,7 @@ class Defaults:
     muscle_joint_conditions: int = 2000
     muscle_overlap_depth: float = 0.05
     muscle_fine_depth: float = 0.25
+    muscle_step_reach: float = 1.0
     muscle_finish_retry: float = 0.25
     muscle_finish_passes: int = 3
     muscle_facing_reach: float = 15.0

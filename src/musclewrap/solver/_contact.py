@@ -68,6 +68,7 @@ class ContactSteps:
         sides: SideReference | None = None,
         near: Near | None = None,
         points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
+        far: float | None = None,
     ) -> tuple[FloatArray, FloatArray]:
         """One cage step that moves fine vertices ``rows`` by ``need`` along ``out``, bones kept.
 
@@ -82,6 +83,8 @@ class ContactSteps:
         need, out)``, conditions on points of the surface other than its vertices
         (rows of coordinates ``Wp``, a triangle's rows weighted barycentrically):
         where another muscle's vertex stands inside this one, its surface gives way.
+        ``far``: no fine vertex moves further than this many times the deepest need
+        (`_end_step`; None: only those near the contact are held).
         """
         edge = self._fine_edge
         slack = tol.contact * edge
@@ -98,7 +101,8 @@ class ContactSteps:
             extra = (points[0], slack - np.asarray(points[1], dtype=np.float64), points[2])
         if not len(idx) and extra is None:
             return x, V
-        step = self._cage_step(x, V, np.asarray(idx, dtype=np.int64), gap, N, slack, extra)
+        idx = np.asarray(idx, dtype=np.int64)
+        step = self._cage_step(x, V, idx, gap, N, slack, extra, far=far)
         return (x, V) if step is None else step
 
     def ironed(
@@ -313,11 +317,13 @@ class ContactSteps:
         slack: float,
         points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
         own: bool = False,
+        far: float | None = None,
     ) -> tuple[FloatArray, FloatArray] | None:
         """One contact step of the cage (`cage_push`), ended on the exact fine volume.
 
-        ``own``: each condition softened by its own diagonal (`cage_push`). None where it
-        moves nothing or the volume cannot be restored along ``-H^-1 g``.
+        ``own``: each condition softened by its own diagonal (`cage_push`); ``far``: as
+        `_end_step`'s. None where it moves nothing or the volume cannot be restored
+        along ``-H^-1 g``.
         """
         mu = self.muscle
         # the volume's direction at this step's own cage: one kept through a pose's steps,
@@ -331,7 +337,7 @@ class ContactSteps:
         need = float(max(-gap.min(initial=0.0), 0.0))
         if points is not None:
             need = max(need, float(-points[1].min()))
-        return self._end_step(x, V, dx, Hg, idx, need, None if points is None else points[0])
+        return self._end_step(x, V, dx, Hg, idx, need, None if points is None else points[0], far)
 
     def _volume_direction(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         """The volume's gradient in cage space at ``x`` (on the proxy) and ``H^-1`` times it."""
@@ -349,13 +355,15 @@ class ContactSteps:
         idx: IntArray,
         need: float,
         rows: FloatArray | None = None,
+        far: float | None = None,
     ) -> tuple[FloatArray, FloatArray] | None:
         """A cage step ``dx`` taken: its reach limited, ended on the exact fine volume.
 
         ``idx``: the fine vertices its conditions were on, ``rows``: rows of
         coordinates of the other points they were on (or None); ``need``: the
-        furthest any of them had to go. None where it moves nothing or the volume
-        cannot be restored along ``-H^-1 g``.
+        furthest any of them had to go; ``far``: no fine vertex at all moves further
+        than this many times ``need`` (None: only those near the contact are limited).
+        None where it moves nothing or the volume cannot be restored along ``-H^-1 g``.
         """
         mu = self.muscle
         if not np.abs(dx).max() > 0:
@@ -368,8 +376,15 @@ class ContactSteps:
         if rows is not None:
             moves.append(np.linalg.norm(rows @ dx, axis=1).max())
         longest = float(max(moves))
-        if need > 0 and longest > defaults.contact_cage_reach * need:
-            scale = defaults.contact_cage_reach * need / longest
+        reach = defaults.contact_cage_reach
+        if far is not None:
+            # a muscle's round: where its conditions conflict (muscles stacked between bones)
+            # a step held only near the contact can swing a part of the muscle far from every
+            # contact into one it had no condition on (`defaults.muscle_step_reach`)
+            whole = float(np.linalg.norm(D[:, :3], axis=1).max())
+            longest = max(longest, whole * reach / far)
+        if need > 0 and longest > reach * need:
+            scale = reach * need / longest
             dx = dx * scale
             D[:, :3] *= scale
         P = V + D[:, :3]

@@ -127,6 +127,7 @@ def joint_round(
     sides: Mapping[str, Any],
     nears: Mapping[str, Any],
     share: float = defaults.muscle_share,
+    far: float | None = None,
 ) -> dict[str, tuple[FloatArray, FloatArray]]:
     """One step of the cages of the muscles ``group`` together, out of each other and their bones.
 
@@ -138,9 +139,9 @@ def joint_round(
     way out, by its whole depth (``out . (W_a dx_a - w W_b dx_b) >= depth``). An
     overlap with a muscle outside the group is this muscle's ``share`` of it, as a
     round on its own takes it; each muscle's bones as `Deformer.contact_round` takes
-    them (``obstacles``, ``margin``, ``sides``, ``nears``: per muscle). Returns the
-    new cage and fine positions of each muscle of the group (its arrays where it did
-    not move).
+    them (``obstacles``, ``margin``, ``sides``, ``nears``: per muscle); ``far`` as
+    `Deformer.contact_round`'s. Returns the new cage and fine positions of each muscle
+    of the group (its arrays where it did not move).
     """
     names = list(group)
     pools = {
@@ -169,7 +170,7 @@ def joint_round(
         x, V = state[n]
         idx = np.concatenate(own_rows[n]) if own_rows[n] else np.zeros(0, dtype=np.int64)
         rows = np.vstack(other_rows[n]) if other_rows[n] else None
-        step = d._end_step(x, V, dx, Hg, idx, need[n], rows)
+        step = d._end_step(x, V, dx, Hg, idx, need[n], rows, far)
         if step is not None:
             out[n] = step
     return out

@@ -271,6 +271,7 @@ class _Rounds:
                     Near(self.state[n][1], obs, self.margin) if pose is None else pose.near
                 )
         groups = overlap_groups(cage, found) if self.joint else [[n] for n in cage]
+        far = defaults.muscle_step_reach  # each step held whole, not only near the contact
         for group in groups:
             if len(group) > 1:
                 # overlapping each other: one step together (an overlap one condition on both),
@@ -280,7 +281,7 @@ class _Rounds:
                         self.deformers, self.state, self.surf, found, group,
                         frames=self.frames,
                         obstacles={n: as_placed(self.obstacles.get(n)) for n in group},
-                        margin=self.margin, sides=self.sides, nears=self.nears,
+                        margin=self.margin, sides=self.sides, nears=self.nears, far=far,
                     )
                 )  # fmt: skip
                 continue
@@ -292,7 +293,7 @@ class _Rounds:
             new[n] = d.contact_round(
                 *self.state[n], m.rows, m.need, m.out, obstacles=self.obstacles.get(n),
                 margin=self.margin, sides=self.sides.get(n), near=self.nears.get(n),
-                points=points,
+                points=points, far=far,
             )  # fmt: skip
         for n in cage:
             if n in new:
