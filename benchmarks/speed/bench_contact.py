@@ -124,7 +124,7 @@ def main() -> None:
     p.add_argument("--compare", nargs="+", type=Path, metavar="CHECKOUT")
     a = p.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the shared helpers
-    from _common import most
+    from _common import most, negated_motion
 
     walk_frames = a.frames or "0:211:1"
     if a.compare:
@@ -143,9 +143,6 @@ def main() -> None:
             t0 = time.perf_counter()
             if a.motion is not None:
                 from musclewrap.scene import run_scene
-
-                sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the helpers
-                from _common import negated_motion
 
                 path = negated_motion(a.motion, a.negate, Path(tmp))
                 scene = dataclasses.replace(scene, motions=(path,), gif=False)
