@@ -1,7 +1,7 @@
 """Contact on motions nobody recorded: extreme hip motions and seeded random smooth ones.
 
     python benchmarks/accuracy/bench_motions.py [SCENE] [--random 5] [--seconds 3] [--check-every 2]
-        [--line-window W]
+        [--line-window W] [--anatomical]
 
 Drives SCENE's model (default: examples/lhdl_walk.toml) with
 
@@ -9,7 +9,10 @@ Drives SCENE's model (default: examples/lhdl_walk.toml) with
   model's range) and back over 3 s while it adducts and rotates by 20 deg both ways (the
   adduction's swing in one or the other direction first);
 - ``random1`` ... ``randomK``: `musclewrap.scene.random_motion` over the model's ranges of the
-  scene's coordinates (seeds 1..K, 20 frames per second),
+  scene's coordinates (seeds 1..K, 20 frames per second); with ``--anatomical`` over those
+  ranges cut to a normal adult's range of motion where the coordinate is the hip's or the
+  knee's (`ANATOMICAL`: a model's declared range may be far wider, gait2392's hip -120..120
+  deg each way),
 
 runs each with contact (and, with ``--no-collisions-too``, without), and checks the written
 meshes independently (`musclewrap.run.verify_run`) on every ``--check-every``-th
@@ -31,6 +34,33 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 
 
+#: A normal adult's range of motion (degrees; the American Academy of Orthopaedic Surgeons'
+#: values: hip flexion 120, extension 30, adduction 30, abduction 45, internal and external
+#: rotation 45, knee flexion 135), in gait2392's signs (adduction and internal rotation
+#: positive). The knee's sign is the model's: flexion negative where its range is.
+ANATOMICAL = {
+    "hip_flexion": (-30.0, 120.0),
+    "hip_adduction": (-45.0, 30.0),
+    "hip_rotation": (-45.0, 45.0),
+    "knee_angle": (0.0, 135.0),
+}
+
+
+def anatomical(name: str, lo: float, hi: float) -> tuple[float, float]:
+    """The range ``lo..hi`` (degrees) of coordinate ``name`` cut to `ANATOMICAL` where it is one."""
+    base = name[:-2] if name.endswith(("_r", "_l")) else name
+    if base not in ANATOMICAL:
+        return lo, hi
+    a, b = ANATOMICAL[base]
+    if base == "knee_angle" and -lo > hi:  # the model flexes its knee negative
+        a, b = -b, -a
+    if max(lo, a) > min(hi, b):
+        raise ValueError(
+            f"{name}: the model's range {lo:g}..{hi:g} misses the anatomical {a:g}..{b:g}"
+        )
+    return max(lo, a), min(hi, b)
+
+
 def _extreme(sign: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     t = np.linspace(0.0, 3.0, 61)
     s = np.sin(np.pi * t / 3.0) ** 2  # 0 -> 1 -> 0
@@ -50,6 +80,9 @@ def main() -> None:
     p.add_argument("--no-extreme", action="store_true")
     p.add_argument("--no-collisions-too", action="store_true")
     p.add_argument("--line-window", type=float, help="the scene's line_window")
+    p.add_argument(
+        "--anatomical", action="store_true", help="the random motions in a normal range of motion"
+    )
     a = p.parse_args()
 
     from musclewrap.run import verify_run
@@ -71,6 +104,8 @@ def main() -> None:
     for c in coords:
         lo, hi = model.coordinate_range(c)
         ranges[c] = (np.degrees(lo), np.degrees(hi)) if model.is_rotational(c) else (lo, hi)
+        if a.anatomical and model.is_rotational(c):
+            ranges[c] = anatomical(c, *ranges[c])
     motions = []
     if not a.no_extreme:
         motions += [("extreme+", _extreme(1)), ("extreme-", _extreme(-1))]
