@@ -59,7 +59,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from musclewrap.fibres import LHDL_FIBRE_RANGES
+from musclewrap.fibres import LHDL_FIBRE_RANGES, published_cover
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -123,7 +123,7 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
     """Issue 25's targets on every motion of ``scene``, every coordinate of its fibres."""
     import time
 
-    from musclewrap.scene import run_scene
+    from musclewrap.scene import OpenSimModel, run_scene
 
     covers: list[float] = []
     quartic: list[float] = []
@@ -163,15 +163,24 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
                     row = f"    {m:16s} {lo:6.1f} .. {hi:6.1f}  mean {mean:6.1f}"
                     pub = LHDL_FIBRE_RANGES.get((swept, m))
                     if pub is not None:
-                        over = min(hi, pub[1]) - max(lo, pub[0])
-                        covers.append(max(over, 0.0) / (pub[1] - pub[0]))
+                        covers.append(published_cover(lo, hi, pub))
                         row += (
                             f"   published {pub[0]:6.1f} .. {pub[1]:6.1f}: width "
-                            f"{(hi - lo) / (pub[1] - pub[0]):.2f}, covers "
-                            f"{max(over, 0.0) / (pub[1] - pub[0]):.0%} of it"
-                            + ("" if over > 0 else " (no overlap)")
+                            f"{(hi - lo) / (pub[1] - pub[0]):.2f}, covers {covers[-1]:.0%} of it"
+                            + ("" if min(hi, pub[1]) > max(lo, pub[0]) else " (no overlap)")
                         )
                     print(row)
+                print(
+                    f"  about {swept}, across fibres on one frame (the median over the frames of "
+                    "the largest less the smallest) and the action line's range (mm):"
+                )
+                for m, spread in _frame_spread(folder / "fibres.csv", swept).items():
+                    line = [
+                        float(x["line_moment_arm"])
+                        for x in arms
+                        if x["muscle"] == m and x["coordinate"] == swept
+                    ]
+                    print(f"    {m:16s} {spread:6.2f}   line {min(line):6.1f} .. {max(line):6.1f}")
                 # the same figures by the published ranges' own procedure, so that like is
                 # compared with like: their fibres' lengths on the sweep's frames (solved as
                 # the frames are, with all their contact), not side poses
@@ -180,14 +189,15 @@ def smoothness(scene, workers: int) -> None:  # noqa: ANN001
                     "over the frames and the angle each a quartic in time, differenced on 5x "
                     "the frames), mm:"
                 )
-                for m, (lo, hi) in _quartic_ranges(folder / "fibres.csv", swept).items():
+                angle = OpenSimModel(scene.osim).is_rotational(swept)
+                for m, (lo, hi) in _quartic_ranges(folder / "fibres.csv", swept, angle).items():
                     row = f"    {m:16s} {lo:6.1f} .. {hi:6.1f}"
                     pub = LHDL_FIBRE_RANGES.get((swept, m))
                     if pub is not None:
-                        over = max(min(hi, pub[1]) - max(lo, pub[0]), 0.0) / (pub[1] - pub[0])
-                        quartic.append(over)
+                        quartic.append(published_cover(lo, hi, pub))
                         row += (
-                            f"   published {pub[0]:6.1f} .. {pub[1]:6.1f}: covers {over:.0%} of it"
+                            f"   published {pub[0]:6.1f} .. {pub[1]:6.1f}: "
+                            f"covers {quartic[-1]:.0%} of it"
                         )
                     print(row)
                 print(f"  per fibre the 90th percentile about {swept}, range across fibres (mm):")
@@ -265,7 +275,15 @@ def _ranges(path: Path, coord: str) -> dict[str, tuple[float, float, float]]:
     return out
 
 
-def _quartic_ranges(path: Path, coord: str) -> dict[str, tuple[float, float]]:
+def _frame_spread(path: Path, coord: str) -> dict[str, float]:
+    """Per muscle, the median over the frames of its fibres' largest less smallest moment arm."""
+    per: dict[str, list[NDArray[np.float64]]] = {}
+    for (m, _), r in _series(path, coord).items():
+        per.setdefault(m, []).append(r)
+    return {m: float(np.median(np.ptp(np.array(rs), axis=0))) for m, rs in per.items()}
+
+
+def _quartic_ranges(path: Path, coord: str, angle: bool = True) -> dict[str, tuple[float, float]]:
     """Per muscle, the fibres' moment arms about ``coord`` as the published ranges were made.
 
     Modenese & Kohout's repository (modenaxe/3d-muscles, the script that computes the
@@ -273,7 +291,8 @@ def _quartic_ranges(path: Path, coord: str) -> dict[str, tuple[float, float]]:
     (radians) are each fitted by a polynomial of degree 4 in time, both evaluated on 5
     times as many evenly spaced times, and the moment arm is the ratio of their
     differences; the range is the smallest and largest across fibres and those times.
-    Here ``-dL/dq`` (OpenSim's sign, as the published table).
+    Here ``-dL/dq`` (OpenSim's sign, as the published table); ``angle``: the coordinate
+    is rotational (its values in degrees, the moment arm per radian), else a translation.
     """
     got: dict[tuple[str, str], dict[int, tuple[float, float, float]]] = {}
     for x in csv.DictReader(open(path)):
@@ -287,7 +306,7 @@ def _quartic_ranges(path: Path, coord: str) -> dict[str, tuple[float, float]]:
         if len(t) < 5:
             continue
         fine = np.linspace(t[0], t[-1], 5 * len(t))
-        dq = np.diff(np.polyval(np.polyfit(t, np.radians(q), 4), fine))
+        dq = np.diff(np.polyval(np.polyfit(t, np.radians(q) if angle else q, 4), fine))
         r = -np.diff(np.polyval(np.polyfit(t, length, 4), fine)) / dq
         lo, hi = out.get(m, (np.inf, -np.inf))
         out[m] = (min(lo, float(r.min())), max(hi, float(r.max())))

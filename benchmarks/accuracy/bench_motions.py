@@ -48,7 +48,7 @@ ANATOMICAL = {
 
 def anatomical(name: str, lo: float, hi: float) -> tuple[float, float]:
     """The range ``lo..hi`` (degrees) of coordinate ``name`` cut to `ANATOMICAL` where it is one."""
-    base = name[:-2] if name.endswith(("_r", "_l")) else name
+    base = name.removesuffix("_r").removesuffix("_l")
     if base not in ANATOMICAL:
         return lo, hi
     a, b = ANATOMICAL[base]
@@ -106,6 +106,11 @@ def main() -> None:
         ranges[c] = (np.degrees(lo), np.degrees(hi)) if model.is_rotational(c) else (lo, hi)
         if a.anatomical and model.is_rotational(c):
             ranges[c] = anatomical(c, *ranges[c])
+    if a.anatomical:
+        # a model that names its hip or knee otherwise keeps its own ranges: said, not hidden
+        kept = [c for c in coords if c.removesuffix("_r").removesuffix("_l") not in ANATOMICAL]
+        if kept:
+            print(f"--anatomical: no normal range known for {', '.join(kept)}: the model's kept")
     motions = []
     if not a.no_extreme:
         motions += [("extreme+", _extreme(1)), ("extreme-", _extreme(-1))]

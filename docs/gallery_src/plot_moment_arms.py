@@ -18,7 +18,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 
-from musclewrap.fibres import LHDL_FIBRE_RANGES
+from musclewrap.fibres import LHDL_FIBRE_RANGES, published_cover
 from musclewrap.scene import load_scene, read_motion, run_scene
 
 ROOT = next(p for p in [Path.cwd(), *Path.cwd().parents] if (p / "examples").is_dir())
@@ -63,7 +63,7 @@ for i, (sweep, got) in enumerate(rows.items()):
             at = max(x) + 0.04 * (max(x) - min(x))
             ax.plot([at, at], pub, color="darkorange", lw=4, label="published fibres")
             lo, hi = min(col["fibre_min"]), max(col["fibre_max"])
-            cover = max(min(hi, pub[1]) - max(lo, pub[0]), 0.0) / (pub[1] - pub[0])
+            cover = published_cover(lo, hi, pub)
             ax.text(0.02, 0.04, f"covers {cover:.0%}", transform=ax.transAxes, fontsize=7)
         ax.set_title(m.replace("_", " "), fontsize=9)
         ax.set_xlabel(sweep.replace("_", " ") + " (deg)", fontsize=8)

@@ -10,7 +10,7 @@ from ._field import (
     keep_inside,
     trace_fibres,
 )
-from ._published import LHDL_FIBRE_RANGES
+from ._published import LHDL_FIBRE_RANGES, published_cover
 
 __all__ = [
     "LHDL_FIBRE_RANGES",
@@ -21,5 +21,6 @@ __all__ = [
     "fibres_at_rest",
     "harmonic_field",
     "keep_inside",
+    "published_cover",
     "trace_fibres",
 ]
