@@ -198,6 +198,68 @@ def test_nudge_moves_the_pushed_vertices_exactly_and_keeps_the_volume():
     assert far.max() <= 1e-2 * edge and far.min() >= 0.5 * far.max()
 
 
+def _pressed_cap(cut):
+    """A sphere's vertices above ``z = cut`` pushed down to it: (V, F, A, edge, rows, need)."""
+    from musclewrap.mesh import mean_edge_length, vertex_adjacency
+
+    V, F = _sphere(10.0, [0.0, 0.0, 0.0])
+    edge = mean_edge_length(V, F)
+    rows = np.flatnonzero(V[:, 2] > cut)
+    return V, F, vertex_adjacency(F, len(V)), edge, rows, V[rows, 2] - cut
+
+
+def test_press_meets_one_sided_pushes_as_a_thin_plate():
+    from musclewrap.contact import nudge, press
+    from musclewrap.mesh import umbrella_laplacian, volume
+
+    V, F, A, edge, rows, need = _pressed_cap(8.5)
+    assert len(rows) > 20 and need.max() > 2 * edge  # a cap two edges deep
+    down = np.tile([0.0, 0.0, -1.0], (len(rows), 1))
+    one = np.zeros((len(rows), 3))
+    one[:, 0] = 1.0
+    corners = np.repeat(rows[:, None], 3, axis=1)
+    P = press(V, F, A, corners, one, down, need, volume_target=volume(V, F), edge=edge)
+    assert P is not None
+    assert abs(volume(P, F) / volume(V, F) - 1) <= 1e-12
+    # every push met (to the penalty's hundredth) and none taken back past its plane
+    assert P[rows, 2].max() <= 8.5 + 0.02 * need.max()
+    # smoother than the harmonic spread of the same pushes: the shape change (the
+    # uniform Laplacian's lengths) smaller
+    Q = nudge(V, F, A, rows, need[:, None] * down, volume_target=volume(V, F), edge=edge)
+    U = umbrella_laplacian(F, len(V))
+    d0 = np.linalg.norm(U @ V, axis=1)
+
+    def shape(X):
+        return float(np.abs(np.linalg.norm(U @ X, axis=1) - d0).max() / edge)
+
+    assert shape(P) < 0.8 * shape(Q)
+    # a push the others carry further asks nothing: the same plate with a vertex's push
+    # halved ends where it was carried, not at its half
+    need2 = need.copy()
+    need2[np.argmax(need)] *= 0.5
+    P2 = press(V, F, A, corners, one, down, need2, volume_target=volume(V, F), edge=edge)
+    assert np.abs(P2 - P).max() <= 0.05 * edge
+
+
+def test_press_leaves_a_wall_pressed_from_both_sides_to_the_cage():
+    from musclewrap.contact import press
+    from musclewrap.mesh import volume
+
+    V, F, A, edge, rows, need = _pressed_cap(9.6)
+    # neighbouring vertices pushed opposite ways by an edge: a fold, no plate
+    ways = np.tile([0.0, 0.0, -1.0], (len(rows), 1))
+    ways[::2] *= -1.0
+    one = np.zeros((len(rows), 3))
+    one[:, 0] = 1.0
+    corners = np.repeat(rows[:, None], 3, axis=1)
+    got = press(V, F, A, corners, one, ways, np.full(len(rows), edge),
+                volume_target=volume(V, F), edge=edge)  # fmt: skip
+    assert got is None
+    # nothing to push: nothing moves
+    assert press(V, F, A, corners, np.zeros_like(one), ways, np.zeros(len(rows)),
+                 volume_target=volume(V, F), edge=edge) is None  # fmt: skip
+
+
 def _apart(res, ds, depth):
     """Each result converged, its volume exact, its deepest vertex in another within ``depth``
     mean edges (the exact check of every surface); returns the exact depths and the edge."""

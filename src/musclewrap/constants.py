@@ -354,6 +354,41 @@ class Defaults:
         A muscle no deeper than this many of its mean edge lengths inside another
         (nor the other in it) takes its round on its fine vertices
         (`musclewrap.contact.nudge`), not by a step of its cage.
+    muscle_fine_plate : bool
+        A round's fine step moves the vertices as a thin plate that meets one-sided
+        pushes (`musclewrap.contact.press`: the least change of the uniform
+        Laplacian, what the shape change measures) rather than by `nudge`'s harmonic
+        spread of each vertex's longest push. **Off** by default: on the stacked leg at
+        the OpenCap squat's bottom with ``muscle_fine_depth = 2`` it helps one frame
+        and harms the next (`trace_rounds.py`, frames 716 / 724, the deepest in
+        another muscle after the finish and the largest shape change, BENCHMARKS.md
+        "A fine step as a thin plate"): the rounds as they are 1.44 / 1.11 mm, 0.38 /
+        0.37; `nudge` at 2 edges 0.12 mm, 1.94 (716); the plate 1.13 / 1.77 mm, 0.44 /
+        0.49; with ``muscle_plate_spread = 2`` 0.57 / 1.80 mm, 0.45 / 0.58.
+    muscle_plate_weight : float
+        How strongly `press` holds its pushes against the plate's bending (a penalty
+        beside the Laplacian's rows, whose entries are of order 1): at 100 a push is met
+        to about a hundredth of its length, which the step's slack of ``tol.contact``
+        edges covers.
+    muscle_plate_sets : int
+        The most active sets `press` tries (pushes the others carry dropped, pushes
+        left short taken on); a sphere pressed by a plane settles in 2-3.
+    muscle_plate_rise : float
+        `press` gives its step up (the cage takes the round) where it would lengthen
+        any vertex's Laplacian vector by more than this many mean edges in one step:
+        pushes that disagree (a thin wall pressed from both sides, frame 716's adductor
+        magnus: 1.7 edges in one step) bend the plate.
+    muscle_plate_shape : float
+        `press` gives its step up where it would raise a vertex's shape change
+        (`PreparedMuscle.shape_change`) past this many mean edges (0.45: under the 0.5
+        the contact tables hold). Without it frame 716 above ends 0.29 mm in another
+        muscle with a shape change of 0.62 (the adductor brevis), with it 1.13 mm, 0.44.
+    muscle_plate_spread : float
+        `press`'s plate spans this many mean edges per edge pushed round the pushes
+        (plus one ring, at most 12). At 1, 2 and 3 on frames 716 / 724 above: 1.13 /
+        1.77, 0.57 / 1.80 and 0.32 / 2.07 mm in another muscle; shape change 0.44 /
+        0.49, 0.45 / 0.58 and 0.42 / 0.79 (wider: the frame it helps it helps more,
+        the other it harms more).
     muscle_step_reach : float
         A round's cage step moves no fine vertex of its muscle further than this many
         times its deepest need (the step scaled down to it; ``contact_cage_reach`` holds
@@ -524,6 +559,12 @@ class Defaults:
     muscle_joint_conditions: int = 2000
     muscle_overlap_depth: float = 0.05
     muscle_fine_depth: float = 0.25
+    muscle_fine_plate: bool = False
+    muscle_plate_weight: float = 100.0
+    muscle_plate_sets: int = 4
+    muscle_plate_rise: float = 0.25
+    muscle_plate_shape: float = 0.45
+    muscle_plate_spread: float = 1.0
     muscle_step_reach: float = 1.0
     muscle_finish_retry: float = 0.25
     muscle_finish_passes: int = 3

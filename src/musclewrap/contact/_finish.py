@@ -750,6 +750,90 @@ def nudge(
     return P + t * Zm
 
 
+def press(
+    V: FloatArray,
+    F: IntArray,
+    A: sp.csr_matrix,
+    corners: IntArray,
+    weights: FloatArray,
+    ways: FloatArray,
+    amounts: FloatArray,
+    *,
+    volume_target: float,
+    edge: float,
+    shape_rest: FloatArray | None = None,
+) -> FloatArray | None:
+    """The fine vertices moved as a thin plate that meets one-sided pushes, volume exact.
+
+    Each push ``c`` asks the point ``sum_j weights[c, j] V[corners[c, j]]`` to move by
+    at least ``amounts[c]`` along the unit ``ways[c]`` (a vertex: one corner of weight
+    1; a point of a triangle: its barycentric weights). The displacement ``D`` is the
+    one that changes the uniform Laplacian least (``sum |(U D)_i|^2``, what the shape
+    change measures) over the rings within a radius of the pushed vertices
+    (``defaults.muscle_plate_spread`` mean edges per edge pushed, at most 12 rings),
+    zero beyond, subject to every push (a primal-dual active set: a push that the others'
+    already carry past its amount asks nothing). Unlike `nudge`'s harmonic spread a
+    push leaves no cone, and the pushes need not agree with each other. Then the
+    volume is restored exactly along the vertex normals beyond the rings. None where
+    nothing moves or the volume cannot be restored.
+    """
+    n = len(V)
+    on = weights > 0.0
+    hit = np.unique(corners[on])
+    if not len(hit) or not (amounts > 0.0).any():
+        return None
+    depth = float(amounts.max())
+    radius = int(min(np.ceil(defaults.muscle_plate_spread * depth / edge) + 1, 12))
+    level = rings(A, hit, radius + 2)
+    R = np.flatnonzero(level <= radius)
+    m = len(R)
+    local = np.full(n, -1, dtype=np.int64)
+    local[R] = np.arange(m)
+    deg = np.diff(A.indptr).astype(np.float64)
+    U = (sp.identity(n, format="csr") - sp.diags(1.0 / deg) @ A).tocsr()
+    Us = U[np.flatnonzero(level <= radius + 1)][:, R]
+    Q = (Us.T @ Us).tocsr()
+    H = sp.kron(sp.identity(3), Q, format="csr") + 1e-9 * sp.identity(3 * m, format="csr")
+    k = len(amounts)
+    # the pushes' rows over the unknowns (x of every region vertex, then y, then z)
+    rr = np.repeat(np.arange(k), 9)
+    cc = (np.arange(3)[None, None, :] * m + local[corners][:, :, None]).reshape(k, 9)
+    vv = (weights[:, :, None] * ways[:, None, :]).reshape(k, 9)
+    keep = vv.ravel() != 0.0
+    C = sp.csr_matrix((vv.ravel()[keep], (rr[keep], cc.ravel()[keep])), shape=(k, 3 * m))
+    active = np.ones(k, dtype=bool)
+    w = defaults.muscle_plate_weight
+    for _ in range(defaults.muscle_plate_sets):
+        Ca = C[np.flatnonzero(active)]
+        D = spla.splu((H + w * (Ca.T @ Ca)).tocsc()).solve(w * (Ca.T @ amounts[active]))
+        got = C @ D
+        # a push the others carry past its amount asks nothing; one left short is taken on
+        again = got < amounts
+        if (again == active).all() or not again.any():
+            break
+        active = again
+    if not np.isfinite(D).all() or np.abs(D).max() > 1.5 * depth:
+        return None
+    Dall = np.zeros((n, 3))
+    Dall[R] = D.reshape(3, m).T
+    P = V + Dall
+    # pushes that disagree (a thin wall pressed from both sides) bend the plate: left to the cage
+    near = np.flatnonzero(level <= radius + 1)
+    after = np.linalg.norm(U[near] @ P, axis=1)
+    rise = after - np.linalg.norm(U[near] @ V, axis=1)
+    if rise.max() > defaults.muscle_plate_rise * edge:
+        return None
+    if shape_rest is not None:
+        over = np.abs(after - shape_rest[near]) > defaults.muscle_plate_shape * edge
+        if (over & (rise > 0.0)).any():
+            return None
+    Zm = vertex_normals(P, F) * np.clip((level - radius) / 2.0, 0.0, 1.0)[:, None]
+    t = _volume_step(P, F, Zm, volume_target)
+    if not np.isfinite(t):
+        return None
+    return P + t * Zm
+
+
 def _bone_fields(found: list[Inside]) -> dict[str, float]:
     """The report's count and depth of obstacle vertices inside the muscle."""
     return {

@@ -39,6 +39,7 @@ from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
 from ..mesh import (
     WindingGrid,
+    barycentric,
     bin_boxes,
     face_normals,
     in_oriented_box,
@@ -47,7 +48,7 @@ from ..mesh import (
     vertex_adjacency,
     volume,
 )
-from ._finish import longest_pushes, nudge, triangle_pushes
+from ._finish import longest_pushes, nudge, press, triangle_pushes
 from ._inside import _closest_on_triangle
 
 __all__ = [
@@ -642,6 +643,7 @@ def push_apart(
     *,
     volume_target: float,
     edge: float,
+    shape_rest: FloatArray | None = None,
 ) -> FloatArray | None:
     """A muscle's fine vertices out of the others, its surface giving way, volume exact.
 
@@ -664,6 +666,20 @@ def push_apart(
             triangle_pushes(m.at, S[F[m.faces]], (m.give + slack)[:, None] * m.back),
         ]
     )
+    if defaults.muscle_fine_plate:
+        T = F[m.faces]
+        w = np.clip(barycentric(m.at, S[T]), 0.0, None)
+        w = w / w.sum(axis=1)[:, None]
+        one = np.zeros((len(m.rows), 3))
+        one[:, 0] = 1.0
+        return press(
+            V, F, A,
+            np.vstack([np.repeat(m.rows[:, None], 3, axis=1), T]),
+            np.vstack([one, w]),
+            np.vstack([m.out, m.back]),
+            np.concatenate([m.need, m.give]) + slack,
+            volume_target=volume_target, edge=edge, shape_rest=shape_rest,
+        )  # fmt: skip
     push, size = np.zeros((len(V), 3)), np.zeros(len(V))
     longest_pushes(push, size, verts, disp)
     hit = np.unique(verts)

@@ -123,6 +123,11 @@ class PreparedMuscle:
         """The fine mesh's uniform Laplacian (`shape_change`'s; built on first use)."""
         return self._umbrella_rest()[0]
 
+    @property
+    def umbrella_rest_lengths(self) -> FloatArray:
+        """The lengths of `umbrella`'s vectors at rest (what `shape_change` measures from)."""
+        return self._umbrella_rest()[1]
+
     def _umbrella_rest(self) -> tuple[sparse.csr_matrix, FloatArray, float]:
         """The uniform Laplacian, its vectors' lengths at rest and the mean rest edge."""
         if getattr(self, "_umbrella", None) is None:
