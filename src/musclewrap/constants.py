@@ -389,6 +389,10 @@ class Defaults:
         1.77, 0.57 / 1.80 and 0.32 / 2.07 mm in another muscle; shape change 0.44 /
         0.49, 0.45 / 0.58 and 0.42 / 0.79 (wider: the frame it helps it helps more,
         the other it harms more).
+    muscle_plate_drop : bool
+        `press` leaves out the pushes that disagree (a vertex whose pushes cancel by
+        more than half, or neighbours pushed opposite ways) instead of refusing the
+        step at its rise bound; the cage takes them. Off.
     muscle_step_reach : float
         A round's cage step moves no fine vertex of its muscle further than this many
         times its deepest need (the step scaled down to it; ``contact_cage_reach`` holds
@@ -565,6 +569,7 @@ class Defaults:
     muscle_plate_rise: float = 0.25
     muscle_plate_shape: float = 0.45
     muscle_plate_spread: float = 1.0
+    muscle_plate_drop: bool = False
     muscle_step_reach: float = 1.0
     muscle_finish_retry: float = 0.25
     muscle_finish_passes: int = 3

@@ -779,6 +779,21 @@ def press(
     """
     n = len(V)
     on = weights > 0.0
+    if defaults.muscle_plate_drop and on.any():
+        # pushes that disagree, on one vertex or on neighbours, are left out (the cage's)
+        acc, mag = np.zeros((n, 3)), np.zeros(n)
+        wa = weights * amounts[:, None]
+        np.add.at(acc, corners[on], (wa[:, :, None] * ways[:, None, :])[on])
+        np.add.at(mag, corners[on], wa[on])
+        pushed = mag > 0.0
+        bad = pushed & (np.linalg.norm(acc, axis=1) < 0.5 * mag)
+        src = np.repeat(np.arange(n), np.diff(A.indptr))
+        e = pushed[src] & pushed[A.indices]
+        opp = np.einsum("ij,ij->i", acc[src[e]], acc[A.indices[e]]) < 0.0
+        bad[src[e][opp]] = True
+        keep = ~(bad[corners] & on).any(axis=1)
+        corners, weights, ways, amounts = corners[keep], weights[keep], ways[keep], amounts[keep]
+        on = on[keep]
     hit = np.unique(corners[on])
     if not len(hit) or not (amounts > 0.0).any():
         return None
