@@ -364,7 +364,12 @@ class Defaults:
         another muscle after the finish and the largest shape change, BENCHMARKS.md
         "A fine step as a thin plate"): the rounds as they are 1.44 / 1.11 mm, 0.38 /
         0.37; `nudge` at 2 edges 0.12 mm, 1.94 (716); the plate 1.13 / 1.77 mm, 0.44 /
-        0.49; with ``muscle_plate_spread = 2`` 0.57 / 1.80 mm, 0.45 / 0.58.
+        0.49; with ``muscle_plate_spread = 2`` 0.57 / 1.80 mm, 0.45 / 0.58. Over 15
+        frames there (690-760) the plate leaves one frame over 0.5 mm (0.59; as it is:
+        six, up to 2.17), and on with ``muscle_fine_depth = 2`` the walks, the 18
+        muscles and the LHDL squat keep their bounds in fewer rounds; it stays off
+        because issue 48's published cover on the LHDL hip sweeps falls from 66.6 to
+        65.6 % with it (BENCHMARKS.md, "Switched on everywhere").
     muscle_plate_weight : float
         How strongly `press` holds its pushes against the plate's bending (a penalty
         beside the Laplacian's rows, whose entries are of order 1): at 100 a push is met

@@ -838,15 +838,20 @@ def press(
     rise = after - np.linalg.norm(U[near] @ V, axis=1)
     if rise.max() > defaults.muscle_plate_rise * edge:
         return None
-    if shape_rest is not None:
-        over = np.abs(after - shape_rest[near]) > defaults.muscle_plate_shape * edge
-        if (over & (rise > 0.0)).any():
-            return None
     Zm = vertex_normals(P, F) * np.clip((level - radius) / 2.0, 0.0, 1.0)[:, None]
     t = _volume_step(P, F, Zm, volume_target)
     if not np.isfinite(t):
         return None
-    return P + t * Zm
+    P = P + t * Zm
+    if shape_rest is not None:
+        # the shape change where the step raised it, the volume's ramp round the plate too
+        near = np.flatnonzero(level <= radius + 3)
+        after = np.linalg.norm(U[near] @ P, axis=1)
+        rise = after - np.linalg.norm(U[near] @ V, axis=1)
+        over = np.abs(after - shape_rest[near]) > defaults.muscle_plate_shape * edge
+        if (over & (rise > 0.0)).any():
+            return None
+    return P
 
 
 def _bone_fields(found: list[Inside]) -> dict[str, float]:
