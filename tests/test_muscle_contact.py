@@ -260,6 +260,39 @@ def test_press_leaves_a_wall_pressed_from_both_sides_to_the_cage():
                  volume_target=volume(V, F), edge=edge) is None  # fmt: skip
 
 
+def test_press_can_leave_out_the_pushes_that_disagree(monkeypatch):
+    import dataclasses
+
+    import musclewrap.contact._finish as finish
+    from musclewrap.constants import defaults
+    from musclewrap.contact import press
+    from musclewrap.mesh import volume
+
+    monkeypatch.setattr(finish, "defaults", dataclasses.replace(defaults, muscle_plate_drop=True))
+    V, F, A, edge, rows, need = _pressed_cap(9.6)
+    one = np.zeros((len(rows), 3))
+    one[:, 0] = 1.0
+    corners = np.repeat(rows[:, None], 3, axis=1)
+    down = np.tile([0.0, 0.0, -1.0], (len(rows), 1))
+    # a cap pressed down, and one vertex far from it pushed both ways at once (unequally): its
+    # pushes are left out, the cap's are met as without it
+    far = int(np.argmin(V[:, 2]))
+    both = (np.concatenate([corners, [[far] * 3, [far] * 3]]), np.vstack([one, one[:2]]),
+            np.vstack([down, [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]]),
+            np.concatenate([need, [edge, 0.5 * edge]]))  # fmt: skip
+    P = press(V, F, A, *both, volume_target=volume(V, F), edge=edge)
+    Q = press(V, F, A, corners, one, down, need, volume_target=volume(V, F), edge=edge)
+    assert P is not None and Q is not None
+    assert P[rows, 2].max() <= 9.6 + 0.02 * need.max()
+    assert np.linalg.norm(P[far] - V[far]) <= 0.05 * edge  # not pushed either way
+    assert abs(volume(P, F) / volume(V, F) - 1) <= 1e-12
+    # neighbours pushed opposite ways: every push left out, nothing moves
+    ways = down.copy()
+    ways[::2] *= -1.0
+    assert press(V, F, A, corners, one, ways, np.full(len(rows), edge),
+                 volume_target=volume(V, F), edge=edge) is None  # fmt: skip
+
+
 def _apart(res, ds, depth):
     """Each result converged, its volume exact, its deepest vertex in another within ``depth``
     mean edges (the exact check of every surface); returns the exact depths and the edge."""
