@@ -19,6 +19,7 @@ from ..mesh import (
     in_box,
     mean_edge_length,
     mean_rows,
+    umbrella_laplacian,
     vertex_adjacency,
     vertex_normals,
     volume,
@@ -762,6 +763,7 @@ def press(
     volume_target: float,
     edge: float,
     shape_rest: FloatArray | None = None,
+    umbrella: sp.csr_matrix | None = None,
 ) -> FloatArray | None:
     """The fine vertices moved as a thin plate that meets one-sided pushes, volume exact.
 
@@ -775,9 +777,12 @@ def press(
     already carry past its amount asks nothing). Unlike `nudge`'s harmonic spread a
     push leaves no cone, and the pushes need not agree with each other. Then the
     volume is restored exactly along the vertex normals beyond the rings. None where
-    nothing moves or the volume cannot be restored.
+    nothing moves or the volume cannot be restored. ``umbrella``: the mesh's uniform
+    Laplacian (`musclewrap.mesh.umbrella_laplacian`, made here when None);
+    ``shape_rest``: its vectors' lengths at rest (`PreparedMuscle.umbrella_rest_lengths`).
     """
     n = len(V)
+    U = umbrella_laplacian(F, n) if umbrella is None else umbrella
     on = weights > 0.0
     if defaults.muscle_plate_drop and on.any():
         # pushes that disagree, on one vertex or on neighbours, are left out (the cage's)
@@ -804,8 +809,6 @@ def press(
     m = len(R)
     local = np.full(n, -1, dtype=np.int64)
     local[R] = np.arange(m)
-    deg = np.diff(A.indptr).astype(np.float64)
-    U = (sp.identity(n, format="csr") - sp.diags(1.0 / deg) @ A).tocsr()
     Us = U[np.flatnonzero(level <= radius + 1)][:, R]
     Q = (Us.T @ Us).tocsr()
     H = sp.kron(sp.identity(3), Q, format="csr") + 1e-9 * sp.identity(3 * m, format="csr")
@@ -833,9 +836,7 @@ def press(
     Dall[R] = D.reshape(3, m).T
     P = V + Dall
     # pushes that disagree (a thin wall pressed from both sides) bend the plate: left to the cage
-    near = np.flatnonzero(level <= radius + 1)
-    after = np.linalg.norm(U[near] @ P, axis=1)
-    rise = after - np.linalg.norm(U[near] @ V, axis=1)
+    _, rise = _lengths_raised(U, np.flatnonzero(level <= radius + 1), V, P)
     if rise.max() > defaults.muscle_plate_rise * edge:
         return None
     Zm = vertex_normals(P, F) * np.clip((level - radius) / 2.0, 0.0, 1.0)[:, None]
@@ -846,12 +847,19 @@ def press(
     if shape_rest is not None:
         # the shape change where the step raised it, the volume's ramp round the plate too
         near = np.flatnonzero(level <= radius + 3)
-        after = np.linalg.norm(U[near] @ P, axis=1)
-        rise = after - np.linalg.norm(U[near] @ V, axis=1)
+        after, rise = _lengths_raised(U, near, V, P)
         over = np.abs(after - shape_rest[near]) > defaults.muscle_plate_shape * edge
         if (over & (rise > 0.0)).any():
             return None
     return P
+
+
+def _lengths_raised(
+    U: sp.csr_matrix, rows: IntArray, V: FloatArray, P: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The lengths of ``U``'s vectors at ``P`` on ``rows``, and how much longer than at ``V``."""
+    after = np.linalg.norm(U[rows] @ P, axis=1)
+    return after, after - np.linalg.norm(U[rows] @ V, axis=1)
 
 
 def _bone_fields(found: list[Inside]) -> dict[str, float]:

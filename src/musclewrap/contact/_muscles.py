@@ -644,6 +644,7 @@ def push_apart(
     volume_target: float,
     edge: float,
     shape_rest: FloatArray | None = None,
+    umbrella: Any = None,
 ) -> FloatArray | None:
     """A muscle's fine vertices out of the others, its surface giving way, volume exact.
 
@@ -679,6 +680,7 @@ def push_apart(
             np.vstack([m.out, m.back]),
             np.concatenate([m.need, m.give]) + slack,
             volume_target=volume_target, edge=edge, shape_rest=shape_rest,
+            umbrella=umbrella,
         )  # fmt: skip
     push, size = np.zeros((len(V), 3)), np.zeros(len(V))
     longest_pushes(push, size, verts, disp)
