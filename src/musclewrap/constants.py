@@ -376,8 +376,19 @@ class Defaults:
         to about a hundredth of its length, which the step's slack of ``tol.contact``
         edges covers.
     muscle_plate_sets : int
-        The most active sets `press` tries (pushes the others carry dropped, pushes
-        left short taken on); a sphere pressed by a plane settles in 2-3.
+        The most Newton steps `press` takes on its plate (each on the pushes left short,
+        those the others carry dropped, as far along as the objective falls). Until
+        2026-12-03 every step was taken whole, four at most: on the 47 plates of the 18
+        muscles' walk frame 50 they cycled, and ended up to 0.7 mean edges from where
+        eight would have (BENCHMARKS.md, "The plate's cost and its steps"). Now a median
+        of 8, at most 25 there, before ``muscle_plate_still``.
+    muscle_plate_iterations : int
+        Conjugate-gradient iterations of a Newton step of `press` (Jacobi-preconditioned,
+        from the last step's plate). 15: the 47 plates above in 1.4 s, pushes left short
+        by at most 0.023 mean edges (under the step's slack); 30: 2.6 s, 0.012; 60: 4.2 s,
+        0.010. A sparse factorisation a step (SuperLU) took 21 s for four steps each.
+    muscle_plate_still : float
+        `press` stops where a step moves no vertex by more than this many mean edges.
     muscle_plate_rise : float
         `press` gives its step up (the cage takes the round) where it would lengthen
         any vertex's Laplacian vector by more than this many mean edges in one step:
@@ -570,7 +581,9 @@ class Defaults:
     muscle_fine_depth: float = 0.25
     muscle_fine_plate: bool = False
     muscle_plate_weight: float = 100.0
-    muscle_plate_sets: int = 4
+    muscle_plate_sets: int = 30
+    muscle_plate_iterations: int = 15
+    muscle_plate_still: float = 0.01
     muscle_plate_rise: float = 0.25
     muscle_plate_shape: float = 0.45
     muscle_plate_spread: float = 1.0
