@@ -353,23 +353,22 @@ class Defaults:
     muscle_fine_depth : float
         A muscle no deeper than this many of its mean edge lengths inside another
         (nor the other in it) takes its round on its fine vertices
-        (`musclewrap.contact.nudge`), not by a step of its cage.
+        (`musclewrap.contact.nudge`, or `press`'s plate with ``muscle_fine_plate``), not
+        by a step of its cage.
     muscle_fine_plate : bool
         A round's fine step moves the vertices as a thin plate that meets one-sided
         pushes (`musclewrap.contact.press`: the least change of the uniform
         Laplacian, what the shape change measures) rather than by `nudge`'s harmonic
-        spread of each vertex's longest push. **Off** by default: on the stacked leg at
-        the OpenCap squat's bottom with ``muscle_fine_depth = 2`` it helps one frame
-        and harms the next (`trace_rounds.py`, frames 716 / 724, the deepest in
-        another muscle after the finish and the largest shape change, BENCHMARKS.md
-        "A fine step as a thin plate"): the rounds as they are 1.44 / 1.11 mm, 0.38 /
-        0.37; `nudge` at 2 edges 0.12 mm, 1.94 (716); the plate 1.13 / 1.77 mm, 0.44 /
-        0.49; with ``muscle_plate_spread = 2`` 0.57 / 1.80 mm, 0.45 / 0.58. Over 15
-        frames there (690-760) the plate leaves one frame over 0.5 mm (0.59; as it is:
-        six, up to 2.17), and on with ``muscle_fine_depth = 2`` the walks, the 18
-        muscles and the LHDL squat keep their bounds in fewer rounds; it stays off
-        because issue 48's published cover on the LHDL hip sweeps falls from 66.6 to
-        65.6 % with it (BENCHMARKS.md, "Switched on everywhere").
+        spread of each vertex's longest push (the rest state's rounds,
+        `apart_at_rest`, keep `nudge` either way). **Off** by default. On, with
+        ``muscle_fine_depth = 2`` (BENCHMARKS.md, "The plate's cost and its steps", "The
+        plate switched on, measured"): the stacked leg at the OpenCap squat's bottom (15
+        frames, 690-760) leaves one frame over 0.5 mm in another muscle (0.75 mm; off,
+        six, up to 2.17) and 13 of 15 frames within both of issue 46's bounds (off, 9);
+        the 18 muscles' walk every 10th frame takes 65.8 s against 72.0 s off (a median
+        of 2 rounds a frame against 6). It stays off because the LHDL walk takes 32.7 s
+        against 28.6 s (2 workers, one sitting; up to 10 rounds a frame against 3) and
+        issue 44 asks contact cheaper, not dearer.
     muscle_plate_weight : float
         How strongly `press` holds its pushes against the plate's bending (a penalty
         beside the Laplacian's rows, whose entries are of order 1): at 100 a push is met

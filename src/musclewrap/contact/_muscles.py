@@ -645,6 +645,7 @@ def push_apart(
     edge: float,
     shape_rest: FloatArray | None = None,
     umbrella: Any = None,
+    plate: bool = False,
 ) -> FloatArray | None:
     """A muscle's fine vertices out of the others, its surface giving way, volume exact.
 
@@ -654,8 +655,9 @@ def push_apart(
     ``give`` along ``back`` (`triangle_pushes`; ``S``: the muscle's positions in the
     frame of ``at``), each a slack of ``tol.contact`` edges further; a vertex pushed
     twice takes the longer push. `nudge` spreads them over the rings round them and
-    restores the volume. ``A``: the vertex adjacency. None where nothing moves or the
-    volume cannot be restored.
+    restores the volume; with ``plate``, `press` moves them as a thin plate instead
+    (``shape_rest``, ``umbrella``: its bound and Laplacian). ``A``: the vertex
+    adjacency. None where nothing moves or the volume cannot be restored.
     """
     slack = tol.contact * edge
     verts = np.concatenate([m.rows, F[m.faces].ravel()])
@@ -667,7 +669,7 @@ def push_apart(
             triangle_pushes(m.at, S[F[m.faces]], (m.give + slack)[:, None] * m.back),
         ]
     )
-    if defaults.muscle_fine_plate:
+    if plate:
         T = F[m.faces]
         w = np.clip(barycentric(m.at, S[T]), 0.0, None)
         w = w / w.sum(axis=1)[:, None]
@@ -717,7 +719,9 @@ def apart_at_rest(
     Jacobi rounds on the fine vertices, as the last of each frame's rounds
     (`musclewrap.solver.meet`): every vertex inside another muscle goes out by half
     its depth and the other's surface gives way by the other half
-    (`push_apart`), until no vertex is deeper than ``defaults.muscle_overlap_depth``
+    (`push_apart`, by `nudge`'s spread: the frames' thin plate, ``muscle_fine_plate``,
+    is not taken here, so the rest state, and the fibres laid in it, does not hang on
+    it), until no vertex is deeper than ``defaults.muscle_overlap_depth``
     of its mean edges (at most ``defaults.muscle_rest_rounds`` rounds). ``meshes``
     (name -> ``V, F``, one frame), ``pairs`` (default every pair), ``facing``
     (`facing_pairs`, made here when None). ``resolve=False`` measures only.
