@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numba
@@ -861,6 +861,7 @@ def _plate(Us: sp.csr_matrix, C: sp.csr_matrix, a: FloatArray, w: float, edge: f
     21 s (BENCHMARKS.md, "The plate's cost and its steps").
     """
     m = Us.shape[1]
+    n = 3 * m
     UsT = Us.T.tocsr()
     CT = C.T.tocsr()
     base = np.repeat(np.asarray(Us.multiply(Us).sum(axis=0)).ravel(), 3) + 1e-9
@@ -873,7 +874,7 @@ def _plate(Us: sp.csr_matrix, C: sp.csr_matrix, a: FloatArray, w: float, edge: f
         short = np.maximum(a - C @ D, 0.0)
         return 0.5 * float(D @ bend(D)) + 0.5 * w * float(short @ short)
 
-    D = np.zeros(3 * m)
+    D = np.zeros(n)
     active = a > 0.0
     value = f(D)
     still = defaults.muscle_plate_still * edge
@@ -883,9 +884,14 @@ def _plate(Us: sp.csr_matrix, C: sp.csr_matrix, a: FloatArray, w: float, edge: f
         def apply(x: FloatArray, on: FloatArray = on) -> FloatArray:
             return bend(x) + w * (CT @ (on * (C @ x)))
 
-        diag = base + w * (C2.T @ on)
-        target = _cg(
-            apply, w * (CT @ (on * a)), D.copy(), 1.0 / diag, defaults.muscle_plate_iterations
+        jacobi = 1.0 / (base + w * (C2.T @ on))
+        target, _ = spla.cg(
+            spla.LinearOperator((n, n), matvec=apply, dtype=np.float64),
+            w * (CT @ (on * a)),
+            x0=D,
+            rtol=1e-12,
+            maxiter=defaults.muscle_plate_iterations,
+            M=spla.LinearOperator((n, n), matvec=lambda x, j=jacobi: j * x, dtype=np.float64),
         )
         step = target - D
         slope = float(step @ bend(D) - w * (np.maximum(a - C @ D, 0.0) @ (C @ step)))
@@ -900,31 +906,6 @@ def _plate(Us: sp.csr_matrix, C: sp.csr_matrix, a: FloatArray, w: float, edge: f
             break
         active = again
     return D
-
-
-def _cg(
-    apply: Callable[[FloatArray], FloatArray],
-    b: FloatArray,
-    x: FloatArray,
-    dinv: FloatArray,
-    its: int,
-) -> FloatArray:
-    """``its`` iterations of conjugate gradients on ``apply(x) = b`` from ``x``, ``dinv``'s Jacobi."""
-    r = b - apply(x)
-    z = dinv * r
-    p = z.copy()
-    rz = float(r @ z)
-    for _ in range(its):
-        if rz <= 0.0:
-            break
-        q = apply(p)
-        alpha = rz / float(p @ q)
-        x += alpha * p
-        r -= alpha * q
-        z = dinv * r
-        rz, rz_old = float(r @ z), rz
-        p = z + (rz / rz_old) * p
-    return x
 
 
 def _lengths_raised(
