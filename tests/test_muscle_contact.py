@@ -1207,3 +1207,41 @@ def test_a_rounds_cage_step_moves_no_vertex_further_than_its_reach(pair):
     assert move_held.max() >= 0.9 * need
     for _, P in (free, held):
         assert abs(volume(P, mu.F) / mu.volume_rest - 1.0) < 1e-12
+
+
+@pytest.mark.parametrize("above", [0.0, 0.25, np.inf])
+def test_the_plate_takes_only_the_fine_steps_deeper_than_its_bound(monkeypatch, above):
+    """``muscle_plate_above``: with the plate on, a round's fine step is a plate only where
+    the muscle is deeper than that many mean edges; shallower, `nudge` as without it. Each
+    fine step's choice checked against the depths the round started from."""
+    import dataclasses
+
+    import musclewrap.solver._together as together
+    from musclewrap.constants import defaults
+
+    monkeypatch.setattr(together, "defaults", dataclasses.replace(
+        defaults, muscle_fine_plate=True, muscle_fine_depth=2.0, muscle_plate_above=above))  # fmt: skip
+    asked, expected = [], []
+    push, deepest = together.push_apart, together._Rounds._deepest
+
+    def spied_push(*args, plate, **kw):
+        asked.append(plate)
+        return push(*args, plate=plate, **kw)
+
+    def spied_deepest(self):
+        got = deepest(self)
+        for n in self.live:
+            if defaults.muscle_overlap_depth < got[3][n] <= 2.0:
+                expected.append(bool(got[3][n] > above))
+        return got
+
+    monkeypatch.setattr(together, "push_apart", spied_push)
+    monkeypatch.setattr(together._Rounds, "_deepest", spied_deepest)
+    ds = _capsules({"a": 0.0, "b": 24.0, "c": 48.0})
+    lines = {"a": _axis(8.0), "b": _axis(24.0), "c": _axis(40.0)}
+    res = together.deform_together(ds, lines)
+    # the last depths measured end the rounds: no step follows them
+    assert asked and asked == expected[: len(asked)]
+    if above == 0.25:
+        assert True in asked and False in asked  # both sides of the bound taken here
+    _apart(res, ds, 0.05)

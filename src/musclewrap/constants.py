@@ -369,6 +369,10 @@ class Defaults:
         of 2 rounds a frame against 6). It stays off because the LHDL walk takes 32.7 s
         against 28.6 s (2 workers, one sitting; up to 10 rounds a frame against 3) and
         issue 44 asks contact cheaper, not dearer.
+    muscle_plate_above : float
+        With ``muscle_fine_plate``, the plate takes only the fine steps of a muscle
+        deeper than this many of its mean edges (in another, or another in it); the
+        shallower ones keep `nudge`. 0: every fine step (the default, as before).
     muscle_plate_weight : float
         How strongly `press` holds its pushes against the plate's bending (a penalty
         beside the Laplacian's rows, whose entries are of order 1): at 100 a push is met
@@ -579,6 +583,7 @@ class Defaults:
     muscle_overlap_depth: float = 0.05
     muscle_fine_depth: float = 0.25
     muscle_fine_plate: bool = False
+    muscle_plate_above: float = 0.0
     muscle_plate_weight: float = 100.0
     muscle_plate_sets: int = 30
     muscle_plate_iterations: int = 15

@@ -258,7 +258,7 @@ class _Rounds:
                     self.state[n][1], d.muscle.F, d.muscle.adjacency, m, self.surf[n][0],
                     volume_target=d.muscle.volume_rest, edge=d._fine_edge,
                     shape_rest=d.muscle.umbrella_rest_lengths, umbrella=d.muscle.umbrella,
-                    plate=defaults.muscle_fine_plate,
+                    plate=defaults.muscle_fine_plate and worst[n] > defaults.muscle_plate_above,
                 )  # fmt: skip
                 if Vn is not None:
                     new[n] = (self.state[n][0], Vn)
