@@ -353,26 +353,31 @@ class Defaults:
     muscle_fine_depth : float
         A muscle no deeper than this many of its mean edge lengths inside another
         (nor the other in it) takes its round on its fine vertices
-        (`musclewrap.contact.nudge`, or `press`'s plate with ``muscle_fine_plate``), not
-        by a step of its cage.
+        (`press`'s plate past ``muscle_plate_above``, `musclewrap.contact.nudge` below
+        it or with ``muscle_fine_plate`` off), not by a step of its cage. 2 since
+        2026-12-04 (0.25 before, where `nudge` took the fine steps: past a quarter edge
+        its harmonic spread creased, frame 716 of the leg at the OpenCap squat's bottom
+        to a shape change of 1.85).
     muscle_fine_plate : bool
-        A round's fine step moves the vertices as a thin plate that meets one-sided
-        pushes (`musclewrap.contact.press`: the least change of the uniform
-        Laplacian, what the shape change measures) rather than by `nudge`'s harmonic
-        spread of each vertex's longest push (the rest state's rounds,
-        `apart_at_rest`, keep `nudge` either way). **Off** by default. On, with
-        ``muscle_fine_depth = 2`` (BENCHMARKS.md, "The plate's cost and its steps", "The
-        plate switched on, measured"): the stacked leg at the OpenCap squat's bottom (15
-        frames, 690-760) leaves one frame over 0.5 mm in another muscle (0.75 mm; off,
-        six, up to 2.17) and 13 of 15 frames within both of issue 46's bounds (off, 9);
-        the 18 muscles' walk every 10th frame takes 65.8 s against 72.0 s off (a median
-        of 2 rounds a frame against 6). It stays off because the LHDL walk takes 32.7 s
-        against 28.6 s (2 workers, one sitting; up to 10 rounds a frame against 3) and
-        issue 44 asks contact cheaper, not dearer.
+        A round's fine step deeper than ``muscle_plate_above`` moves the vertices as a
+        thin plate that meets one-sided pushes (`musclewrap.contact.press`: the least
+        change of the uniform Laplacian, what the shape change measures) rather than by
+        `nudge`'s harmonic spread of each vertex's longest push (the rest state's
+        rounds, `apart_at_rest`, keep `nudge` either way). On since 2026-12-04
+        (BENCHMARKS.md, "The plate past a quarter edge, switched on").
     muscle_plate_above : float
         With ``muscle_fine_plate``, the plate takes only the fine steps of a muscle
         deeper than this many of its mean edges (in another, or another in it); the
-        shallower ones keep `nudge`. 0: every fine step (the default, as before).
+        shallower ones keep `nudge`. 0.25 (BENCHMARKS.md, "The plate past a quarter
+        edge, switched on"; one sitting, against the plate off and fine steps to 0.25):
+        the stacked leg at the OpenCap squat's bottom (15 frames, 690-760) leaves no
+        frame over 0.5 mm in another muscle (0.485 at most; off, six, up to 2.17) but
+        three change shape by 0.514-0.536 (off, 0.433 at most); the 18 muscles' walk
+        every 10th frame 37.1 s against 41.4 s (rounds a frame: a median of 2 against
+        6); the LHDL walk 16.2 against 15.8 s. At 0 (the plate on every fine step) the
+        LHDL walk's frame 179 took 11 rounds (psoas and iliacus 0.1 edges apart, a
+        plate each round taking them a hundredth of an edge further) and the walk 14 %
+        longer; the squat's bottom one frame over 0.5 mm (0.75).
     muscle_plate_weight : float
         How strongly `press` holds its pushes against the plate's bending (a penalty
         beside the Laplacian's rows, whose entries are of order 1): at 100 a push is met
@@ -581,9 +586,9 @@ class Defaults:
     muscle_joint_points: int = 3
     muscle_joint_conditions: int = 2000
     muscle_overlap_depth: float = 0.05
-    muscle_fine_depth: float = 0.25
-    muscle_fine_plate: bool = False
-    muscle_plate_above: float = 0.0
+    muscle_fine_depth: float = 2.0
+    muscle_fine_plate: bool = True
+    muscle_plate_above: float = 0.25
     muscle_plate_weight: float = 100.0
     muscle_plate_sets: int = 30
     muscle_plate_iterations: int = 15
