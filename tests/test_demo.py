@@ -90,9 +90,12 @@ def test_the_demo_picture_frames_the_contact(demo):
         # drawn there: the muscle or the bone in front of it, not the white background
         c = np.round(px.mean(axis=0)).astype(int)
         assert picture[c[1], c[0]].min() < 235
-        # the file's stretch is what the picture colours: stretched at 45 deg
+        # the file's stretch is what the picture colours: stretched at 45 deg, and squeezed
+        # where the two muscles meet to about half the area (the lateral's least: 0.507 with
+        # `nudge`'s fine steps, 0.491 with the plate's since 2026-12-04), under the colours'
+        # range but not far under it
         s = np.asarray(mesh.point_data["area_stretch"])
-        assert s.min() > STRETCH_RANGE[0] / 1.5 and 1.05 < np.median(s) < STRETCH_RANGE[1]
+        assert s.min() > STRETCH_RANGE[0] / 1.6 and 1.05 < np.median(s) < STRETCH_RANGE[1]
     # the muscles are coloured by stretch: red (stretched) pixels, and blue ones
     r, g, b = picture[..., 0], picture[..., 1], picture[..., 2]
     assert ((r - b > 60) & (r - g > 60)).sum() > 2000

@@ -370,14 +370,15 @@ class Defaults:
         deeper than this many of its mean edges (in another, or another in it); the
         shallower ones keep `nudge`. 0.25 (BENCHMARKS.md, "The plate past a quarter
         edge, switched on"; one sitting, against the plate off and fine steps to 0.25):
-        the stacked leg at the OpenCap squat's bottom (15 frames, 690-760) leaves no
-        frame over 0.5 mm in another muscle (0.485 at most; off, six, up to 2.17) but
-        three change shape by 0.514-0.536 (off, 0.433 at most); the 18 muscles' walk
-        every 10th frame 37.1 s against 41.4 s (rounds a frame: a median of 2 against
-        6); the LHDL walk 16.2 against 15.8 s. At 0 (the plate on every fine step) the
-        LHDL walk's frame 179 took 11 rounds (psoas and iliacus 0.1 edges apart, a
-        plate each round taking them a hundredth of an edge further) and the walk 14 %
-        longer; the squat's bottom one frame over 0.5 mm (0.75).
+        the stacked leg at the OpenCap squat's bottom (15 frames, 690-760) leaves three
+        frames over 0.5 mm in another muscle (0.578 at most; off, six, up to 2.17) and
+        four at the rounds' cap (off, six), but two change shape past 0.5 (0.505 and
+        0.804, the bones' finish after the rounds; off, 0.433 at most); the 18 muscles'
+        walk every 10th frame 37.1 s against 41.4 s (rounds a frame: a median of 2
+        against 6); the LHDL walk 16.2 against 15.8 s. At 0 (the plate on every fine
+        step) the LHDL walk's frame 179 took 11 rounds (psoas and iliacus 0.1 edges
+        apart, a plate each round taking them a hundredth of an edge further) and the
+        walk 14 % longer.
     muscle_plate_weight : float
         How strongly `press` holds its pushes against the plate's bending (a penalty
         beside the Laplacian's rows, whose entries are of order 1): at 100 a push is met
