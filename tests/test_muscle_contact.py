@@ -1209,18 +1209,19 @@ def test_a_rounds_cage_step_moves_no_vertex_further_than_its_reach(pair):
         assert abs(volume(P, mu.F) / mu.volume_rest - 1.0) < 1e-12
 
 
-@pytest.mark.parametrize("above", [0.0, 0.25, np.inf])
+@pytest.mark.parametrize("above", [0.0, 0.25, 2.0])
 def test_the_plate_takes_only_the_fine_steps_deeper_than_its_bound(monkeypatch, above):
-    """``muscle_plate_above``: with the plate on, a round's fine step is a plate only where
-    the muscle is deeper than that many mean edges; shallower, `nudge` as without it. Each
-    fine step's choice checked against the depths the round started from."""
+    """With the plate on, a round's fine step is a plate only where the muscle is deeper
+    than ``muscle_fine_depth`` mean edges (and no deeper than ``muscle_plate_depth``);
+    shallower, `nudge` as without it. Each fine step's choice checked against the depths
+    the round started from."""
     import dataclasses
 
     import musclewrap.solver._together as together
     from musclewrap.constants import defaults
 
     monkeypatch.setattr(together, "defaults", dataclasses.replace(
-        defaults, muscle_fine_plate=True, muscle_fine_depth=2.0, muscle_plate_above=above))  # fmt: skip
+        defaults, muscle_fine_plate=True, muscle_fine_depth=above, muscle_plate_depth=2.0))  # fmt: skip
     asked, expected = [], []
     push, deepest = together.push_apart, together._Rounds._deepest
 

@@ -18,8 +18,9 @@ muscle) and prints the largest shape change (and on how many frames it exceeds 0
   leave it): 5, 10, 15 (default) and 25 mm, and 1000 mm (every face: the nearest way out), on
   `examples/gait2392_walk.toml`'s worst frames (50, 125, 200; the rectus femoris 14.9 mm into
   the vastus lateralis without muscle contact), every muscle checked against the others;
-- ``fine`` (``muscle_fine_depth``, where the muscles' rounds hand over from cage steps to the
-  fine vertices, `musclewrap.contact.nudge`): 0 (cage steps only), 0.25 (default), 0.5 and 1
+- ``fine`` (``muscle_fine_depth``, where the muscles' rounds hand over from `nudge` on the
+  fine vertices to the next step: `press`'s plate to ``muscle_plate_depth`` with
+  ``muscle_fine_plate``, as by default, else the cage): 0 (no `nudge`), 0.25 (default), 0.5 and 1
   mean edges, on `examples/lhdl_walk.toml` every 5th frame, every one checked, with the
   overlap searches per frame (each round one; the cost of the rounds goes with them);
 - ``points`` (``contact_points_per_cage_vertex``, another muscle's vertices standing in a muscle

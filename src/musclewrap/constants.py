@@ -352,33 +352,33 @@ class Defaults:
         See ``muscle_finish_retry``.
     muscle_fine_depth : float
         A muscle no deeper than this many of its mean edge lengths inside another
-        (nor the other in it) takes its round on its fine vertices
-        (`press`'s plate past ``muscle_plate_above``, `musclewrap.contact.nudge` below
-        it or with ``muscle_fine_plate`` off), not by a step of its cage. 2 since
-        2026-12-04 (0.25 before, where `nudge` took the fine steps: past a quarter edge
-        its harmonic spread creased, frame 716 of the leg at the OpenCap squat's bottom
-        to a shape change of 1.85).
+        (nor the other in it) takes its round on its fine vertices by `nudge`
+        (`musclewrap.contact.nudge`), not by a step of its cage; deeper, to
+        ``muscle_plate_depth``, by `press`'s plate with ``muscle_fine_plate``. Past a
+        quarter edge `nudge`'s harmonic spread creases (fine steps to 2 edges by
+        `nudge`: frame 716 of the leg at the OpenCap squat's bottom to a shape change
+        of 1.85, BENCHMARKS.md, "The squat's bottom, round by round").
     muscle_fine_plate : bool
-        A round's fine step deeper than ``muscle_plate_above`` moves the vertices as a
-        thin plate that meets one-sided pushes (`musclewrap.contact.press`: the least
-        change of the uniform Laplacian, what the shape change measures) rather than by
-        `nudge`'s harmonic spread of each vertex's longest push (the rest state's
-        rounds, `apart_at_rest`, keep `nudge` either way). On since 2026-12-04
-        (BENCHMARKS.md, "The plate past a quarter edge, switched on").
-    muscle_plate_above : float
-        With ``muscle_fine_plate``, the plate takes only the fine steps of a muscle
-        deeper than this many of its mean edges (in another, or another in it); the
-        shallower ones keep `nudge`. 0.25 (BENCHMARKS.md, "The plate past a quarter
-        edge, switched on"; one sitting, against the plate off and fine steps to 0.25):
-        the stacked leg at the OpenCap squat's bottom (15 frames, 690-760) leaves three
-        frames over 0.5 mm in another muscle (0.578 at most; off, six, up to 2.17) and
-        four at the rounds' cap (off, six), but two change shape past 0.5 (0.505 and
-        0.804, the bones' finish after the rounds; off, 0.433 at most); the 18 muscles'
-        walk every 10th frame 37.1 s against 41.4 s (rounds a frame: a median of 2
-        against 6); the LHDL walk 16.2 against 15.8 s. At 0 (the plate on every fine
-        step) the LHDL walk's frame 179 took 11 rounds (psoas and iliacus 0.1 edges
-        apart, a plate each round taking them a hundredth of an edge further) and the
-        walk 14 % longer.
+        A round's fine step deeper than ``muscle_fine_depth`` and no deeper than
+        ``muscle_plate_depth`` moves the vertices as a thin plate that meets one-sided
+        pushes (`musclewrap.contact.press`: the least change of the uniform Laplacian,
+        what the shape change measures); off, such a muscle takes a step of its cage, as
+        until 2026-12-04 (the rest state's rounds, `apart_at_rest`, keep `nudge` either
+        way). On since 2026-12-04 (BENCHMARKS.md, "The plate past a quarter edge,
+        switched on"; one sitting, against it off): the stacked leg at the OpenCap
+        squat's bottom (15 frames, 690-760) leaves three frames over 0.5 mm in another
+        muscle (0.578 at most; off, six, up to 2.17) and four at the rounds' cap (off,
+        six), but two change shape past 0.5 (0.505 and 0.804, the bones' finish after
+        the rounds; off, 0.433 at most); the 18 muscles' walk every 10th frame 37.1 s
+        against 41.4 s (rounds a frame: a median of 2 against 6); the LHDL walk 16.2
+        against 15.8 s.
+    muscle_plate_depth : float
+        With ``muscle_fine_plate``, the deepest a muscle may be (mean edges, in another
+        or another in it) for its round to be a plate; deeper, a step of its cage.
+        Either side of ``muscle_fine_depth`` (BENCHMARKS.md, as above): the plate on
+        every fine step (``muscle_fine_depth = 0``) took the LHDL walk's frame 179 to
+        11 rounds (psoas and iliacus 0.1 edges apart, each plate taking them about a
+        hundredth of an edge further) and the walk 14 % longer.
     muscle_plate_weight : float
         How strongly `press` holds its pushes against the plate's bending (a penalty
         beside the Laplacian's rows, whose entries are of order 1): at 100 a push is met
@@ -587,9 +587,9 @@ class Defaults:
     muscle_joint_points: int = 3
     muscle_joint_conditions: int = 2000
     muscle_overlap_depth: float = 0.05
-    muscle_fine_depth: float = 2.0
+    muscle_fine_depth: float = 0.25
     muscle_fine_plate: bool = True
-    muscle_plate_above: float = 0.25
+    muscle_plate_depth: float = 2.0
     muscle_plate_weight: float = 100.0
     muscle_plate_sets: int = 30
     muscle_plate_iterations: int = 15

@@ -250,15 +250,18 @@ class _Rounds:
             d = self.deformers[n]
             if worst[n] <= defaults.muscle_overlap_depth:
                 continue  # out already (to the tolerance): no step
-            if worst[n] <= defaults.muscle_fine_depth:
-                # a fraction of an edge: the fine vertices themselves (the cage cannot take a
-                # few vertices out without moving their whole region)
+            # a fraction of an edge: the fine vertices themselves (the cage cannot take a few
+            # vertices out without moving their whole region); deeper, to a few edges, a plate
+            plate = defaults.muscle_fine_plate and (
+                defaults.muscle_fine_depth < worst[n] <= defaults.muscle_plate_depth
+            )
+            if worst[n] <= defaults.muscle_fine_depth or plate:
                 m = met[n].rotated(self.frames.get(n))  # the ways out in the muscle's frame
                 Vn = push_apart(
                     self.state[n][1], d.muscle.F, d.muscle.adjacency, m, self.surf[n][0],
                     volume_target=d.muscle.volume_rest, edge=d._fine_edge,
                     shape_rest=d.muscle.umbrella_rest_lengths, umbrella=d.muscle.umbrella,
-                    plate=defaults.muscle_fine_plate and worst[n] > defaults.muscle_plate_above,
+                    plate=plate,
                 )  # fmt: skip
                 if Vn is not None:
                     new[n] = (self.state[n][0], Vn)
