@@ -908,3 +908,45 @@ def test_a_frame_is_the_same_bytes_alone_or_in_a_chunk_of_fifty(data_dir, tmp_pa
     # two workers: two chunks of 25 (`chunks`), the frame the first of the second
     assert chunks(50, 1, 2) == [range(0, 25), range(25, 50)]
     assert run("two", f"{frame - 25}:{frame + 25}", 2) == alone
+
+
+def test_a_rounds_cage_step_holds_what_it_would_push_into_a_bone(capsule_muscle, monkeypatch):
+    """A round's cage step (another muscle pushing) swings the surface into a bone further on,
+    where no vertex was near enough to hold a condition: tried, those vertices held, and the
+    step taken again keeps them nearly out, the push met as before, the volume exact."""
+    import dataclasses
+
+    import musclewrap.solver._contact as steps
+    from musclewrap.constants import defaults
+    from musclewrap.contact import Placed
+    from musclewrap.mesh import volume
+
+    rest = {"a": [[0.0, 0.0, 0.0], [0.0, 0.0, 200.0]]}
+    d = capsule_muscle.bind(rest)
+    r = d.deform(rest)
+    # a bone 5 clear of the capsule's +x side, from z = 135 on (the band holds 2 edges, 6.4)
+    slab = Obstacle(*_box([25.0, -300.0, 135.0], [400.0, 300.0, 500.0]))
+    placed = [Placed(slab, name="slab")]
+    # the -x side pushed 40 along +x over z = 70..130 (by another muscle)
+    rows = np.flatnonzero((r.V[:, 0] < -15.0) & (np.abs(r.V[:, 2] - 100.0) < 30.0))
+    need, out = np.full(len(rows), 40.0), np.tile([1.0, 0.0, 0.0], (len(rows), 1))
+
+    def step(tries):
+        monkeypatch.setattr(
+            steps, "defaults", dataclasses.replace(defaults, contact_round_held=tries)
+        )
+        _, P = d.contact_round(r.cage, r.V, rows, need, out, obstacles=placed, margin=0.0)
+        assert abs(volume(P, d.muscle.F) / volume(r.V, d.muscle.F) - 1.0) <= 1e-9
+        return P, slab.measure(P)[1], float((P[rows, 0] - r.V[rows, 0]).min())
+
+    P0, deep0, met0 = step(0)
+    P, deep, met = step(defaults.contact_round_held)
+    assert deep0 > 2.0  # as first tried: its swing 2.1 into the slab
+    assert deep <= 0.45 * deep0  # held: 0.8 (soft conditions, one a cage vertex)
+    assert met >= 0.95 * met0 > 10.0  # the push met as far (14.3 against 14.5)
+    # nothing held where the try put nothing in: a bone beyond its reach changes no byte
+    far = [Placed(Obstacle(*_box([60.0, -300.0, 135.0], [400.0, 300.0, 500.0])), name="far")]
+    monkeypatch.setattr(steps, "defaults", defaults)
+    got = d.contact_round(r.cage, r.V, rows, need, out, obstacles=far, margin=0.0)
+    monkeypatch.setattr(steps, "defaults", dataclasses.replace(defaults, contact_round_held=0))
+    assert np.array_equal(got[1], d.contact_round(r.cage, r.V, rows, need, out, obstacles=far)[1])

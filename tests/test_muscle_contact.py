@@ -1246,3 +1246,55 @@ def test_the_plate_takes_only_the_fine_steps_deeper_than_its_bound(monkeypatch, 
     if above == 0.25:
         assert True in asked and False in asked  # both sides of the bound taken here
     _apart(res, ds, 0.05)
+
+
+def test_muscles_stepped_together_hold_what_their_step_would_push_into_a_bone(monkeypatch):
+    """A joint round's step (a muscle pressed deep into a long one) swings the long one into a
+    bone 2 clear of it, where its vertices lost their place to the contact's deeper conditions
+    (one a cage vertex): tried, those held, and the step taken again keeps them nearly out,
+    both muscles moved as far."""
+    import dataclasses
+
+    import musclewrap.solver._contact as steps
+    import musclewrap.solver._group as group
+    from musclewrap.constants import defaults
+    from musclewrap.contact import Obstacle, Placed
+    from musclewrap.solver import Muscle
+    from musclewrap.solver._together import _Rounds, facing_at_rest
+    from test_contact import _box
+
+    V, F = capsule(n_around=48, cap_rings=10, segments=50)  # radius 20, z = 0..200
+    axis = {"l": [[0.0, 0.0, 0.0], [0.0, 0.0, 200.0]]}
+    Vb, Fb = capsule(radius=15.0, length=10.0, n_around=32, cap_rings=8, segments=6)
+    Vb = Vb + [-36.0, 0.0, 80.0]  # beside it at z = 80..120, 1 clear
+    ds = {
+        "a": Muscle.from_mesh(V, F, cage_size=200).bind(axis),
+        "b": Muscle.from_mesh(Vb, Fb, cage_size=120).bind(
+            {"l": [[-36.0, 0.0, 80.0], [-36.0, 0.0, 120.0]]}
+        ),
+    }
+    # b's line drawn onto a's axis: 35 deep into a; a bone 2 clear of a's far side from z = 125
+    lines = {"a": axis, "b": {"l": [[0.0, 0.0, 80.0], [0.0, 0.0, 120.0]]}}
+    slab = [Placed(Obstacle(*_box([22.0, -300.0, 125.0], [400.0, 300.0, 500.0])), name="slab")]
+
+    def round_(tries):
+        d = dataclasses.replace(defaults, contact_round_held=tries)
+        monkeypatch.setattr(group, "defaults", d)
+        monkeypatch.setattr(steps, "defaults", d)
+        results = {
+            n: m.deform(lines[n], obstacles=slab if n == "a" else None, finish=False)
+            for n, m in ds.items()
+        }
+        rounds = _Rounds(ds, results, {}, {"a": slab}, 0.0, {}, facing_at_rest(ds), None, True)
+        _, found, met, worst = rounds._deepest()
+        assert min(worst.values()) > 5.0  # mean edges into each other: a cage step each
+        new = rounds._round(found, met, worst)
+        moved = {n: float(np.abs(new[n][1] - results[n].V).max()) for n in ds}
+        return slab[0].obstacle.measure(new["a"][1])[1], moved
+
+    deep0, moved0 = round_(0)
+    deep, moved = round_(defaults.contact_round_held)
+    assert deep0 > 3.0  # as first tried: 3.6 into the bone
+    assert deep <= 0.35 * deep0  # held: 0.9
+    for n in ds:
+        assert moved[n] == pytest.approx(moved0[n], rel=0.05)

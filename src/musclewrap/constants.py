@@ -418,6 +418,12 @@ class Defaults:
         `press` leaves out the pushes that disagree (a vertex whose pushes cancel by
         more than half, or neighbours pushed opposite ways) instead of refusing the
         step at its rise bound; the cage takes them. Off.
+    contact_round_held : int
+        A round's cage step (`Deformer.contact_round`, `joint_round`) is tried, and the
+        vertices it put into a bone (more than ``contact_cage_depth`` mean edges, and
+        deeper than before by as much) are held by conditions of their own beside the
+        deepest of each cage vertex, in the step taken again (`Deformer._stepped_in`),
+        at most this many times (0: the step as first tried).
     muscle_step_reach : float
         A round's cage step moves no fine vertex of its muscle further than this many
         times its deepest need (the step scaled down to it; ``contact_cage_reach`` holds
@@ -598,6 +604,7 @@ class Defaults:
     muscle_plate_shape: float = 0.45
     muscle_plate_spread: float = 1.0
     muscle_plate_drop: bool = False
+    contact_round_held: int = 2
     muscle_step_reach: float = 1.0
     muscle_finish_retry: float = 0.25
     muscle_finish_passes: int = 3

@@ -102,8 +102,67 @@ class ContactSteps:
         if not len(idx) and extra is None:
             return x, V
         idx = np.asarray(idx, dtype=np.int64)
-        step = self._cage_step(x, V, idx, gap, N, slack, extra, far=far)
+        tried: list[FloatArray] = []
+        step = self._cage_step(x, V, idx, gap, N, slack, extra, far=far, tried=tried)
+        held = None
+        for _ in range(defaults.contact_round_held if step is not None and obstacles else 0):
+            # what the step put into a bone, held (the deepest condition of each cage vertex
+            # alone took its place), and the step again from where it started
+            held = self._stepped_in(
+                V, step[1], tried[-1], placed, margin, near, sides, bi, bg, held
+            )
+            if held is None:
+                break
+            again = self._cage_step(
+                x, V, idx, gap, N, slack, extra, far=far, held=held, tried=tried
+            )  # fmt: skip
+            if again is None:
+                break
+            step = again
         return (x, V) if step is None else step
+
+    def _stepped_in(
+        self,
+        V: FloatArray,
+        P: FloatArray,
+        dx: FloatArray,
+        placed: Sequence[Placed],
+        margin: float,
+        near: Near,
+        sides: SideReference | None,
+        rows: IntArray,
+        gaps: FloatArray,
+        held: tuple[IntArray, FloatArray, FloatArray, FloatArray] | None = None,
+    ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray] | None:
+        """The vertices a trial step from ``V`` to ``P`` put into a bone, as conditions at ``V``.
+
+        Those more than ``defaults.contact_cage_depth`` mean edges too near a bone at
+        ``P`` and nearer than at ``V`` by as much (``rows``, ``gaps``: the bones'
+        candidates at ``V``; a vertex not among them was at least their band away).
+        Each condition linearised at ``P`` and taken back to ``V``: its gap there less
+        what the trial's linear step ``dx`` (`cage_push`'s, before the volume is
+        restored along ``-H^-1 g``: that part, a swelling of the whole muscle, comes
+        again with the next try) moved it along the bone's way out. Returns ``(rows, gap, N,
+        rank)`` for `cage_push`'s ``held`` (``rank``: the gap at ``P``), after the
+        conditions ``held`` of the tries before; None where the step put none in (a
+        step held in one place can swing the surface into a bone further on: the next
+        try holds that too, ``defaults.contact_round_held`` tries at most).
+        """
+        deep = defaults.contact_cage_depth * self._fine_edge
+        pi, pg, pn = contact_candidates(P, placed, margin, 0.0, near, sides)
+        if not len(pi) or not (pg < -deep).any():
+            return None
+        before = np.full(len(V), defaults.contact_band * self._fine_edge)
+        np.minimum.at(before, rows, gaps)
+        take = (pg < -deep) & (pg < before[pi] - deep)
+        if not take.any():
+            return None
+        pi, pg, pn = pi[take], pg[take], pn[take]
+        moved = np.einsum("ij,ij->i", pn, self.muscle.W[pi] @ dx)
+        new = (pi, pg - moved, pn, pg)
+        if held is None:
+            return new
+        return tuple(np.concatenate([a, b]) for a, b in zip(held, new, strict=True))  # type: ignore[return-value]
 
     def ironed(
         self,
@@ -318,12 +377,15 @@ class ContactSteps:
         points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
         own: bool = False,
         far: float | None = None,
+        held: tuple[IntArray, FloatArray, FloatArray, FloatArray] | None = None,
+        tried: list[FloatArray] | None = None,
     ) -> tuple[FloatArray, FloatArray] | None:
         """One contact step of the cage (`cage_push`), ended on the exact fine volume.
 
         ``own``: each condition softened by its own diagonal (`cage_push`); ``far``: as
-        `_end_step`'s. None where it moves nothing or the volume cannot be restored
-        along ``-H^-1 g``.
+        `_end_step`'s; ``held``: `cage_push`'s; ``tried``: `cage_push`'s step appended
+        to it. None where it moves nothing or the volume cannot be restored along
+        ``-H^-1 g``.
         """
         mu = self.muscle
         # the volume's direction at this step's own cage: one kept through a pose's steps,
@@ -332,8 +394,10 @@ class ContactSteps:
         g, Hg = self._volume_direction(x)
         dx = cage_push(
             mu.W, self._Hinv, g, Hg, idx, gap, N, self._dominant, slack=slack, points=points,
-            own=own,
+            own=own, held=held,
         )  # fmt: skip
+        if tried is not None:
+            tried.append(dx)
         need = float(max(-gap.min(initial=0.0), 0.0))
         if points is not None:
             need = max(need, float(-points[1].min()))

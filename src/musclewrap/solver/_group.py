@@ -16,6 +16,7 @@ volume as its own steps are (`ContactSteps._end_step`).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -25,7 +26,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
-from ..contact import Overlap, contact_candidates
+from ..contact import Overlap, as_placed, contact_candidates
 from ._deformer import Deformer
 from ._step import _deepest_per_group
 
@@ -150,6 +151,45 @@ def joint_round(
         )
         for n in names
     }
+    tried: dict[str, FloatArray] = {}
+    out = _joint_step(deformers, state, surf, found, names, frames, pools, share, far, tried)
+    for _ in range(defaults.contact_round_held):
+        # what the step put into a bone, held (the deepest condition of each cage vertex
+        # alone took its place), and the step again from where it started
+        again = False
+        for n in names:
+            pool, obs = pools[n], obstacles.get(n)
+            if pool is None or not obs or out[n] is state[n]:
+                continue
+            held = deformers[n]._stepped_in(
+                state[n][1], out[n][1], tried[n], as_placed(obs), margin, nears.get(n),
+                sides.get(n), *pool.bones, pool.held,
+            )  # fmt: skip
+            if held is not None:
+                pools[n] = dataclasses.replace(pool, held=held)
+                again = True
+        if not again:
+            break
+        out = _joint_step(deformers, state, surf, found, names, frames, pools, share, far, tried)
+    return out
+
+
+def _joint_step(
+    deformers: Mapping[str, Deformer],
+    state: Mapping[str, tuple[FloatArray, FloatArray]],
+    surf: Mapping[str, tuple[FloatArray, IntArray]],
+    found: Mapping[str, Sequence[Overlap]],
+    names: Sequence[str],
+    frames: Mapping[str, FloatArray | None],
+    pools: Mapping[str, _Pool | None],
+    share: float,
+    far: float | None,
+    tried: dict[str, FloatArray],
+) -> dict[str, tuple[FloatArray, FloatArray]]:
+    """`joint_round`'s step on the conditions of ``pools``: each muscle's new cage and vertices.
+
+    ``tried``: each muscle's linear cage step (`_solve`'s, before its volume) put in it.
+    """
     got = _select(deformers, surf, found, names, frames, pools, share, defaults.muscle_joint_points)
     if got.count > defaults.muscle_joint_conditions:
         # a large group (the dense solve costs the cube of its conditions): one a cage vertex
@@ -166,6 +206,7 @@ def joint_round(
         if n not in dxs:
             continue
         dx, Hg = dxs[n]
+        tried[n] = dx
         d = deformers[n]
         x, V = state[n]
         idx = np.concatenate(own_rows[n]) if own_rows[n] else np.zeros(0, dtype=np.int64)
@@ -183,7 +224,9 @@ class _Pool:
     Per candidate: its fine vertex ``rows``, gap ``G``, way out ``N`` (the muscle's
     frame), the overlap it came from ``S`` and its place there ``P`` (-1: no partner
     in the group), and ``lead``: the partner's cage vertex that leads the point behind
-    it, numbered apart per muscle (-1: none).
+    it, numbered apart per muscle (-1: none). ``bones``: the rows and gaps of the
+    bones' candidates among them; ``held``: conditions a first try of the step showed
+    were needed (`Deformer._stepped_in`), beside the others.
     """
 
     rows: IntArray
@@ -192,6 +235,8 @@ class _Pool:
     P: IntArray
     S: IntArray
     lead: IntArray
+    bones: tuple[IntArray, FloatArray] = (np.zeros(0, dtype=np.int64), np.zeros(0))
+    held: tuple[IntArray, FloatArray, FloatArray, FloatArray] | None = None
 
 
 def _candidates(
@@ -224,6 +269,7 @@ def _candidates(
         N.append(_to_muscle(R, o.out))
         partner.append(np.arange(len(o.rows)) if whole else np.full(len(o.rows), -1))
     obs = obstacles.get(n)
+    bones = (np.zeros(0, dtype=np.int64), np.zeros(0))
     if obs:
         bi, bg, bn = contact_candidates(
             state[n][1], obs, margin, defaults.contact_band * edge, nears.get(n), sides.get(n)
@@ -232,6 +278,7 @@ def _candidates(
         gap.append(bg)
         N.append(bn)
         partner.append(np.full(len(bi), -1))
+        bones = (bi, bg)
     if not idx:
         return None
     # which overlap each vertex condition came from (to find its partner's point)
@@ -246,8 +293,9 @@ def _candidates(
             rows = mb.W[mb.F[o.face[P[sel]]]].sum(axis=1)
             lead[sel] = np.argmax(np.abs(rows), axis=1) + names.index(o.other) * (1 << 32)
     return _Pool(
-        np.concatenate(idx).astype(np.int64), np.concatenate(gap), np.vstack(N), P, S, lead
-    )
+        np.concatenate(idx).astype(np.int64), np.concatenate(gap), np.vstack(N), P, S, lead,
+        bones,
+    )  # fmt: skip
 
 
 def _select(
@@ -294,6 +342,16 @@ def _select(
             owner.append(np.full(len(rows_), k))
             own_rows[n].append(rows_)
             need[n] = max(need[n], float((slack - G_).max(initial=0.0)))
+            if pool.held is not None:
+                # one a cage vertex of their own (the deepest where the trial put them)
+                hr, hg, hn, rank = pool.held
+                hp = _deepest_per_group(rank, d._dominant[hr], 1)
+                hids = counts + np.arange(len(hp))
+                counts += len(hp)
+                terms[n].add(d.muscle.W[hr[hp]], hn[hp], 1.0, hids)
+                r_all.append(slack - hg[hp])
+                slack_all.append(np.full(len(hp), slack))
+                owner.append(np.full(len(hp), k))
             # the partners' parts: the point of the other's surface behind the vertex
             for j, o in enumerate(found.get(n, ())):
                 sel = np.flatnonzero((S_ == j) & (P_ >= 0))

@@ -67,6 +67,7 @@ def cage_push(
     max_sets: int = 4,
     points: tuple[FloatArray, FloatArray, FloatArray] | None = None,
     own: bool = False,
+    held: tuple[IntArray, FloatArray, FloatArray, FloatArray] | None = None,
 ) -> FloatArray:
     """The cage displacement of least energy that takes fine vertices off the obstacles.
 
@@ -106,6 +107,11 @@ def cage_push(
         of the conditions' Gram matrix, not the mean diagonal of all: a stiff one (a
         vertex the cage moves only at a high energy, pinned by its line) is met as far
         as a supple one (the later steps of a call, ``defaults.contact_stiff_from``).
+    held : (rows, gap, N, rank), optional
+        Vertex conditions as ``idx``, ``gap``, ``N`` that do not compete with those
+        for their group's one place: one a group of their own (the least ``rank``)
+        joins the pool beside it. What a first try of the step put into a bone where
+        a deeper condition held the group's place (`Deformer._stepped_in`).
 
     Returns
     -------
@@ -119,6 +125,12 @@ def cage_push(
     # one candidate per group: the nearest (most negative gap)
     pool = _deepest_per_group(gap, group[idx], 1)
     rows, r, Nn = idx[pool], slack - gap[pool], N[pool]
+    if held is not None and len(held[0]):
+        hr, hg, hn, rank = held
+        hp = _deepest_per_group(rank, group[hr], 1)
+        rows = np.concatenate([rows, hr[hp]])
+        r = np.concatenate([r, slack - hg[hp]])
+        Nn = np.vstack([Nn, hn[hp]])
     Wr = W[rows]
     if extra:
         assert points is not None
