@@ -423,7 +423,11 @@ class Defaults:
         vertices it put into a bone (more than ``contact_cage_depth`` mean edges, and
         deeper than before by as much) are held by conditions of their own beside the
         deepest of each cage vertex, in the step taken again (`Deformer._stepped_in`),
-        at most this many times (0: the step as first tried).
+        at most this many times (0: the step as first tried, as until 2026-12-04). The
+        19-muscle leg at the OpenCap squat's bottom (15 frames, one sitting; BENCHMARKS.md,
+        "A round's step held off the bones"), frames within every bound / past 0.5 of
+        shape change / seconds: 0 tries 10 / 2 / 102, 1 try 14 / 1 / 129, 2 tries 14 / 0
+        / 156, 3 tries 14 / 0 / 198.
     muscle_step_reach : float
         A round's cage step moves no fine vertex of its muscle further than this many
         times its deepest need (the step scaled down to it; ``contact_cage_reach`` holds
