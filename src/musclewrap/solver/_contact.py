@@ -43,7 +43,7 @@ from ..mesh import (
     volume_gradient,
 )
 from ._result import DeformationResult
-from ._step import cage_push
+from ._step import cage_push, held_changed
 
 __all__ = ["ContactSteps"]
 
@@ -108,11 +108,13 @@ class ContactSteps:
         for _ in range(defaults.contact_round_held if step is not None and obstacles else 0):
             # what the step put into a bone, held (the deepest condition of each cage vertex
             # alone took its place), and the step again from where it started
-            held = self._stepped_in(
+            grown = self._stepped_in(
                 V, step[1], tried[-1], placed, margin, near, sides, bi, bg, held
             )
-            if held is None:
+            if grown is None or not held_changed(held, grown, self._dominant):
+                # none put in, or held as the last try held them: the same step again
                 break
+            held = grown
             again = self._cage_step(
                 x, V, idx, gap, N, slack, extra, far=far, held=held, tried=tried
             )  # fmt: skip

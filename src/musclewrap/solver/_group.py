@@ -28,7 +28,7 @@ from .._typing import FloatArray, IntArray
 from ..constants import defaults, tol
 from ..contact import Overlap, as_placed, contact_candidates
 from ._deformer import Deformer
-from ._step import _deepest_per_group
+from ._step import _deepest_per_group, held_changed, held_choice
 
 __all__ = ["joint_round", "overlap_groups"]
 
@@ -166,8 +166,9 @@ def joint_round(
                 sides.get(n), *pool.bones, pool.held,
             )  # fmt: skip
             if held is not None:
+                # a try whose held conditions choose as the last did gives its step again
+                again |= held_changed(pool.held, held, deformers[n]._dominant)
                 pools[n] = dataclasses.replace(pool, held=held)
-                again = True
         if not again:
             break
         out = _joint_step(deformers, state, surf, found, names, frames, pools, share, far, tried)
@@ -344,8 +345,8 @@ def _select(
             need[n] = max(need[n], float((slack - G_).max(initial=0.0)))
             if pool.held is not None:
                 # one a cage vertex of their own (the deepest where the trial put them)
-                hr, hg, hn, rank = pool.held
-                hp = _deepest_per_group(rank, d._dominant[hr], 1)
+                hr, hg, hn, _ = pool.held
+                hp = held_choice(pool.held, d._dominant)
                 hids = counts + np.arange(len(hp))
                 counts += len(hp)
                 terms[n].add(d.muscle.W[hr[hp]], hn[hp], 1.0, hids)

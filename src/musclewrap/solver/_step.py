@@ -53,6 +53,30 @@ def _deepest_per_group(gap: FloatArray, group: IntArray, k: int) -> IntArray:
     return order[rank < k]
 
 
+def held_choice(
+    held: tuple[IntArray, FloatArray, FloatArray, FloatArray], group: IntArray
+) -> IntArray:
+    """Which of the ``held`` conditions a step takes: the least rank of each group.
+
+    ``held`` as `cage_push`'s, ``group`` a group per fine vertex. A later try's held
+    conditions extend the earlier's (`Deformer._stepped_in`): where they choose the same
+    rows, the step they give is the one given before, bit for bit.
+    """
+    hr, _, _, rank = held
+    return _deepest_per_group(rank, group[hr], 1)
+
+
+def held_changed(
+    before: tuple[IntArray, FloatArray, FloatArray, FloatArray] | None,
+    after: tuple[IntArray, FloatArray, FloatArray, FloatArray],
+    group: IntArray,
+) -> bool:
+    """Whether ``after`` (``before`` extended) chooses other conditions than ``before``."""
+    return before is None or not np.array_equal(
+        held_choice(before, group), held_choice(after, group)
+    )
+
+
 def cage_push(
     W: FloatArray,
     Hinv: FloatArray,
@@ -126,8 +150,8 @@ def cage_push(
     pool = _deepest_per_group(gap, group[idx], 1)
     rows, r, Nn = idx[pool], slack - gap[pool], N[pool]
     if held is not None and len(held[0]):
-        hr, hg, hn, rank = held
-        hp = _deepest_per_group(rank, group[hr], 1)
+        hr, hg, hn, _ = held
+        hp = held_choice(held, group)
         rows = np.concatenate([rows, hr[hp]])
         r = np.concatenate([r, slack - hg[hp]])
         Nn = np.vstack([Nn, hn[hp]])
