@@ -141,6 +141,108 @@ def _smooth(indptr, indices, D, rows, sweeps, keep):  # noqa: ANN001, ANN202 # p
             D[v, 0], D[v, 1], D[v, 2] = new[q, 0], new[q, 1], new[q, 2]
 
 
+@numba.njit(cache=True)
+def _plate_cg_kernel(  # noqa: PLR0913
+    up, ui, ud, tp, ti, td, cp, ci, cd, kp, ki, kd, on, w, b, x0, jac, maxiter, rtol
+):  # noqa: ANN001, ANN202 # pragma: no cover
+    # Jacobi-preconditioned conjugate gradients on (I3 (x) Us^T Us + 1e-9 + w C^T on C) x = b,
+    # from x0, as scipy's `cg` iterates (its stop: |r| < rtol |b|); `_plate`'s matrix-free
+    # system, each product over the CSR arrays of Us (up, ui, ud), Us^T (tp, ...), C, C^T
+    n = b.shape[0]
+    m = n // 3
+    rows = up.shape[0] - 1
+    k = cp.shape[0] - 1
+    x = np.empty(n)
+    for i in range(n):
+        x[i] = x0[i]
+    tmp = np.empty(3 * rows)
+    cx = np.empty(k)
+    q = np.empty(n)
+
+    def product(v, out):  # noqa: ANN001, ANN202
+        for r in range(rows):
+            s0 = s1 = s2 = 0.0
+            for p in range(up[r], up[r + 1]):
+                j = 3 * ui[p]
+                s0 += ud[p] * v[j]
+                s1 += ud[p] * v[j + 1]
+                s2 += ud[p] * v[j + 2]
+            tmp[3 * r], tmp[3 * r + 1], tmp[3 * r + 2] = s0, s1, s2
+        for c in range(k):
+            s = 0.0
+            for p in range(cp[c], cp[c + 1]):
+                s += cd[p] * v[ci[p]]
+            cx[c] = on[c] * s
+        for i in range(m):
+            s0 = s1 = s2 = 0.0
+            for p in range(tp[i], tp[i + 1]):
+                j = 3 * ti[p]
+                s0 += td[p] * tmp[j]
+                s1 += td[p] * tmp[j + 1]
+                s2 += td[p] * tmp[j + 2]
+            out[3 * i] = s0 + 1e-9 * v[3 * i]
+            out[3 * i + 1] = s1 + 1e-9 * v[3 * i + 1]
+            out[3 * i + 2] = s2 + 1e-9 * v[3 * i + 2]
+        for i in range(n):
+            s = 0.0
+            for p in range(kp[i], kp[i + 1]):
+                s += kd[p] * cx[ki[p]]
+            out[i] += w * s
+
+    bnrm = 0.0
+    for i in range(n):
+        bnrm += b[i] * b[i]
+    bnrm = np.sqrt(bnrm)
+    if bnrm == 0.0:
+        for i in range(n):
+            x[i] = b[i]
+        return x
+    atol = rtol * bnrm
+    r = np.empty(n)
+    nonzero = False
+    for i in range(n):
+        if x[i] != 0.0:
+            nonzero = True
+            break
+    if nonzero:
+        product(x, q)
+        for i in range(n):
+            r[i] = b[i] - q[i]
+    else:
+        for i in range(n):
+            r[i] = b[i]
+    z = np.empty(n)
+    p_ = np.empty(n)
+    rho_prev = 1.0
+    for it in range(maxiter):
+        rn = 0.0
+        for i in range(n):
+            rn += r[i] * r[i]
+        if np.sqrt(rn) < atol:
+            break
+        rho = 0.0
+        for i in range(n):
+            z[i] = jac[i] * r[i]
+            rho += r[i] * z[i]
+        if it > 0:
+            beta = rho / rho_prev
+            for i in range(n):
+                p_[i] = beta * p_[i] + z[i]
+        else:
+            for i in range(n):
+                p_[i] = z[i]
+        product(p_, q)
+        pq = 0.0
+        for i in range(n):
+            pq += p_[i] * q[i]
+        alpha = rho / pq
+        for i in range(n):
+            x[i] += alpha * p_[i]
+            r[i] -= alpha * q[i]
+        rho_prev = rho
+    return x
+
+
 def triangle_pushes(C: FloatArray, T: FloatArray, v: FloatArray) -> FloatArray:
     """The least displacements of the corners of triangles that carry points of them by ``v``.
 
@@ -853,7 +955,9 @@ def _plate(Us: sp.csr_matrix, C: sp.csr_matrix, a: FloatArray, w: float, edge: f
     conjugate-gradient iterations from the last ``D`` (Jacobi-preconditioned), as a
     direction, and goes along it as far as the objective falls (halving from the whole
     step: the plain active-set iteration, every step taken whole, cycles where the pushes
-    interact, a bi-Laplacian being no M-matrix). It stops where a step keeps its set and
+    interact, a bi-Laplacian being no M-matrix). The iterations are compiled
+    (`_plate_cg_kernel`: scipy's `cg` on a `LinearOperator` spent more on its calls than on
+    the products, 14.6 of a muscle-frame's 46 ms of contact on the LHDL walk, BENCHMARKS.md). It stops where a step keeps its set and
     is taken whole, where it moves no unknown by more than ``defaults.muscle_plate_still``
     mean edges, or after ``defaults.muscle_plate_sets`` steps. Matrix-free: a sparse
     factorisation of the coupled plate cost 0.02-0.7 s a step on the 18 muscles' regions
@@ -866,6 +970,12 @@ def _plate(Us: sp.csr_matrix, C: sp.csr_matrix, a: FloatArray, w: float, edge: f
     CT = C.T.tocsr()
     base = np.repeat(np.asarray(Us.multiply(Us).sum(axis=0)).ravel(), 3) + 1e-9
     C2 = C.multiply(C).tocsr()
+    # the CSR arrays of the conjugate gradients' products, as the kernel takes them
+    csr = [
+        np.ascontiguousarray(arr, dtype=dt)
+        for M in (Us, UsT, C, CT)
+        for arr, dt in ((M.indptr, np.int64), (M.indices, np.int64), (M.data, np.float64))
+    ]
 
     def bend(D: FloatArray) -> FloatArray:
         return (UsT @ (Us @ D.reshape(m, 3))).ravel() + 1e-9 * D
@@ -880,19 +990,11 @@ def _plate(Us: sp.csr_matrix, C: sp.csr_matrix, a: FloatArray, w: float, edge: f
     still = defaults.muscle_plate_still * edge
     for _ in range(defaults.muscle_plate_sets):
         on = active.astype(np.float64)
-
-        def apply(x: FloatArray, on: FloatArray = on) -> FloatArray:
-            return bend(x) + w * (CT @ (on * (C @ x)))
-
         jacobi = 1.0 / (base + w * (C2.T @ on))
-        target, _ = spla.cg(
-            spla.LinearOperator((n, n), matvec=apply, dtype=np.float64),
-            w * (CT @ (on * a)),
-            x0=D,
-            rtol=1e-12,
-            maxiter=defaults.muscle_plate_iterations,
-            M=spla.LinearOperator((n, n), matvec=lambda x, j=jacobi: j * x, dtype=np.float64),
-        )
+        target = _plate_cg_kernel(
+            *csr, on, float(w), w * (CT @ (on * a)), D, jacobi,
+            defaults.muscle_plate_iterations, 1e-12,
+        )  # fmt: skip
         step = target - D
         slope = float(step @ bend(D) - w * (np.maximum(a - C @ D, 0.0) @ (C @ step)))
         t = 1.0
