@@ -117,7 +117,9 @@ KERNELS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("contact._finish", "_smooth", f"(int32[::1], int32[::1], {_A2}, {_I1}, int64, float64)"),
         # a contact step's deepest vertex per cage vertex
         ("solver._step", "_deepest_one_kernel", f"({_A1}, {_I1}, int64)"),
-        # a round's fine step as a thin plate: its conjugate gradients
+        # a round's fine step as a thin plate: its conjugate gradients (1.8 s to compile, a
+        # scratch `Dispatcher.compile` after two others on an empty cache; the helper's: its
+        # side took 13.2 s against the run's 15.7, `bench_first_run.py --sides`, 2026-12-04)
         ("contact._finish", "_plate_cg_kernel",
          f"({_I1}, {_I1}, {_A1}, {_I1}, {_I1}, {_A1}, {_I1}, {_I1}, {_A1}, {_I1}, {_I1}, {_A1}, "
          f"{_A1}, float64, {_A1}, {_A1}, {_A1}, int64, float64)"),

@@ -142,77 +142,74 @@ def _smooth(indptr, indices, D, rows, sweeps, keep):  # noqa: ANN001, ANN202 # p
 
 
 @numba.njit(cache=True)
+def _plate_product(  # noqa: PLR0913
+    up, ui, ud, tp, ti, td, cp, ci, cd, kp, ki, kd, on, w, v, tmp, cx, out
+):  # noqa: ANN001, ANN202 # pragma: no cover
+    # out = (I3 (x) Us^T Us + 1e-9) v + w C^T (on * C v), in the order scipy's products take
+    rows = up.shape[0] - 1
+    for r in range(rows):
+        s0 = s1 = s2 = 0.0
+        for p in range(up[r], up[r + 1]):
+            j = 3 * ui[p]
+            s0 += ud[p] * v[j]
+            s1 += ud[p] * v[j + 1]
+            s2 += ud[p] * v[j + 2]
+        tmp[3 * r], tmp[3 * r + 1], tmp[3 * r + 2] = s0, s1, s2
+    for c in range(cp.shape[0] - 1):
+        s = 0.0
+        for p in range(cp[c], cp[c + 1]):
+            s += cd[p] * v[ci[p]]
+        cx[c] = on[c] * s
+    for i in range(tp.shape[0] - 1):
+        s0 = s1 = s2 = 0.0
+        for p in range(tp[i], tp[i + 1]):
+            j = 3 * ti[p]
+            s0 += td[p] * tmp[j]
+            s1 += td[p] * tmp[j + 1]
+            s2 += td[p] * tmp[j + 2]
+        out[3 * i] = s0 + 1e-9 * v[3 * i]
+        out[3 * i + 1] = s1 + 1e-9 * v[3 * i + 1]
+        out[3 * i + 2] = s2 + 1e-9 * v[3 * i + 2]
+    for i in range(v.shape[0]):
+        s = 0.0
+        for p in range(kp[i], kp[i + 1]):
+            s += kd[p] * cx[ki[p]]
+        out[i] += w * s
+
+
+@numba.njit(cache=True)
 def _plate_cg_kernel(  # noqa: PLR0913
     up, ui, ud, tp, ti, td, cp, ci, cd, kp, ki, kd, on, w, b, x0, jac, maxiter, rtol
 ):  # noqa: ANN001, ANN202 # pragma: no cover
     # Jacobi-preconditioned conjugate gradients on (I3 (x) Us^T Us + 1e-9 + w C^T on C) x = b,
     # from x0, as scipy's `cg` iterates (its stop: |r| < rtol |b|); `_plate`'s matrix-free
-    # system, each product over the CSR arrays of Us (up, ui, ud), Us^T (tp, ...), C, C^T
+    # system, its products over the CSR arrays of Us (up, ui, ud), Us^T (tp, ...), C, C^T
     n = b.shape[0]
-    m = n // 3
-    rows = up.shape[0] - 1
-    k = cp.shape[0] - 1
     x = np.empty(n)
+    tmp = np.empty(3 * (up.shape[0] - 1))
+    cx = np.empty(cp.shape[0] - 1)
+    q = np.empty(n)
+    r = np.empty(n)
+    z = np.empty(n)
+    d = np.empty(n)
+    bnrm = 0.0
+    nonzero = False
     for i in range(n):
         x[i] = x0[i]
-    tmp = np.empty(3 * rows)
-    cx = np.empty(k)
-    q = np.empty(n)
-
-    def product(v, out):  # noqa: ANN001, ANN202
-        for r in range(rows):
-            s0 = s1 = s2 = 0.0
-            for p in range(up[r], up[r + 1]):
-                j = 3 * ui[p]
-                s0 += ud[p] * v[j]
-                s1 += ud[p] * v[j + 1]
-                s2 += ud[p] * v[j + 2]
-            tmp[3 * r], tmp[3 * r + 1], tmp[3 * r + 2] = s0, s1, s2
-        for c in range(k):
-            s = 0.0
-            for p in range(cp[c], cp[c + 1]):
-                s += cd[p] * v[ci[p]]
-            cx[c] = on[c] * s
-        for i in range(m):
-            s0 = s1 = s2 = 0.0
-            for p in range(tp[i], tp[i + 1]):
-                j = 3 * ti[p]
-                s0 += td[p] * tmp[j]
-                s1 += td[p] * tmp[j + 1]
-                s2 += td[p] * tmp[j + 2]
-            out[3 * i] = s0 + 1e-9 * v[3 * i]
-            out[3 * i + 1] = s1 + 1e-9 * v[3 * i + 1]
-            out[3 * i + 2] = s2 + 1e-9 * v[3 * i + 2]
-        for i in range(n):
-            s = 0.0
-            for p in range(kp[i], kp[i + 1]):
-                s += kd[p] * cx[ki[p]]
-            out[i] += w * s
-
-    bnrm = 0.0
-    for i in range(n):
         bnrm += b[i] * b[i]
-    bnrm = np.sqrt(bnrm)
+        nonzero = nonzero or x0[i] != 0.0
     if bnrm == 0.0:
         for i in range(n):
             x[i] = b[i]
         return x
-    atol = rtol * bnrm
-    r = np.empty(n)
-    nonzero = False
-    for i in range(n):
-        if x[i] != 0.0:
-            nonzero = True
-            break
+    atol = rtol * np.sqrt(bnrm)
     if nonzero:
-        product(x, q)
+        _plate_product(up, ui, ud, tp, ti, td, cp, ci, cd, kp, ki, kd, on, w, x, tmp, cx, q)
         for i in range(n):
             r[i] = b[i] - q[i]
     else:
         for i in range(n):
             r[i] = b[i]
-    z = np.empty(n)
-    p_ = np.empty(n)
     rho_prev = 1.0
     for it in range(maxiter):
         rn = 0.0
@@ -224,20 +221,16 @@ def _plate_cg_kernel(  # noqa: PLR0913
         for i in range(n):
             z[i] = jac[i] * r[i]
             rho += r[i] * z[i]
-        if it > 0:
-            beta = rho / rho_prev
-            for i in range(n):
-                p_[i] = beta * p_[i] + z[i]
-        else:
-            for i in range(n):
-                p_[i] = z[i]
-        product(p_, q)
-        pq = 0.0
+        beta = rho / rho_prev if it > 0 else 0.0
         for i in range(n):
-            pq += p_[i] * q[i]
-        alpha = rho / pq
+            d[i] = beta * d[i] + z[i] if it > 0 else z[i]
+        _plate_product(up, ui, ud, tp, ti, td, cp, ci, cd, kp, ki, kd, on, w, d, tmp, cx, q)
+        dq = 0.0
         for i in range(n):
-            x[i] += alpha * p_[i]
+            dq += d[i] * q[i]
+        alpha = rho / dq
+        for i in range(n):
+            x[i] += alpha * d[i]
             r[i] -= alpha * q[i]
         rho_prev = rho
     return x
