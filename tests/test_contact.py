@@ -950,3 +950,69 @@ def test_a_rounds_cage_step_holds_what_it_would_push_into_a_bone(capsule_muscle,
     got = d.contact_round(r.cage, r.V, rows, need, out, obstacles=far, margin=0.0)
     monkeypatch.setattr(steps, "defaults", dataclasses.replace(defaults, contact_round_held=0))
     assert np.array_equal(got[1], d.contact_round(r.cage, r.V, rows, need, out, obstacles=far)[1])
+
+
+@pytest.mark.parametrize("start", ["zero", "near"])
+def test_the_plates_compiled_iterations_are_scipys_conjugate_gradients(start):
+    # `_plate_cg_kernel` against scipy's `cg` on the same matrix-free plate system: the
+    # Laplacian rows of a capsule's region, one-sided pushes on some of its vertices
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from musclewrap.contact._finish import _plate_cg_kernel
+    from musclewrap.mesh import umbrella_laplacian
+
+    V, F = capsule(radius=8.0, length=40.0)
+    rng = np.random.default_rng(3)
+    U = umbrella_laplacian(F, len(V))
+    m = len(V) // 2
+    Us = U[np.arange(min(len(V), m + 100))][:, np.arange(m)].tocsr()
+    n, k, w = 3 * m, 30, 100.0
+    C = sp.csr_matrix(
+        (rng.normal(size=3 * k), (np.repeat(np.arange(k), 3), rng.integers(0, n, 3 * k))),
+        shape=(k, n),
+    )
+    a, on = rng.uniform(0.1, 1.0, k), (rng.uniform(size=k) > 0.3).astype(float)
+    UsT, CT = Us.T.tocsr(), C.T.tocsr()
+
+    def apply(x):
+        return (UsT @ (Us @ x.reshape(m, 3))).ravel() + 1e-9 * x + w * (CT @ (on * (C @ x)))
+
+    base = np.repeat(np.asarray(Us.multiply(Us).sum(axis=0)).ravel(), 3) + 1e-9
+    jac = 1.0 / (base + w * (C.multiply(C).T @ on))
+    b = w * (CT @ (on * a))
+    x0 = np.zeros(n) if start == "zero" else 0.01 * rng.normal(size=n)
+    ref, _ = spla.cg(
+        spla.LinearOperator((n, n), matvec=apply, dtype=float), b, x0=x0.copy(), rtol=1e-12,
+        maxiter=15, M=spla.LinearOperator((n, n), matvec=lambda x: jac * x, dtype=float),
+    )  # fmt: skip
+    csr = [
+        np.ascontiguousarray(arr, dtype=dt)
+        for M in (Us, UsT, C, CT)
+        for arr, dt in ((M.indptr, np.int64), (M.indices, np.int64), (M.data, np.float64))
+    ]
+    got = _plate_cg_kernel(*csr, on, w, b, x0, jac, 15, 1e-12)
+    assert np.abs(got - ref).max() <= 1e-10 * np.abs(ref).max()
+    assert np.abs(got - x0).max() > 1e-3 * np.abs(ref).max()  # it moved
+    # nothing pushed: the right side zero, the answer zero as scipy's
+    assert not _plate_cg_kernel(*csr, on, w, np.zeros(n), x0, jac, 15, 1e-12).any()
+
+
+def test_held_conditions_that_choose_as_before_do_not_count_as_changed():
+    from musclewrap.solver._step import held_changed
+
+    group = np.array([0, 0, 1, 1, 2])
+    N = np.tile([1.0, 0.0, 0.0], (2, 1))
+    before = (np.array([0, 2]), np.array([-0.5, -0.2]), N, np.array([-0.5, -0.2]))
+    assert held_changed(None, before, group)
+
+    def grown(row, rank):
+        return tuple(np.concatenate([x, y]) for x, y in zip(before, (
+            np.array([row]), np.array([rank]), np.array([[1.0, 0.0, 0.0]]), np.array([rank])
+        ), strict=True))  # fmt: skip
+
+    # beneath a deeper held condition of its cage vertex: the same choice
+    assert not held_changed(before, grown(1, -0.3), group)
+    # deeper than it, or on a cage vertex with none held yet: another step
+    assert held_changed(before, grown(1, -0.7), group)
+    assert held_changed(before, grown(4, -0.1), group)

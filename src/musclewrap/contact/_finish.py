@@ -142,39 +142,35 @@ def _smooth(indptr, indices, D, rows, sweeps, keep):  # noqa: ANN001, ANN202 # p
 
 
 @numba.njit(cache=True)
+def _rows3(indptr, indices, data, v, out):  # noqa: ANN001, ANN202 # pragma: no cover
+    # out = M v for the CSR matrix M on (rows, 3) arrays flattened, as scipy's product sums
+    for r in range(indptr.shape[0] - 1):
+        s0 = s1 = s2 = 0.0
+        for p in range(indptr[r], indptr[r + 1]):
+            j = 3 * indices[p]
+            s0 += data[p] * v[j]
+            s1 += data[p] * v[j + 1]
+            s2 += data[p] * v[j + 2]
+        out[3 * r], out[3 * r + 1], out[3 * r + 2] = s0, s1, s2
+
+
+@numba.njit(cache=True)
 def _plate_product(  # noqa: PLR0913
     up, ui, ud, tp, ti, td, cp, ci, cd, kp, ki, kd, on, w, v, tmp, cx, out
 ):  # noqa: ANN001, ANN202 # pragma: no cover
     # out = (I3 (x) Us^T Us + 1e-9) v + w C^T (on * C v), in the order scipy's products take
-    rows = up.shape[0] - 1
-    for r in range(rows):
-        s0 = s1 = s2 = 0.0
-        for p in range(up[r], up[r + 1]):
-            j = 3 * ui[p]
-            s0 += ud[p] * v[j]
-            s1 += ud[p] * v[j + 1]
-            s2 += ud[p] * v[j + 2]
-        tmp[3 * r], tmp[3 * r + 1], tmp[3 * r + 2] = s0, s1, s2
+    _rows3(up, ui, ud, v, tmp)
     for c in range(cp.shape[0] - 1):
         s = 0.0
         for p in range(cp[c], cp[c + 1]):
             s += cd[p] * v[ci[p]]
         cx[c] = on[c] * s
-    for i in range(tp.shape[0] - 1):
-        s0 = s1 = s2 = 0.0
-        for p in range(tp[i], tp[i + 1]):
-            j = 3 * ti[p]
-            s0 += td[p] * tmp[j]
-            s1 += td[p] * tmp[j + 1]
-            s2 += td[p] * tmp[j + 2]
-        out[3 * i] = s0 + 1e-9 * v[3 * i]
-        out[3 * i + 1] = s1 + 1e-9 * v[3 * i + 1]
-        out[3 * i + 2] = s2 + 1e-9 * v[3 * i + 2]
+    _rows3(tp, ti, td, tmp, out)
     for i in range(v.shape[0]):
         s = 0.0
         for p in range(kp[i], kp[i + 1]):
             s += kd[p] * cx[ki[p]]
-        out[i] += w * s
+        out[i] = out[i] + 1e-9 * v[i] + w * s
 
 
 @numba.njit(cache=True)
